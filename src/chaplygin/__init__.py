@@ -1,0 +1,24 @@
+"""chaplygin: equations of motion of nonholonomic systems, in both models of constrained motion."""
+
+from __future__ import annotations
+
+from . import examples
+from .equations import Equations
+from .equivalence import EquivalenceReport, equivalent
+from .integrability import IntegrabilityReport
+from .errors import ChaplyginError, ModelError, SystemDefinitionError
+from .system import System
+
+__all__ = [
+    "System",
+    "Equations",
+    "equivalent",
+    "EquivalenceReport",
+    "IntegrabilityReport",
+    "ChaplyginError",
+    "SystemDefinitionError",
+    "ModelError",
+    "examples",
+]
+
+__version__ = "0.1.0"

@@ -1,0 +1,221 @@
+"""The result of a derivation: equations, mass matrix, forcing and solved accelerations."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+from sympy.physics.vector.printing import vsstrrepr
+
+from ._symbols import simplify_small
+from .errors import ModelError
+
+if TYPE_CHECKING:
+    from .system import System
+
+__all__ = ["Equations", "MODELS", "FORMS"]
+
+#: Models and the forms each one has.
+MODELS: dict[str, tuple[str, ...]] = {
+    "chetaev": ("classic",),
+    "chaplygin": ("classic", "new"),
+    "voronets": ("classic", "new"),
+}
+FORMS = ("classic", "new")
+
+_TITLES = {
+    ("chetaev", "classic"): "Chetaev model: Lagrange–d'Alembert equations with multipliers, eq. (6)/(35)",
+    ("chaplygin", "classic"): "Chaplygin's equations, eq. (15)",
+    ("chaplygin", "new"): "Chaplygin's equations, the paper's new form (40)",
+    ("voronets", "classic"): "Voronets' equations",
+    ("voronets", "new"): "Voronets' equations in the unreduced form (40) generalised",
+}
+
+
+def tidy(expr: sp.Expr) -> sp.Expr:
+    """Predictable tidying of a derived expression (no full ``simplify``)."""
+    return simplify_small(sp.cancel(sp.expand(expr)))
+
+
+def readable(expr: sp.Expr, unknowns: Sequence[sp.Symbol]) -> sp.Expr:
+    """Collect ``expr`` in the unknowns and simplify each coefficient (for display)."""
+    parts = sp.collect(sp.expand(expr), list(unknowns), evaluate=False)
+    out = sp.S.Zero
+    for key, coeff in parts.items():
+        out += simplify_small(coeff) * key
+    return out
+
+
+class Equations:
+    """Equations of motion of one model, with the linear system ``M·x = F`` they form.
+
+    Attributes
+    ----------
+    system : System
+        The system they were derived for.
+    model, form : str
+        As passed to :meth:`System.equations`.
+    unknowns : tuple
+        ``x``: second derivatives of the coordinates (and the multipliers
+        ``λ_β(t)`` for the Chetaev model), in this order.
+    multipliers : tuple
+        The multipliers as dynamicsymbols (empty for reduced models).
+
+    Notes
+    -----
+    Expressions use the system's dynamicsymbols: ``q``, ``q.diff(t)``,
+    ``q.diff(t, 2)``.  For reduced models the dependent velocities are already
+    eliminated by the constraints (the paper's tilde).
+    """
+
+    def __init__(
+        self,
+        system: System,
+        model: str,
+        form: str,
+        residuals: Sequence[sp.Expr],
+        unknowns: Sequence[sp.Symbol],
+        mass_matrix: sp.Matrix,
+        forcing: sp.Matrix,
+        solve: Callable[[], dict[sp.Symbol, sp.Expr]],
+        multipliers: Sequence[sp.Symbol] = (),
+    ) -> None:
+        self.system = system
+        self.model = model
+        self.form = form
+        self._residuals = list(residuals)
+        self._unknowns = list(unknowns)
+        self._M = mass_matrix
+        self._F = forcing
+        self._solve = solve
+        self._multipliers = list(multipliers)
+        self._to_fun = dict(system._to_fun)
+        for lam in self._multipliers:
+            self._to_fun[lam] = dynamicsymbols(lam.name)
+
+    @property
+    def title(self) -> str:
+        """A one-line description with the paper's equation number."""
+        return _TITLES[(self.model, self.form)]
+
+    def _user(self, expr: sp.Expr) -> sp.Expr:
+        return expr.xreplace(self._to_fun)
+
+    @cached_property
+    def equations(self) -> list[sp.Eq]:
+        """The equations of motion, each as ``sympy.Eq(expression, 0)``."""
+        return [
+            sp.Eq(self._user(readable(r, self._unknowns)), 0, evaluate=False)
+            for r in self._residuals
+        ]
+
+    @property
+    def unknowns(self) -> tuple[sp.Expr, ...]:
+        return tuple(self._user(u) for u in self._unknowns)
+
+    @property
+    def multipliers(self) -> tuple[sp.Expr, ...]:
+        return tuple(self._user(m) for m in self._multipliers)
+
+    @property
+    def mass_matrix(self) -> sp.Matrix:
+        """``M`` of ``M·x = F`` in the model's unknowns :attr:`unknowns`."""
+        return self._user(self._M)
+
+    @property
+    def forcing(self) -> sp.Matrix:
+        """``F`` of ``M·x = F`` in the model's unknowns :attr:`unknowns`."""
+        return self._user(self._F)
+
+    @cached_property
+    def _accelerations(self) -> dict[sp.Symbol, sp.Expr]:
+        return self._solve()
+
+    @property
+    def accelerations(self) -> dict[sp.Expr, sp.Expr]:
+        """The solved unknowns: ``{q.diff(t, 2): expression, λ(t): expression}``.
+
+        Computed on first access (a symbolic solve of a small system).
+        """
+        return {self._user(k): self._user(v) for k, v in self._accelerations.items()}
+
+    # -------------------------------------------------------------- constraint forces
+    def constraint_forces(self) -> dict[sp.Expr, sp.Expr]:
+        """Generalized constraint forces ``R_s`` of a multiplier model, eq. (7).
+
+        Convention: ``E_s(T) = Q_s + R_s`` (the reaction acts beside the applied
+        forces; the paper's R of eq. (7) is ``−R_s``).
+        """
+        from .chetaev import constraint_forces
+
+        self._require_multipliers("constraint_forces")
+        return constraint_forces(self)
+
+    def virtual_work(self, *, chetaev_condition: bool = True) -> sp.Expr:
+        """Virtual work ``Σ_s R_s δq_s`` of the constraint forces, eqs. (8)-(9).
+
+        With ``chetaev_condition=True`` the displacements ``δq_s`` (symbols
+        ``δq``) satisfy Chetaev's condition (4); for the Chetaev model the
+        result is then 0 (ideal constraints).
+        """
+        from .chetaev import virtual_work
+
+        self._require_multipliers("virtual_work")
+        return virtual_work(self, chetaev_condition=chetaev_condition)
+
+    def _require_multipliers(self, what: str) -> None:
+        if not self._multipliers:
+            raise ModelError(
+                f"{what} needs the multiplier form of the model; the {self.model!r} equations "
+                "have the multipliers eliminated. Use system.equations('chetaev')."
+            )
+
+    # -------------------------------------------------------------- printing
+    def __str__(self) -> str:
+        lines = [f"{self.title} — {self.system.name}"]
+        lines += [f"  {vsstrrepr(e.lhs)} = 0" for e in self.equations]
+        return "\n".join(lines)
+
+    def pretty(self) -> str:
+        """A multi-line Unicode rendering, one equation after another."""
+        from sympy.physics.vector.printing import VectorPrettyPrinter
+
+        printer = VectorPrettyPrinter({"use_unicode": True, "wrap_line": False})
+        body = "\n\n".join(printer.doprint(e) for e in self.equations)
+        return f"{self.title} — {self.system.name}\n\n{body}"
+
+    def latex(self) -> str:
+        """LaTeX of the equations, with dots for time derivatives."""
+        from sympy.physics.vector.printing import vlatex
+
+        rows = r" \\ ".join(vlatex(e) for e in self.equations)
+        return r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"
+
+    def _repr_latex_(self) -> str:
+        return f"$\\displaystyle {self.latex()}$"
+
+    def __repr__(self) -> str:
+        return f"<Equations {self.model}/{self.form} of {self.system.name}: {len(self._residuals)} equations>"
+
+
+def derive(system: System, model: str, form: str) -> Equations:
+    """Derive the equations of ``model`` in ``form`` (dispatcher for :meth:`System.equations`)."""
+    if model not in MODELS:
+        raise ModelError(
+            f"unknown model {model!r}; the models are {', '.join(repr(m) for m in MODELS)}."
+        )
+    if form not in MODELS[model]:
+        raise ModelError(
+            f"model {model!r} has no form {form!r}; its forms are "
+            f"{', '.join(repr(f) for f in MODELS[model])}."
+        )
+    if model == "chetaev":
+        from .chetaev import chetaev_equations
+
+        return chetaev_equations(system)
+    from .reduced import reduced_equations
+
+    return reduced_equations(system, model, form)

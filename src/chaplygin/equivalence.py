@@ -1,0 +1,269 @@
+"""Decide whether two sets of equations of motion are the same dynamics on the constraints.
+
+Two sets of equations describe the same motion when, at every state that
+satisfies the constraints, they give the same accelerations of the
+independent coordinates.  :func:`equivalent` first tries to prove this
+symbolically (for small expressions), then evaluates both at many random
+admissible states and reports the largest relative difference.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Union
+
+import numpy as np
+import sympy as sp
+
+from ._sampling import StateSampler, compile_function, parameter_values
+from ._symbols import TIME, functions_of_time, total_derivative
+from .equations import Equations
+from .errors import ChaplyginError
+
+if TYPE_CHECKING:
+    from .system import System
+
+__all__ = ["equivalent", "EquivalenceReport", "EquationsLike"]
+
+EquationsLike = Union[Equations, Sequence[Any], Mapping[Any, Any]]
+
+_SYMBOLIC_MAX_OPS = 600
+
+
+@dataclass
+class EquivalenceReport:
+    """Outcome of :func:`equivalent`; true in a boolean context when equivalent.
+
+    Attributes
+    ----------
+    equivalent : bool
+    method : str
+        ``"symbolic"`` (proved by simplification) or ``"numeric"`` (random
+        admissible states).
+    max_residual : float
+        Largest relative difference ``|a − b| / max(1, |a|, |b|)`` of an
+        independent acceleration over the samples (0.0 when proved symbolically).
+    samples : int
+        Number of admissible states evaluated.
+    worst : dict
+        The acceleration and state where the largest difference was seen.
+    """
+
+    equivalent: bool
+    method: str
+    max_residual: float
+    samples: int
+    tolerance: float
+    worst: dict[str, Any] = field(default_factory=dict)
+
+    def __bool__(self) -> bool:
+        return self.equivalent
+
+    def __str__(self) -> str:
+        verdict = "equivalent" if self.equivalent else "NOT equivalent"
+        if self.method == "symbolic":
+            return f"{verdict} (proved symbolically)"
+        text = (
+            f"{verdict}: largest relative difference {self.max_residual:.3g} over "
+            f"{self.samples} random admissible states (tolerance {self.tolerance:g})"
+        )
+        if not self.equivalent and self.worst:
+            text += f"; worst at {self.worst['acceleration']}"
+        return text
+
+
+class _Linear:
+    """Equations reduced to ``M(state)·x = F(state)`` in internal symbols."""
+
+    def __init__(self, system: System, eqs: EquationsLike, label: str) -> None:
+        self.system = system
+        v = system._vars
+        self.extra_state: list[sp.Symbol] = []
+        if isinstance(eqs, Equations):
+            if eqs.system is not system:
+                raise ChaplyginError(f"{label}: these equations were derived for another system.")
+            self.unknowns = list(eqs._unknowns)
+            self.M, self.F = eqs._M, eqs._F
+            self.symbolic = eqs
+            return
+        self.symbolic = None
+        if isinstance(eqs, Mapping):
+            rows = [sp.Eq(k, val) for k, val in eqs.items()]
+        elif isinstance(eqs, (str, sp.Basic)) or not isinstance(eqs, Sequence):
+            raise ChaplyginError(
+                f"{label}: expected an Equations object, a list of equations (sympy.Eq or "
+                "expressions equal to zero) or a mapping {q.diff(t, 2): expression}."
+            )
+        else:
+            rows = list(eqs)
+        exprs = []
+        for k, row in enumerate(rows):
+            if isinstance(row, sp.Eq):
+                exprs.append(row.lhs - row.rhs)
+            elif isinstance(row, sp.Expr):
+                exprs.append(row)
+            else:
+                raise ChaplyginError(f"{label}[{k}]: {row!r} is not a SymPy equation or expression.")
+        to_sym = dict(system._to_sym)
+        multipliers = []
+        others = set().union(*(functions_of_time(e) for e in exprs)) - set(system.coordinates)
+        for f in sorted(others, key=str):
+            to_sym[f] = sp.Dummy(f.func.__name__)
+            if any(e.has(f.diff(TIME)) for e in exprs):  # μ(t) with μ̇: μ is state, μ̇ unknown
+                to_sym[f.diff(TIME)] = sp.Dummy(f.func.__name__ + "_d")
+                self.extra_state.append(to_sym[f])
+                multipliers.append(to_sym[f.diff(TIME)])
+            else:  # λ(t) alone: an unknown like the accelerations
+                multipliers.append(to_sym[f])
+        converted = [e.xreplace(to_sym) for e in exprs]
+        leftover = [d for e in converted for d in e.atoms(sp.Derivative)]
+        if leftover:
+            raise ChaplyginError(f"{label}: cannot interpret {sp.sstr(leftover[0])}.")
+        unknowns = [a for a in v.xdd if any(e.has(a) for e in converted)] + multipliers
+        res = sp.Matrix(converted)
+        self.unknowns = unknowns
+        self.M = res.jacobian(unknowns)
+        if any(e.has(*unknowns) for e in self.M):
+            raise ChaplyginError(
+                f"{label}: the equations are not linear in the accelerations and multipliers."
+            )
+        self.F = -res.xreplace({u: 0 for u in unknowns})
+        extra = (self.M.free_symbols | self.F.free_symbols) - set(system.parameters) - {
+            TIME, *v.x, *v.xd, *v.xdd, *unknowns, *self.extra_state
+        }
+        if extra:
+            raise ChaplyginError(
+                f"{label}: unknown symbol(s) {', '.join(sorted(map(str, extra)))}; the system's "
+                f"parameters are {', '.join(p.name for p in system.parameters) or 'none'}."
+            )
+
+    def compile(self, state_symbols: list[sp.Symbol]) -> None:
+        s, v = self.system, self.system._vars
+        M, F = self.M, self.F
+        dep_unknown = [v.xdd[i] for i in s._dep if v.xdd[i] in self.unknowns]
+        if dep_unknown:  # add the differentiated constraints q̈_dep = B q̈_σ + Ḃ q̇_σ + Ḃ_0
+            pairs = list(zip(v.x, v.xd)) + [(v.xd[i], v.xdd[i]) for i in s._ind]
+            extra_unknowns = [v.xdd[i] for i in s._ind if v.xdd[i] not in self.unknowns]
+            self.unknowns = self.unknowns + extra_unknowns
+            M = M.row_join(sp.zeros(M.rows, len(extra_unknowns)))
+            for b, i in enumerate(s._dep):
+                rhs = s._velocity_substitution[v.xd[i]]
+                row = v.xdd[i] - total_derivative(rhs, pairs)
+                M = M.col_join(sp.Matrix([row]).jacobian(self.unknowns))
+                F = F.col_join(sp.Matrix([-row.xreplace({a: 0 for a in v.xdd})]))
+        args = state_symbols + self.extra_state
+        self._f = compile_function([M, F], args)
+        self.index = {u: k for k, u in enumerate(self.unknowns)}
+
+    def accelerations(self, values: list[float], extra: list[float]) -> np.ndarray | None:
+        with np.errstate(all="ignore"):
+            M, F = self._f(*values, *extra)
+        M = np.atleast_2d(np.asarray(M, dtype=float))
+        F = np.asarray(F, dtype=float).reshape(-1)
+        if not (np.all(np.isfinite(M)) and np.all(np.isfinite(F))):
+            return None
+        x, _, rank, _ = np.linalg.lstsq(M, F, rcond=None)
+        if rank < M.shape[1]:
+            raise ChaplyginError(
+                "the equations do not determine all of "
+                + ", ".join(sp.sstr(self.system.to_user(u)) for u in self.unknowns)
+                + " at a random admissible state."
+            )
+        if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, np.linalg.norm(F)):
+            raise ChaplyginError("the equations are inconsistent at a random admissible state.")
+        return x
+
+
+def _symbolic_proof(system: System, a: _Linear, b: _Linear) -> bool:
+    if a.symbolic is None or b.symbolic is None:
+        return False
+    sub = system._velocity_substitution
+    for acc in (system._vars.xdd[i] for i in system._ind):
+        ea, eb = a.symbolic._accelerations.get(acc), b.symbolic._accelerations.get(acc)
+        if ea is None or eb is None:
+            return False
+        diff = (ea - eb).xreplace(sub)
+        if sp.count_ops(diff) > _SYMBOLIC_MAX_OPS:
+            return False
+        if sp.trigsimp(sp.cancel(sp.expand(diff))) != 0:
+            return False
+    return True
+
+
+def equivalent(
+    system: System,
+    first: EquationsLike,
+    second: EquationsLike,
+    *,
+    parameters: Mapping[Any, float] | None = None,
+    samples: int = 24,
+    tolerance: float = 1e-8,
+    seed: int = 0,
+    symbolic: bool = True,
+) -> EquivalenceReport:
+    """Are ``first`` and ``second`` the same dynamics on the constraint manifold?
+
+    Parameters
+    ----------
+    system : System
+    first, second : Equations, list of sympy.Eq or expressions, or mapping
+        Equations of motion written with the system's dynamicsymbols: an
+        :class:`Equations` object, a list of equations (expressions are taken
+        ``= 0``; multipliers such as ``λ(t)`` may appear and are eliminated), or a
+        mapping ``{q.diff(t, 2): expression}`` of solved accelerations.
+        Equations that contain dependent accelerations are completed with the
+        differentiated constraints.
+    parameters : mapping, optional
+        Numeric values of (some) parameters; the others are drawn at random.
+    samples : int
+        Number of random admissible states.
+    tolerance : float
+        Largest relative difference accepted.
+    seed : int
+        Seed of the random states (the check is reproducible).
+    symbolic : bool
+        Try a symbolic proof first (for small expressions).
+
+    Returns
+    -------
+    EquivalenceReport
+    """
+    a, b = _Linear(system, first, "first"), _Linear(system, second, "second")
+    if symbolic and not parameters and _symbolic_proof(system, a, b):
+        return EquivalenceReport(True, "symbolic", 0.0, 0, tolerance)
+    rng = np.random.default_rng(seed)
+    params = parameter_values(system, rng, parameters)
+    sampler = StateSampler(system, params)
+    v = system._vars
+    state_symbols = [TIME, *v.x, *v.xd, *params]
+    a.compile(state_symbols)
+    b.compile(state_symbols)
+    extra_names = sorted({s.name for s in a.extra_state + b.extra_state})
+    watched = [v.xdd[i] for i in system._ind]
+    worst: dict[str, Any] = {}
+    max_res, used, tries = 0.0, 0, 0
+    while used < samples and tries < 20 * samples:
+        tries += 1
+        state = sampler.draw(rng)
+        values = [state[s] for s in state_symbols]
+        extra = dict(zip(extra_names, rng.uniform(-1, 1, size=len(extra_names))))
+        xa = a.accelerations(values, [extra[s.name] for s in a.extra_state])
+        xb = b.accelerations(values, [extra[s.name] for s in b.extra_state])
+        if xa is None or xb is None:
+            continue
+        used += 1
+        for acc in watched:
+            va, vb = xa[a.index[acc]], xb[b.index[acc]]
+            res = abs(va - vb) / max(1.0, abs(va), abs(vb))
+            if res > max_res:
+                max_res = res
+                worst = {
+                    "acceleration": sp.sstr(system.to_user(acc)),
+                    "first": float(va),
+                    "second": float(vb),
+                    "state": {sp.sstr(system.to_user(k)): val for k, val in state.items()},
+                }
+    if used == 0:
+        raise ChaplyginError("no random admissible state gave finite values for both sets of equations.")
+    return EquivalenceReport(max_res <= tolerance, "numeric", max_res, used, tolerance, worst)

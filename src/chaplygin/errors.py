@@ -1,0 +1,21 @@
+"""Exceptions raised by chaplygin.
+
+Every error a user can provoke with bad input is a :class:`ChaplyginError`
+whose message names the offending item and says what would be accepted.
+"""
+
+from __future__ import annotations
+
+__all__ = ["ChaplyginError", "SystemDefinitionError", "ModelError"]
+
+
+class ChaplyginError(Exception):
+    """Base class of every error raised on purpose by chaplygin."""
+
+
+class SystemDefinitionError(ChaplyginError, ValueError):
+    """The description of a mechanical system is invalid."""
+
+
+class ModelError(ChaplyginError, ValueError):
+    """A model or form was asked for that does not apply to the system."""

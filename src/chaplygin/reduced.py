@@ -1,0 +1,156 @@
+"""Reduced equations of the Chetaev model: Chaplygin (15), the new form (40), Voronets.
+
+Only the ε independent accelerations are unknown; the dependent velocities
+(and accelerations) are eliminated by the constraints — the paper's tilde.
+With ``D_σ F = ∂F/∂q_σ + Σ_α B_ασ ∂F/∂q_{ε+α}`` and
+``p_β = (∂T/∂q̇_{ε+β})~``, Voronets' equations read::
+
+    d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ + Σ_β p_β W_βσ = 0,
+    W_βσ = Σ_γ (D_σ B_βγ − D_γ B_βσ) q̇_γ + D_σ B_β0 − ∂_t B_βσ − Σ_α B_α0 ∂B_βσ/∂q_{ε+α},
+    Q̃_σ = Q_σ + Σ_β B_βσ Q_{ε+β}.
+
+For a Chaplygin system (nothing depends on ``q_{ε+β}``) ``D_σ = ∂/∂q_σ`` and
+this is Chaplygin's eq. (15).  The affine terms in ``W`` (from ``B_β0`` and
+explicit time) extend (15) to Voronets' rheonomic case.
+
+The "new" form, eq. (40), differentiates the unreduced T and substitutes after::
+
+    [E_σ(T) − Q_σ]~ + Σ_β B_βσ [E_{ε+β}(T) − Q_{ε+β}]~ = 0
+
+(for a Chaplygin system ``E_{ε+β}(T) = d/dt ∂T/∂q̇_{ε+β}`` as printed in (40));
+it is the multiplier system (6) with λ eliminated through (10).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import sympy as sp
+
+from ._symbols import TIME, total_derivative
+from .equations import Equations, tidy
+from .errors import ModelError
+
+if TYPE_CHECKING:
+    from .system import System
+
+__all__ = ["reduced_equations", "bracket_terms"]
+
+
+class _Reduction:
+    """Shared pieces of every reduced form: substitutions, D_σ, d/dt on the constraints."""
+
+    def __init__(self, system: System) -> None:
+        self.s = system
+        v = system._vars
+        self.ind_x = [v.x[i] for i in system._ind]
+        self.ind_xd = [v.xd[i] for i in system._ind]
+        self.ind_xdd = [v.xdd[i] for i in system._ind]
+        self.dep_x = [v.x[i] for i in system._dep]
+        self.dep_xd = [v.xd[i] for i in system._dep]
+        self.sub = system._velocity_substitution
+        self.eps = len(self.ind_x)
+        #: (x, ẋ) pairs of the total time derivative on the constraint manifold
+        self.pairs = (
+            list(zip(self.ind_x, self.ind_xd))
+            + [(x, self.sub[xd]) for x, xd in zip(self.dep_x, self.dep_xd)]
+            + list(zip(self.ind_xd, self.ind_xdd))
+        )
+
+    def dt(self, expr: sp.Expr) -> sp.Expr:
+        """Total time derivative along motions that satisfy the constraints."""
+        return total_derivative(expr, self.pairs)
+
+    def D(self, expr: sp.Expr, k: int) -> sp.Expr:
+        """Voronets' derivative ``D_σ F = ∂F/∂q_σ + Σ_α B_ασ ∂F/∂q_{ε+α}``."""
+        out = sp.diff(expr, self.ind_x[k])
+        for a, x in enumerate(self.dep_x):
+            if expr.has(x):
+                out += self.s._B[a, k] * sp.diff(expr, x)
+        return out
+
+    def reduced_force(self, k: int) -> sp.Expr:
+        """``Q̃_σ = (Q_σ + Σ_β B_βσ Q_{ε+β})~``."""
+        s = self.s
+        q = s._Q[s._ind[k]] + sum(
+            (s._B[b, k] * s._Q[i] for b, i in enumerate(s._dep)), sp.S.Zero
+        )
+        return q.xreplace(self.sub)
+
+
+def bracket_terms(system: System) -> list[list[sp.Expr]]:
+    """``W_βσ`` of Voronets' equations (internal symbols), indexed ``[β][σ]``.
+
+    ``W_βσ`` is linear in the independent velocities; its coefficients are the
+    dependent components of the Lie brackets of the constraint distribution
+    (see :mod:`chaplygin.integrability`), so ``W ≡ 0`` exactly when the
+    constraints are integrable.
+    """
+    r = _Reduction(system)
+    B, B0 = system._B, system._B0
+    out = []
+    for b in range(system.g):
+        row = []
+        for k in range(r.eps):
+            w = sum(
+                ((r.D(B[b, c], k) - r.D(B[b, k], c)) * r.ind_xd[c] for c in range(r.eps)),
+                sp.S.Zero,
+            )
+            w += r.D(B0[b], k) - sp.diff(B[b, k], TIME)
+            w -= sum((B0[a] * sp.diff(B[b, k], x) for a, x in enumerate(r.dep_x)), sp.S.Zero)
+            row.append(w)
+        out.append(row)
+    return out
+
+
+def _classic(system: System, r: _Reduction) -> list[sp.Expr]:
+    """Voronets' equations; Chaplygin's (15) for a Chaplygin system."""
+    Tt = system._T_reduced
+    W = bracket_terms(system)
+    p = [sp.diff(system._T, xd).xreplace(r.sub) for xd in r.dep_xd]
+    out = []
+    for k in range(r.eps):
+        res = r.dt(sp.diff(Tt, r.ind_xd[k])) - r.D(Tt, k) - r.reduced_force(k)
+        res += sum((p[b] * W[b][k] for b in range(system.g)), sp.S.Zero)
+        out.append(res)
+    return out
+
+
+def _new(system: System, r: _Reduction) -> list[sp.Expr]:
+    """The unreduced form (40): differentiate T first, substitute the constraints after."""
+    from .chetaev import lagrange_operator
+
+    v = system._vars
+    E = lagrange_operator(system)
+    acc = {v.xdd[i]: r.dt(r.sub[v.xd[i]]) for i in system._dep}
+    tilde = {**r.sub, **acc}
+    rows = [(E[s] - system._Q[s]).xreplace(tilde) for s in range(system.n)]
+    out = []
+    for k, i in enumerate(system._ind):
+        res = rows[i] + sum(
+            (system._B[b, k] * rows[j] for b, j in enumerate(system._dep)), sp.S.Zero
+        )
+        out.append(res)
+    return out
+
+
+def reduced_equations(system: System, model: str, form: str) -> Equations:
+    """Chaplygin's or Voronets' equations in the classic or new form."""
+    if model == "chaplygin" and not system.is_chaplygin:
+        raise ModelError(
+            f"{system.name} is not a Chaplygin system ("
+            + "; ".join(system.chaplygin_obstructions)
+            + "), so Chaplygin's equations (15) do not apply. Use model='voronets', "
+            "which allows T, U and B to depend on the dependent coordinates."
+        )
+    r = _Reduction(system)
+    residuals = (_classic if form == "classic" else _new)(system, r)
+    res = sp.Matrix(residuals)
+    M = res.jacobian(r.ind_xdd)
+    F = -res.xreplace({a: 0 for a in r.ind_xdd})
+
+    def solve() -> dict[sp.Symbol, sp.Expr]:
+        sol = M.applyfunc(tidy).LUsolve(F.applyfunc(tidy))
+        return {a: tidy(e) for a, e in zip(r.ind_xdd, sol)}
+
+    return Equations(system, model, form, residuals, r.ind_xdd, M, F, solve)
