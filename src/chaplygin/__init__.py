@@ -8,6 +8,7 @@ from .equivalence import EquivalenceReport, equivalent
 from .integrability import IntegrabilityReport
 from .errors import ChaplyginError, ModelError, SystemDefinitionError
 from .system import System
+from .transitions import Classification, ModelComparison, classify, compare_models
 
 __all__ = [
     "System",
@@ -15,6 +16,10 @@ __all__ = [
     "equivalent",
     "EquivalenceReport",
     "IntegrabilityReport",
+    "compare_models",
+    "ModelComparison",
+    "classify",
+    "Classification",
     "ChaplyginError",
     "SystemDefinitionError",
     "ModelError",

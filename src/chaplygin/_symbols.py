@@ -54,15 +54,14 @@ class Vars:
 def total_derivative(
     expr: sp.Expr,
     pairs: Iterable[tuple[sp.Symbol, sp.Expr]],
-    *,
-    explicit_time: bool = True,
 ) -> sp.Expr:
     """Total time derivative ``∂_t F + Σ ∂F/∂x · ẋ`` for the given ``(x, ẋ)`` pairs."""
-    out = sp.diff(expr, TIME) if explicit_time and expr.has(TIME) else sp.S.Zero
-    for x, xdot in pairs:
-        if xdot != 0 and expr.has(x):
-            out += sp.diff(expr, x) * xdot
-    return out
+    from ._fast import total_derivative as fast
+
+    pairs = [(x, xd) for x, xd in pairs if expr.has(x)]
+    if not pairs and not expr.has(TIME):
+        return sp.S.Zero
+    return fast(expr, pairs, TIME)
 
 
 def linear_coefficients(
@@ -96,11 +95,18 @@ def other_undefined(expr: sp.Expr) -> set[sp.Expr]:
     return {f for f in expr.atoms(AppliedUndef) if f.args != (TIME,)}
 
 
-_TRIGSIMP_MAX_OPS = 300  # larger expressions are only factored, to keep display fast
+_TRIGSIMP_MAX_OPS = 120  # larger expressions are only factored, to keep display fast
 
 
 def simplify_small(expr: sp.Expr) -> sp.Expr:
-    """``trigsimp`` + ``factor_terms`` for small expressions; ``factor_terms`` only otherwise."""
-    if sp.count_ops(expr) <= _TRIGSIMP_MAX_OPS:
+    """``factor_terms``, after ``trigsimp`` for small expressions with squared sines or cosines.
+
+    ``trigsimp`` is slow; it only pays off where ``sin² + cos² = 1`` can apply.
+    """
+    squares = any(
+        isinstance(p.base, (sp.sin, sp.cos)) and p.exp.is_number and abs(p.exp) >= 2
+        for p in expr.atoms(sp.Pow)
+    )
+    if squares and sp.count_ops(expr) <= _TRIGSIMP_MAX_OPS:
         expr = sp.trigsimp(expr)
     return sp.factor_terms(expr)

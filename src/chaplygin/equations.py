@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -10,7 +10,7 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
-from ._symbols import simplify_small
+from ._symbols import TIME, simplify_small
 from .errors import ModelError
 
 if TYPE_CHECKING:
@@ -23,20 +23,33 @@ MODELS: dict[str, tuple[str, ...]] = {
     "chetaev": ("classic",),
     "chaplygin": ("classic", "new"),
     "voronets": ("classic", "new"),
+    "vakonomic": ("classic",),
+    "lindelof": ("classic", "new"),
+    "vakonomic_family": ("classic", "new"),
 }
 FORMS = ("classic", "new")
 
 _TITLES = {
-    ("chetaev", "classic"): "Chetaev model: Lagrange–d'Alembert equations with multipliers, eq. (6)/(35)",
+    ("chetaev", "classic"): "Chetaev model: Lagrange-d'Alembert equations with multipliers, eq. (6)/(35)",
     ("chaplygin", "classic"): "Chaplygin's equations, eq. (15)",
-    ("chaplygin", "new"): "Chaplygin's equations, the paper's new form (40)",
+    ("chaplygin", "new"): "Chaplygin's equations in the paper's new form, eq. (40)",
     ("voronets", "classic"): "Voronets' equations",
-    ("voronets", "new"): "Voronets' equations in the unreduced form (40) generalised",
+    ("voronets", "new"): "Voronets' equations in the unreduced form of eq. (40), generalised",
+    ("vakonomic", "classic"): "Vakonomic model: equations with multipliers mu, eqs. (17)-(18)",
+    ("lindelof", "classic"): "Lindelof's equations (vakonomic, c = 0), eq. (22)",
+    ("lindelof", "new"): "Lindelof's equations in the paper's new form, eq. (39)",
+    ("vakonomic_family", "classic"): "Reduced vakonomic family with constants c (c = 0: eq. (22))",
+    ("vakonomic_family", "new"): "Reduced vakonomic family in the form of eq. (39) with constants c",
 }
 
 
+_TIDY_MAX_OPS = 400  # expanding and cancelling larger expressions costs more than it saves
+
+
 def tidy(expr: sp.Expr) -> sp.Expr:
-    """Predictable tidying of a derived expression (no full ``simplify``)."""
+    """Predictable tidying of a derived expression (no full ``simplify``); big ones stay as they are."""
+    if sp.count_ops(expr) > _TIDY_MAX_OPS:
+        return expr
     return simplify_small(sp.cancel(sp.expand(expr)))
 
 
@@ -81,7 +94,11 @@ class Equations:
         mass_matrix: sp.Matrix,
         forcing: sp.Matrix,
         solve: Callable[[], dict[sp.Symbol, sp.Expr]],
+        *,
         multipliers: Sequence[sp.Symbol] = (),
+        derivatives: Mapping[sp.Symbol, sp.Symbol] | None = None,
+        reactions: Sequence[sp.Expr] | None = None,
+        constants: Sequence[sp.Symbol] = (),
     ) -> None:
         self.system = system
         self.model = model
@@ -92,9 +109,15 @@ class Equations:
         self._F = forcing
         self._solve = solve
         self._multipliers = list(multipliers)
+        self._reactions = None if reactions is None else list(reactions)
+        #: multipliers that are state variables (their derivatives are unknowns)
+        self._state = list((derivatives or {}).keys())
         self._to_fun = dict(system._to_fun)
         for lam in self._multipliers:
             self._to_fun[lam] = dynamicsymbols(lam.name)
+        for mu, mu_dot in (derivatives or {}).items():
+            self._to_fun[mu_dot] = self._to_fun[mu].diff(TIME)
+        self.constants: tuple[sp.Symbol, ...] = tuple(constants)
 
     @property
     def title(self) -> str:
@@ -120,14 +143,14 @@ class Equations:
     def multipliers(self) -> tuple[sp.Expr, ...]:
         return tuple(self._user(m) for m in self._multipliers)
 
-    @property
+    @cached_property
     def mass_matrix(self) -> sp.Matrix:
-        """``M`` of ``M·x = F`` in the model's unknowns :attr:`unknowns`."""
+        """``M`` of ``M·x = F`` in the model's unknowns :attr:`unknowns` (not simplified)."""
         return self._user(self._M)
 
-    @property
+    @cached_property
     def forcing(self) -> sp.Matrix:
-        """``F`` of ``M·x = F`` in the model's unknowns :attr:`unknowns`."""
+        """``F`` of ``M·x = F`` in the model's unknowns :attr:`unknowns` (not simplified)."""
         return self._user(self._F)
 
     @cached_property
@@ -144,48 +167,55 @@ class Equations:
 
     # -------------------------------------------------------------- constraint forces
     def constraint_forces(self) -> dict[sp.Expr, sp.Expr]:
-        """Generalized constraint forces ``R_s`` of a multiplier model, eq. (7).
+        """Generalized constraint forces ``R_s`` of a multiplier model.
 
-        Convention: ``E_s(T) = Q_s + R_s`` (the reaction acts beside the applied
-        forces; the paper's R of eq. (7) is ``−R_s``).
+        Chetaev: ``R_s = Σ_β λ_β A_βs``, eq. (7); vakonomic: eq. (23).
+        Convention: ``E_s(T) = Q_s + R_s`` — the reaction acts beside the
+        applied forces (the paper's R of eq. (7) is ``−R_s``).
         """
-        from .chetaev import constraint_forces
-
-        self._require_multipliers("constraint_forces")
-        return constraint_forces(self)
+        reactions = self._require_reactions("constraint_forces")
+        return {q: self._user(r) for q, r in zip(self.system.coordinates, reactions)}
 
     def virtual_work(self, *, chetaev_condition: bool = True) -> sp.Expr:
-        """Virtual work ``Σ_s R_s δq_s`` of the constraint forces, eqs. (8)-(9).
+        """Virtual work ``Σ_s R_s δq_s`` of the constraint forces, eqs. (8)-(9) and (24)-(26).
 
         With ``chetaev_condition=True`` the displacements ``δq_s`` (symbols
-        ``δq``) satisfy Chetaev's condition (4); for the Chetaev model the
-        result is then 0 (ideal constraints).
+        ``δq``) satisfy Chetaev's condition (4) and the velocities the
+        constraints.  The result is 0 for the Chetaev model (ideal
+        constraints) and in general not for the vakonomic one.
         """
-        from .chetaev import virtual_work
+        from .multipliers import virtual_work
 
-        self._require_multipliers("virtual_work")
+        self._require_reactions("virtual_work")
         return virtual_work(self, chetaev_condition=chetaev_condition)
 
-    def _require_multipliers(self, what: str) -> None:
-        if not self._multipliers:
+    def _require_reactions(self, what: str) -> list[sp.Expr]:
+        if self._reactions is None:
             raise ModelError(
                 f"{what} needs the multiplier form of the model; the {self.model!r} equations "
-                "have the multipliers eliminated. Use system.equations('chetaev')."
+                "have the multipliers eliminated. Use system.equations('chetaev') or "
+                "system.equations('vakonomic')."
             )
+        return self._reactions
 
     # -------------------------------------------------------------- printing
     def __str__(self) -> str:
-        lines = [f"{self.title} — {self.system.name}"]
+        lines = [f"{self.title} - {self.system.name}"]
         lines += [f"  {vsstrrepr(e.lhs)} = 0" for e in self.equations]
         return "\n".join(lines)
 
     def pretty(self) -> str:
         """A multi-line Unicode rendering, one equation after another."""
         from sympy.physics.vector.printing import VectorPrettyPrinter
+        from sympy.printing.pretty.pretty_symbology import pretty_use_unicode
 
         printer = VectorPrettyPrinter({"use_unicode": True, "wrap_line": False})
-        body = "\n\n".join(printer.doprint(e) for e in self.equations)
-        return f"{self.title} — {self.system.name}\n\n{body}"
+        previous = pretty_use_unicode(True)  # Greek letters follow a global flag
+        try:
+            body = "\n\n".join(printer.doprint(e) for e in self.equations)
+        finally:
+            pretty_use_unicode(previous)
+        return f"{self.title} - {self.system.name}\n\n{body}"
 
     def latex(self) -> str:
         """LaTeX of the equations, with dots for time derivatives."""
@@ -201,7 +231,7 @@ class Equations:
         return f"<Equations {self.model}/{self.form} of {self.system.name}: {len(self._residuals)} equations>"
 
 
-def derive(system: System, model: str, form: str) -> Equations:
+def derive(system: System, model: str, form: str, constants: object = None) -> Equations:
     """Derive the equations of ``model`` in ``form`` (dispatcher for :meth:`System.equations`)."""
     if model not in MODELS:
         raise ModelError(
@@ -212,10 +242,22 @@ def derive(system: System, model: str, form: str) -> Equations:
             f"model {model!r} has no form {form!r}; its forms are "
             f"{', '.join(repr(f) for f in MODELS[model])}."
         )
+    if constants is not None and model != "vakonomic_family":
+        raise ModelError(
+            f"constants c_β belong to model 'vakonomic_family', not to {model!r}."
+        )
     if model == "chetaev":
         from .chetaev import chetaev_equations
 
         return chetaev_equations(system)
+    if model == "vakonomic":
+        from .vakonomic import vakonomic_equations
+
+        return vakonomic_equations(system)
+    if model in ("lindelof", "vakonomic_family"):
+        from .vakonomic import vakonomic_family
+
+        return vakonomic_family(system, model, form, constants)
     from .reduced import reduced_equations
 
     return reduced_equations(system, model, form)

@@ -76,15 +76,21 @@ class EquivalenceReport:
 class _Linear:
     """Equations reduced to ``M(state)·x = F(state)`` in internal symbols."""
 
-    def __init__(self, system: System, eqs: EquationsLike, label: str) -> None:
+    def __init__(self, system: System, eqs: EquationsLike, label: str, constants: Sequence[sp.Symbol] = ()) -> None:
         self.system = system
+        self.label = label
         v = system._vars
+        #: multipliers that are state variables (μ of the vakonomic model)
         self.extra_state: list[sp.Symbol] = []
+        self.constants: list[sp.Symbol] = list(constants)
         if isinstance(eqs, Equations):
             if eqs.system is not system:
                 raise ChaplyginError(f"{label}: these equations were derived for another system.")
             self.unknowns = list(eqs._unknowns)
             self.M, self.F = eqs._M, eqs._F
+            self.extra_state = list(eqs._state)
+            self.constants = list(eqs.constants)
+            self.names = {u: eqs._user(u) for u in eqs._state}
             self.symbolic = eqs
             return
         self.symbolic = None
@@ -107,12 +113,14 @@ class _Linear:
                 raise ChaplyginError(f"{label}[{k}]: {row!r} is not a SymPy equation or expression.")
         to_sym = dict(system._to_sym)
         multipliers = []
+        self.names = {}
         others = set().union(*(functions_of_time(e) for e in exprs)) - set(system.coordinates)
         for f in sorted(others, key=str):
             to_sym[f] = sp.Dummy(f.func.__name__)
             if any(e.has(f.diff(TIME)) for e in exprs):  # μ(t) with μ̇: μ is state, μ̇ unknown
                 to_sym[f.diff(TIME)] = sp.Dummy(f.func.__name__ + "_d")
                 self.extra_state.append(to_sym[f])
+                self.names[to_sym[f]] = f
                 multipliers.append(to_sym[f.diff(TIME)])
             else:  # λ(t) alone: an unknown like the accelerations
                 multipliers.append(to_sym[f])
@@ -130,7 +138,7 @@ class _Linear:
             )
         self.F = -res.xreplace({u: 0 for u in unknowns})
         extra = (self.M.free_symbols | self.F.free_symbols) - set(system.parameters) - {
-            TIME, *v.x, *v.xd, *v.xdd, *unknowns, *self.extra_state
+            TIME, *v.x, *v.xd, *v.xdd, *unknowns, *self.extra_state, *self.constants
         }
         if extra:
             raise ChaplyginError(
@@ -138,7 +146,7 @@ class _Linear:
                 f"parameters are {', '.join(p.name for p in system.parameters) or 'none'}."
             )
 
-    def compile(self, state_symbols: list[sp.Symbol]) -> None:
+    def compile(self, args: list[sp.Symbol]) -> None:
         s, v = self.system, self.system._vars
         M, F = self.M, self.F
         dep_unknown = [v.xdd[i] for i in s._dep if v.xdd[i] in self.unknowns]
@@ -147,18 +155,27 @@ class _Linear:
             extra_unknowns = [v.xdd[i] for i in s._ind if v.xdd[i] not in self.unknowns]
             self.unknowns = self.unknowns + extra_unknowns
             M = M.row_join(sp.zeros(M.rows, len(extra_unknowns)))
-            for b, i in enumerate(s._dep):
+            for i in s._dep:
                 rhs = s._velocity_substitution[v.xd[i]]
                 row = v.xdd[i] - total_derivative(rhs, pairs)
                 M = M.col_join(sp.Matrix([row]).jacobian(self.unknowns))
                 F = F.col_join(sp.Matrix([-row.xreplace({a: 0 for a in v.xdd})]))
-        args = state_symbols + self.extra_state
-        self._f = compile_function([M, F], args)
+        missing = [v.xdd[i] for i in s._ind if v.xdd[i] not in self.unknowns]
+        if missing:
+            raise ChaplyginError(
+                f"{self.label}: the equations do not determine "
+                + ", ".join(sp.sstr(s.to_user(a)) for a in missing)
+                + " (they do not contain them)."
+            )
+        self.args = args + self.extra_state + self.constants
+        self._f = compile_function([M, F], self.args)
         self.index = {u: k for k, u in enumerate(self.unknowns)}
+        self.independent = [self.index[v.xdd[i]] for i in s._ind]
 
-    def accelerations(self, values: list[float], extra: list[float]) -> np.ndarray | None:
+    def accelerations(self, values: Mapping[sp.Symbol, float]) -> np.ndarray | None:
+        """Independent accelerations at ``values`` (None where the equations are not finite)."""
         with np.errstate(all="ignore"):
-            M, F = self._f(*values, *extra)
+            M, F = self._f(*(values[a] for a in self.args))
         M = np.atleast_2d(np.asarray(M, dtype=float))
         F = np.asarray(F, dtype=float).reshape(-1)
         if not (np.all(np.isfinite(M)) and np.all(np.isfinite(F))):
@@ -166,17 +183,76 @@ class _Linear:
         x, _, rank, _ = np.linalg.lstsq(M, F, rcond=None)
         if rank < M.shape[1]:
             raise ChaplyginError(
-                "the equations do not determine all of "
+                f"{self.label}: the equations do not determine all of "
                 + ", ".join(sp.sstr(self.system.to_user(u)) for u in self.unknowns)
                 + " at a random admissible state."
             )
         if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, np.linalg.norm(F)):
-            raise ChaplyginError("the equations are inconsistent at a random admissible state.")
-        return x
+            raise ChaplyginError(f"{self.label}: the equations are inconsistent at a random admissible state.")
+        return x[self.independent]
+
+
+class _States:
+    """Random admissible states with values for parameters, constants and state multipliers."""
+
+    def __init__(
+        self,
+        system: System,
+        reps: Sequence[_Linear],
+        *,
+        parameters: Mapping[Any, float] | None,
+        multipliers: Mapping[Any, sp.Expr] | None,
+        seed: int,
+    ) -> None:
+        self.system, self.reps = system, reps
+        self.rng = np.random.default_rng(seed)
+        constants = {c.name: c for r in reps for c in r.constants}
+        given = dict(parameters or {})
+        fixed_constants = {constants[str(k)]: float(given.pop(k)) for k in list(given) if str(k) in constants}
+        params = parameter_values(system, self.rng, given)
+        self.constants = {c: fixed_constants.get(c, float(self.rng.uniform(-1, 1))) for c in constants.values()}
+        self.sampler = StateSampler(system, params)
+        v = system._vars
+        self.state_symbols = [TIME, *v.x, *v.xd, *params]
+        for r in reps:
+            r.compile(self.state_symbols)
+        self.given_multipliers = self._compile_multipliers(multipliers or {})
+
+    def _compile_multipliers(self, given: Mapping[Any, sp.Expr]) -> dict[str, Any]:
+        out = {}
+        args = self.state_symbols + list(self.constants)
+        known = {str(r.names[m].func.__name__): m for r in self.reps for m in r.extra_state}
+        for key, expr in given.items():
+            name = key.func.__name__ if isinstance(key, sp.Expr) and hasattr(key, "func") and key.args == (TIME,) else str(key)
+            if name not in known:
+                raise ChaplyginError(
+                    f"multipliers: {name} is not a state multiplier of these equations; they have "
+                    f"{', '.join(known) or 'none'}."
+                )
+            value = expr.xreplace(self.system._to_sym) if isinstance(expr, sp.Basic) else expr
+            out[name] = compile_function(value, args)
+        return out
+
+    def draw(self) -> tuple[dict[sp.Symbol, float], dict[sp.Symbol, float]]:
+        """One admissible state, plus values for constants and state multipliers."""
+        state = self.sampler.draw(self.rng)
+        values = dict(state)
+        values.update(self.constants)
+        args = [values[s] for s in self.state_symbols + list(self.constants)]
+        for r in self.reps:
+            for m in r.extra_state:
+                name = r.names[m].func.__name__
+                f = self.given_multipliers.get(name)
+                values[m] = float(f(*args)) if f else float(self.rng.uniform(-1, 1))
+        return state, values
 
 
 def _symbolic_proof(system: System, a: _Linear, b: _Linear) -> bool:
-    if a.symbolic is None or b.symbolic is None:
+    """Compare solved accelerations symbolically — only where solving them stays cheap."""
+    if a.symbolic is None or b.symbolic is None or a.extra_state or b.extra_state:
+        return False
+    size = sum(sp.count_ops(e) for r in (a, b) for e in (*r.M, *r.F))
+    if size > _SYMBOLIC_MAX_OPS:
         return False
     sub = system._velocity_substitution
     for acc in (system._vars.xdd[i] for i in system._ind):
@@ -197,6 +273,7 @@ def equivalent(
     second: EquationsLike,
     *,
     parameters: Mapping[Any, float] | None = None,
+    multipliers: Mapping[Any, sp.Expr] | None = None,
     samples: int = 24,
     tolerance: float = 1e-8,
     seed: int = 0,
@@ -210,12 +287,17 @@ def equivalent(
     first, second : Equations, list of sympy.Eq or expressions, or mapping
         Equations of motion written with the system's dynamicsymbols: an
         :class:`Equations` object, a list of equations (expressions are taken
-        ``= 0``; multipliers such as ``λ(t)`` may appear and are eliminated), or a
-        mapping ``{q.diff(t, 2): expression}`` of solved accelerations.
-        Equations that contain dependent accelerations are completed with the
-        differentiated constraints.
+        ``= 0``; multipliers such as ``λ(t)`` may appear and are eliminated, and
+        a multiplier that appears differentiated, like the vakonomic ``μ(t)``,
+        is a state variable), or a mapping ``{q.diff(t, 2): expression}`` of
+        solved accelerations.  Equations that contain dependent accelerations
+        are completed with the differentiated constraints.
     parameters : mapping, optional
-        Numeric values of (some) parameters; the others are drawn at random.
+        Numeric values of (some) parameters and of constants ``c_β`` of a
+        vakonomic family; the others are drawn at random (the same for both).
+    multipliers : mapping, optional
+        State multipliers as expressions of the state, e.g.
+        ``{mu_1: c_1 - T.diff(x.diff(t))}``; without it they are drawn at random.
     samples : int
         Number of random admissible states.
     tolerance : float
@@ -229,41 +311,32 @@ def equivalent(
     -------
     EquivalenceReport
     """
-    a, b = _Linear(system, first, "first"), _Linear(system, second, "second")
-    if symbolic and not parameters and _symbolic_proof(system, a, b):
+    constants = [c for e in (first, second) if isinstance(e, Equations) for c in e.constants]
+    a = _Linear(system, first, "first", constants)
+    b = _Linear(system, second, "second", constants)
+    if symbolic and not parameters and not multipliers and _symbolic_proof(system, a, b):
         return EquivalenceReport(True, "symbolic", 0.0, 0, tolerance)
-    rng = np.random.default_rng(seed)
-    params = parameter_values(system, rng, parameters)
-    sampler = StateSampler(system, params)
-    v = system._vars
-    state_symbols = [TIME, *v.x, *v.xd, *params]
-    a.compile(state_symbols)
-    b.compile(state_symbols)
-    extra_names = sorted({s.name for s in a.extra_state + b.extra_state})
-    watched = [v.xdd[i] for i in system._ind]
+    states = _States(system, [a, b], parameters=parameters, multipliers=multipliers, seed=seed)
+    watched = [system.to_user(system._vars.xdd[i]) for i in system._ind]
     worst: dict[str, Any] = {}
     max_res, used, tries = 0.0, 0, 0
     while used < samples and tries < 20 * samples:
         tries += 1
-        state = sampler.draw(rng)
-        values = [state[s] for s in state_symbols]
-        extra = dict(zip(extra_names, rng.uniform(-1, 1, size=len(extra_names))))
-        xa = a.accelerations(values, [extra[s.name] for s in a.extra_state])
-        xb = b.accelerations(values, [extra[s.name] for s in b.extra_state])
+        state, values = states.draw()
+        xa, xb = a.accelerations(values), b.accelerations(values)
         if xa is None or xb is None:
             continue
         used += 1
-        for acc in watched:
-            va, vb = xa[a.index[acc]], xb[b.index[acc]]
-            res = abs(va - vb) / max(1.0, abs(va), abs(vb))
-            if res > max_res:
-                max_res = res
-                worst = {
-                    "acceleration": sp.sstr(system.to_user(acc)),
-                    "first": float(va),
-                    "second": float(vb),
-                    "state": {sp.sstr(system.to_user(k)): val for k, val in state.items()},
-                }
+        res = np.abs(xa - xb) / np.maximum(1.0, np.maximum(np.abs(xa), np.abs(xb)))
+        k = int(np.argmax(res))
+        if res[k] > max_res:
+            max_res = float(res[k])
+            worst = {
+                "acceleration": sp.sstr(watched[k]),
+                "first": float(xa[k]),
+                "second": float(xb[k]),
+                "state": {sp.sstr(system.to_user(key)): val for key, val in state.items()},
+            }
     if used == 0:
         raise ChaplyginError("no random admissible state gave finite values for both sets of equations.")
-    return EquivalenceReport(max_res <= tolerance, "numeric", max_res, used, tolerance, worst)
+    return EquivalenceReport(bool(max_res <= tolerance), "numeric", max_res, used, tolerance, worst)

@@ -20,8 +20,6 @@ __all__ = [
     "knife_edge",
     "vertical_rolling_disk",
     "rolling_disk",
-    "integrating_factor_example",
-    "closed_form_example",
 ]
 
 _t = TIME
@@ -115,4 +113,89 @@ def vertical_rolling_disk(
         [theta, phi, x, y], T,
         {d(x): R_ * sp.cos(phi) * d(theta), d(y): R_ * sp.sin(phi) * d(theta)},
         name="Vertical rolling disk",
+    )
+
+
+def rolling_disk(
+    m: sp.Expr | float | None = None,
+    r: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None,
+    C: sp.Expr | float | None = None,
+    g: sp.Expr | float | None = None,
+) -> System:
+    """A thin disk rolling without slipping on a horizontal plane under gravity.
+
+    The disk has mass ``m``, radius ``r`` and axisymmetric central inertia:
+    ``A`` about any diameter, ``C`` about the symmetry axis (a uniform thin disk
+    has ``A = m r²/4``, ``C = m r²/2``).  Gravity ``g`` acts along ``−z``.
+
+    Conventions (the frame sequence of the rolling-disc example of
+    ``sympy.physics.mechanics``): from the inertial frame ``N`` (``z`` up), turn
+    by the heading ``ψ`` about ``N.z`` (frame ``Y``), lean by ``θ`` about ``Y.x``
+    (frame ``L``; ``θ = 0`` is upright), spin by ``φ`` about the symmetry axis ``L.y`` (the disk).  The
+    contact point is ``(x, y, 0)`` and the centre is ``r L.z`` above it, at height
+    ``r cos θ``.  Angular velocity of the disk, in ``L``::
+
+        ω = θ̇ L.x + (φ̇ + ψ̇ sin θ) L.y + ψ̇ cos θ L.z
+
+    Rolling without slipping (the material point of the disk at the contact has
+    zero velocity) makes the contact point move along the disk's horizontal
+    diameter ``L.x = Y.x``::
+
+        ẋ = r φ̇ cos ψ,   ẏ = r φ̇ sin ψ
+
+    The kinetic energy is written unconstrained, for the centre
+    ``(x + r sin θ sin ψ, y − r sin θ cos ψ, r cos θ)``::
+
+        T = ½ m |v_G|² + ½ A (θ̇² + ψ̇² cos² θ) + ½ C (φ̇ + ψ̇ sin θ)²,
+        v_G = (ẋ + r (θ̇ cos θ sin ψ + ψ̇ sin θ cos ψ),
+               ẏ − r (θ̇ cos θ cos ψ − ψ̇ sin θ sin ψ),
+               −r θ̇ sin θ)
+
+    and ``V = m g r cos θ``.  T, V and the constraints are free of ``x, y``:
+    this is a Chaplygin system, with non-integrable constraints.
+
+    Parameters
+    ----------
+    m, r, A, C, g : optional
+        Mass, radius, moments of inertia about a diameter and about the axis,
+        and the gravitational acceleration; positive symbols of the same names
+        by default.
+
+    Returns
+    -------
+    System
+        Coordinates ``[psi, theta, phi, x, y]``; dependent ``x, y``.
+
+    References
+    ----------
+    Ju. I. Neimark and N. A. Fufaev, *Dynamics of Nonholonomic Systems*,
+    AMS Translations of Mathematical Monographs 33, 1972 (the rolling disk is
+    their recurring example).  O. M. O'Reilly, "The dynamics of rolling disks and
+    sliding disks", *Nonlinear Dynamics* 10 (1996), 287–305.
+    """
+    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
+    m_, r_, A_, C_, g_ = (
+        _param(v, n) for v, n in ((m, "m"), (r, "r"), (A, "A"), (C, "C"), (g, "g"))
+    )
+    d = lambda q: q.diff(_t)  # noqa: E731
+    s, c = sp.sin, sp.cos
+    vg_x = d(x) + r_ * (d(theta) * c(theta) * s(psi) + d(psi) * s(theta) * c(psi))
+    vg_y = d(y) - r_ * (d(theta) * c(theta) * c(psi) - d(psi) * s(theta) * s(psi))
+    vg_z = -r_ * d(theta) * s(theta)
+    T = (
+        sp.Rational(1, 2) * m_ * (vg_x**2 + vg_y**2 + vg_z**2)
+        + sp.Rational(1, 2) * A_ * (d(theta) ** 2 + d(psi) ** 2 * c(theta) ** 2)
+        + sp.Rational(1, 2) * C_ * (d(phi) + d(psi) * s(theta)) ** 2
+    )
+    constraints = {
+        d(x): r_ * d(phi) * c(psi),
+        d(y): r_ * d(phi) * s(psi),
+    }
+    return System(
+        [psi, theta, phi, x, y],
+        T,
+        constraints,
+        potential_energy=m_ * g_ * r_ * c(theta),
+        name="Disk rolling on a horizontal plane",
     )

@@ -29,7 +29,7 @@ import sympy as sp
 
 from ._sampling import vanishes
 from ._symbols import TIME, simplify_small
-from .reduced import _Reduction
+from .reduced import Reduction
 
 if TYPE_CHECKING:
     from .system import System
@@ -120,11 +120,12 @@ def analyze(system: System) -> IntegrabilityReport:
         if not vanishes(e):
             label = f"∂B[{_name(s, dep[b])}, {_name(s, ind[c])}]/∂{_name(s, ind[k])} − ∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂{_name(s, ind[c])}"
             fail28.append((label, user(simplify_small(sp.cancel(e)))))
-    note28 = (
-        "For a Chaplygin system it decides integrability."
-        if s.is_chaplygin
-        else "B depends on the dependent coordinates, so (28) does not decide integrability here."
-    )
+    if not s.is_chaplygin:
+        note28 = "B depends on the dependent coordinates, so (28) does not decide integrability here."
+    elif s.is_affine or any(e.has(TIME) for e in s._B):
+        note28 = "The constraints are affine or time-dependent: (28) covers only their velocity terms."
+    else:
+        note28 = "For a Chaplygin system it decides integrability."
     c28 = Condition("(28)", not fail28, fail28, note28)
 
     fail33 = []
@@ -142,7 +143,7 @@ def analyze(system: System) -> IntegrabilityReport:
     from .reduced import bracket_terms
 
     W = bracket_terms(s)
-    r = _Reduction(s)
+    r = Reduction(s)
     fail_f = []
     for b in range(s.g):
         for k in range(len(ind)):

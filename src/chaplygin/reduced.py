@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 
 import sympy as sp
 
+from ._fast import gradient, jacobian
 from ._symbols import TIME, total_derivative
 from .equations import Equations, tidy
 from .errors import ModelError
@@ -34,10 +35,10 @@ from .errors import ModelError
 if TYPE_CHECKING:
     from .system import System
 
-__all__ = ["reduced_equations", "bracket_terms"]
+__all__ = ["reduced_equations", "bracket_terms", "lagrange_reduced", "lindelof_defect"]
 
 
-class _Reduction:
+class Reduction:
     """Shared pieces of every reduced form: substitutions, D_σ, d/dt on the constraints."""
 
     def __init__(self, system: System) -> None:
@@ -63,11 +64,9 @@ class _Reduction:
 
     def D(self, expr: sp.Expr, k: int) -> sp.Expr:
         """Voronets' derivative ``D_σ F = ∂F/∂q_σ + Σ_α B_ασ ∂F/∂q_{ε+α}``."""
-        out = sp.diff(expr, self.ind_x[k])
-        for a, x in enumerate(self.dep_x):
-            if expr.has(x):
-                out += self.s._B[a, k] * sp.diff(expr, x)
-        return out
+        deps = [(a, x) for a, x in enumerate(self.dep_x) if expr.has(x)]
+        grad = gradient(expr, [self.ind_x[k], *(x for _, x in deps)])
+        return grad[0] + sum((self.s._B[a, k] * g for (a, _), g in zip(deps, grad[1:])), sp.S.Zero)
 
     def reduced_force(self, k: int) -> sp.Expr:
         """``Q̃_σ = (Q_σ + Σ_β B_βσ Q_{ε+β})~``."""
@@ -86,7 +85,7 @@ def bracket_terms(system: System) -> list[list[sp.Expr]]:
     (see :mod:`chaplygin.integrability`), so ``W ≡ 0`` exactly when the
     constraints are integrable.
     """
-    r = _Reduction(system)
+    r = Reduction(system)
     B, B0 = system._B, system._B0
     out = []
     for b in range(system.g):
@@ -103,22 +102,33 @@ def bracket_terms(system: System) -> list[list[sp.Expr]]:
     return out
 
 
-def _classic(system: System, r: _Reduction) -> list[sp.Expr]:
-    """Voronets' equations; Chaplygin's (15) for a Chaplygin system."""
+def momenta_dependent(system: System, r: Reduction) -> list[sp.Expr]:
+    """``p_β = (∂T/∂q̇_{ε+β})~``: the momenta of the dependent coordinates, constraints substituted."""
+    return [p.xreplace(r.sub) for p in gradient(system._T, r.dep_xd)]
+
+
+def lagrange_reduced(system: System, r: Reduction) -> list[sp.Expr]:
+    """``d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ``: Lagrange's operator on T̃ — Lindelöf's eq. (22)."""
     Tt = system._T_reduced
+    momenta = gradient(Tt, r.ind_xd)
+    return [r.dt(momenta[k]) - r.D(Tt, k) - r.reduced_force(k) for k in range(r.eps)]
+
+
+def lindelof_defect(system: System, r: Reduction) -> list[sp.Expr]:
+    """``Σ_β p_β W_βσ``: what Chaplygin's (15) adds to Lindelöf's (22)."""
     W = bracket_terms(system)
-    p = [sp.diff(system._T, xd).xreplace(r.sub) for xd in r.dep_xd]
-    out = []
-    for k in range(r.eps):
-        res = r.dt(sp.diff(Tt, r.ind_xd[k])) - r.D(Tt, k) - r.reduced_force(k)
-        res += sum((p[b] * W[b][k] for b in range(system.g)), sp.S.Zero)
-        out.append(res)
-    return out
+    p = momenta_dependent(system, r)
+    return [sum((p[b] * W[b][k] for b in range(system.g)), sp.S.Zero) for k in range(r.eps)]
 
 
-def _new(system: System, r: _Reduction) -> list[sp.Expr]:
-    """The unreduced form (40): differentiate T first, substitute the constraints after."""
-    from .chetaev import lagrange_operator
+def _classic(system: System, r: Reduction) -> list[sp.Expr]:
+    """Voronets' equations; Chaplygin's (15) for a Chaplygin system."""
+    return [a + b for a, b in zip(lagrange_reduced(system, r), lindelof_defect(system, r))]
+
+
+def unreduced_tilde(system: System, r: Reduction) -> list[sp.Expr]:
+    """The unreduced form (40): ``[E_σ(T) − Q_σ]~ + Σ_β B_βσ [E_{ε+β}(T) − Q_{ε+β}]~``."""
+    from .multipliers import lagrange_operator
 
     v = system._vars
     E = lagrange_operator(system)
@@ -143,14 +153,21 @@ def reduced_equations(system: System, model: str, form: str) -> Equations:
             + "), so Chaplygin's equations (15) do not apply. Use model='voronets', "
             "which allows T, U and B to depend on the dependent coordinates."
         )
-    r = _Reduction(system)
-    residuals = (_classic if form == "classic" else _new)(system, r)
+    r = Reduction(system)
+    residuals = (_classic if form == "classic" else unreduced_tilde)(system, r)
+    return reduced_system(system, model, form, residuals, r)
+
+
+def reduced_system(
+    system: System, model: str, form: str, residuals: list[sp.Expr], r: Reduction, **extra: object
+) -> Equations:
+    """Wrap ε residuals linear in the independent accelerations as :class:`Equations`."""
     res = sp.Matrix(residuals)
-    M = res.jacobian(r.ind_xdd)
+    M = jacobian(res, r.ind_xdd)
     F = -res.xreplace({a: 0 for a in r.ind_xdd})
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
         sol = M.applyfunc(tidy).LUsolve(F.applyfunc(tidy))
         return {a: tidy(e) for a, e in zip(r.ind_xdd, sol)}
 
-    return Equations(system, model, form, residuals, r.ind_xdd, M, F, solve)
+    return Equations(system, model, form, residuals, r.ind_xdd, M, F, solve, **extra)  # type: ignore[arg-type]

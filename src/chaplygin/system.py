@@ -52,11 +52,19 @@ def _as_expr(value: Any, what: str) -> sp.Expr:
     if isinstance(value, str):
         raise SystemDefinitionError(
             f"{what}: got the string {value!r}; give a SymPy expression built from the "
-            "coordinates (strings are only read from system files, by chaplygin's own parser)."
+            "coordinates (chaplygin never evaluates text as code)."
         )
     raise SystemDefinitionError(
         f"{what}: expected a SymPy expression or a number, got {type(value).__name__} {value!r}."
     )
+
+
+def _constants_key(constants: Any) -> Any:
+    if isinstance(constants, Mapping):
+        return tuple(sorted((str(k), str(v)) for k, v in constants.items()))
+    if isinstance(constants, Sequence) and not isinstance(constants, str):
+        return tuple(str(c) for c in constants)
+    return None if constants is None else str(constants)
 
 
 class System:
@@ -159,7 +167,7 @@ class System:
         symbols -= {TIME, *v.x, *v.xd, *v.xdd}
         self.parameters: tuple[sp.Symbol, ...] = tuple(sorted(symbols, key=lambda s: s.name))
         self._check_reduced_mass_matrix()
-        self._equations: dict[tuple[str, str], Equations] = {}
+        self._equations: dict[tuple[Any, ...], Equations] = {}
 
     # ------------------------------------------------------------------ input checks
     @staticmethod
@@ -367,18 +375,29 @@ class System:
                 "constraints than coordinates (at least one independent velocity)."
             )
 
-    def _numeric_samples(self, exprs: sp.Matrix) -> list[np.ndarray]:
-        """``exprs`` (free of velocities) at random configurations and parameters."""
-        from ._sampling import COORDINATE_RANGE, PARAMETER_RANGE, compile_function
+    def _numeric_samples(self, *matrices: sp.Matrix) -> list[list[np.ndarray]]:
+        """The ``matrices`` (free of velocities) at the same random configurations.
+
+        Plain substitution and ``evalf``: for the few samples a check needs this is
+        much cheaper than compiling the expressions.
+        """
+        from ._sampling import COORDINATE_RANGE, PARAMETER_RANGE
 
         rng = np.random.default_rng(20000843)
-        params = sorted(exprs.free_symbols - {TIME, *self._vars.x}, key=str)
-        f = compile_function(exprs, [TIME, *self._vars.x, *params])
+        free = set().union(*(m.free_symbols for m in matrices))
+        params = sorted(free - {TIME, *self._vars.x}, key=str)
         out = []
         for _ in range(_SAMPLES):
-            args = [*rng.uniform(*COORDINATE_RANGE, size=self.n + 1), *rng.uniform(*PARAMETER_RANGE, size=len(params))]
-            with np.errstate(all="ignore"):
-                out.append(np.asarray(f(*args), dtype=complex).reshape(exprs.shape))
+            values = dict(zip([TIME, *self._vars.x], rng.uniform(*COORDINATE_RANGE, size=self.n + 1)))
+            values.update(zip(params, rng.uniform(*PARAMETER_RANGE, size=len(params))))
+            floats = {k: sp.Float(v) for k, v in values.items()}
+            sample = []
+            for m in matrices:
+                try:
+                    sample.append(np.array(m.xreplace(floats).evalf().tolist(), dtype=complex).reshape(m.shape))
+                except TypeError:  # zoo or nan: a singular point
+                    sample.append(np.full(m.shape, np.nan))
+            out.append(sample)
         return out
 
     @staticmethod
@@ -392,7 +411,7 @@ class System:
 
     def _check_dependent_block(self) -> None:
         g = len(self._dep)
-        samples = self._numeric_samples(self._A)
+        samples = [a for (a,) in self._numeric_samples(self._A)]
         if not any(self._full_rank(a) for a in samples):
             raise SystemDefinitionError(
                 "constraints: the constraints are not independent (the constraint matrix A has "
@@ -414,7 +433,9 @@ class System:
         )
 
     def _check_reduced_mass_matrix(self) -> None:
-        samples = self._numeric_samples(self._reduced_mass_matrix_unsimplified)
+        samples = [
+            c.T @ m @ c for m, c in self._numeric_samples(self._M, self._C)
+        ]
         if not any(self._full_rank(m) for m in samples):
             raise SystemDefinitionError(
                 "the kinetic energy is degenerate on the constraint distribution: the reduced "
@@ -427,7 +448,9 @@ class System:
     @cached_property
     def _M(self) -> sp.Matrix:
         """Mass matrix ``∂²T/∂q̇_i∂q̇_j`` in internal symbols."""
-        return sp.hessian(self._T, self._vars.xd)
+        from ._fast import gradient, jacobian
+
+        return jacobian(gradient(self._T, self._vars.xd), self._vars.xd)
 
     @cached_property
     def _C(self) -> sp.Matrix:
@@ -439,10 +462,6 @@ class System:
             for k in range(len(self._ind)):
                 c[i, k] = self._B[b, k]
         return c
-
-    @property
-    def _reduced_mass_matrix_unsimplified(self) -> sp.Matrix:
-        return self._C.T * self._M * self._C
 
     @cached_property
     def _velocity_substitution(self) -> dict[sp.Symbol, sp.Expr]:
@@ -551,7 +570,8 @@ class System:
             found = [x for x in dep_x if any(e.has(x) for e in exprs)]
             if found:
                 names = ", ".join(self.to_user(x).func.__name__ for x in found)
-                out.append(f"{what} depends on the dependent coordinate(s) {names}")
+                verb = "depend" if what.endswith(("forces", "B")) else "depends"
+                out.append(f"{what} {verb} on the dependent coordinate(s) {names}")
         return out
 
     @property
@@ -570,20 +590,30 @@ class System:
         )
 
     # ------------------------------------------------------------------ derivations
-    def equations(self, model: str = "chetaev", form: str = "classic") -> Equations:
+    def equations(
+        self, model: str = "chetaev", form: str = "classic", *, constants: Any = None
+    ) -> Equations:
         """Equations of motion of one model.
 
         Parameters
         ----------
-        model : {"chetaev", "chaplygin", "voronets"}
-            ``"chetaev"``: the n + g Lagrange–d'Alembert equations with
-            multipliers, eq. (6)/(35).  ``"chaplygin"``: Chaplygin's equations
-            (15) (``form="classic"``) or the paper's new form (40)
-            (``form="new"``), for Chaplygin systems.  ``"voronets"``: Voronets'
-            equations, valid when T, U or B depend on the dependent coordinates
-            and for affine constraints.
+        model : str
+            Chetaev (true) motion: ``"chetaev"``, the n + g Lagrange–d'Alembert
+            equations with multipliers λ, eq. (6)/(35); ``"chaplygin"``,
+            Chaplygin's equations (15) (``form="classic"``) or the paper's new
+            form (40) (``form="new"``), for Chaplygin systems; ``"voronets"``,
+            Voronets' equations, valid when T, U or B depend on the dependent
+            coordinates and for affine constraints.
+            Vakonomic motion: ``"vakonomic"``, the n + g equations with
+            multipliers μ, eqs. (17)-(18); ``"lindelof"``, Lindelöf's equations
+            (22) (classic) or the new form (39); ``"vakonomic_family"``, the
+            reduced family with constants ``c_β`` (classic or new form).
         form : {"classic", "new"}
-            The form of the reduced equations; the multiplier model has one form.
+            The form of the reduced equations; the multiplier models have one form.
+        constants : mapping, sequence or None
+            For ``"vakonomic_family"`` only: values of ``c_β`` (by name
+            ``"c_1"``…, by index 1…g, or as a sequence); ``None`` keeps them as
+            symbols.
 
         Returns
         -------
@@ -591,10 +621,21 @@ class System:
         """
         from .equations import derive
 
-        key = (model, form)
+        key = (model, form, _constants_key(constants))
         if key not in self._equations:
-            self._equations[key] = derive(self, model, form)
+            self._equations[key] = derive(self, model, form, constants)
         return self._equations[key]
+
+    def integrated_multipliers(self, constants: Any = None) -> dict[sp.Expr, sp.Expr]:
+        """Vakonomic multipliers ``μ_β(t)`` of the family member with constants ``c_β``.
+
+        ``μ_β = c_β − ∂T/∂q̇_{ε+β}`` (form B; ``A_depᵀ μ = c − ∂T/∂q̇_dep`` in
+        form A), the integral of (18b) for a Chaplygin system; ``constants`` as
+        in :meth:`equations` (``None``: symbols ``c_β``).
+        """
+        from .vakonomic import integrated_multipliers
+
+        return integrated_multipliers(self, constants)
 
     def integrability(self) -> IntegrabilityReport:
         """Integrability of the constraints: conditions (28), (33) and Frobenius."""

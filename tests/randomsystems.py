@@ -1,0 +1,135 @@
+"""Hypothesis strategies for random mechanical systems, and a plain numeric evaluator.
+
+The evaluator substitutes numbers into the *public* dynamicsymbol expressions
+(``q``, ``q'``, ``q''``) with ``xreplace`` + ``evalf``: it shares no code with
+chaplygin's compiled sampling, so tests built on it are independent oracles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+from hypothesis import strategies as st
+from sympy.physics.mechanics import dynamicsymbols
+
+from chaplygin import System
+
+t = dynamicsymbols._t
+k_param = sp.Symbol("k", positive=True)
+
+
+def _atom(draw: st.DrawFn, variables: list[sp.Expr]) -> sp.Expr:
+    v = draw(st.sampled_from(variables))
+    kind = draw(st.integers(0, 5))
+    return [sp.S.One, v, sp.sin(v), sp.cos(v), v**2, k_param * v][kind]
+
+
+def _expr(draw: st.DrawFn, variables: list[sp.Expr], terms: int = 2) -> sp.Expr:
+    out = sp.S.Zero
+    for _ in range(draw(st.integers(1, terms))):
+        c = draw(st.integers(-2, 2).filter(bool))
+        out += c * _atom(draw, variables) * _atom(draw, variables)
+    return out
+
+
+@dataclass
+class Spec:
+    """A random system and how it was made."""
+
+    system: System
+    chaplygin: bool
+    affine: bool
+    timed: bool
+
+
+@st.composite
+def systems(
+    draw: st.DrawFn,
+    *,
+    chaplygin: bool | None = None,
+    affine: bool | None = None,
+    forces: bool | None = None,
+    gyroscopic: bool | None = None,
+    integrable: bool = False,
+    dependent_forces: bool = True,
+) -> Spec:
+    """Random system: positive-definite configuration-dependent T, random constraints.
+
+    ``chaplygin=True`` keeps T, U, forces and B free of the dependent
+    coordinates; ``False`` lets them depend on them (Voronets' case).
+    ``integrable=True`` makes each row of B the gradient of a random potential
+    (so condition (28) holds); ``dependent_forces=False`` keeps non-potential
+    forces off the dependent coordinates.
+    """
+    n = draw(st.integers(2, 4))
+    g = draw(st.integers(1, min(2, n - 1)))
+    q = list(dynamicsymbols(f"q1:{n + 1}"))
+    dep_idx = sorted(draw(st.permutations(range(n)))[:g])
+    dep = [q[i] for i in dep_idx]
+    ind = [qi for qi in q if qi not in dep]
+    is_chap = draw(st.booleans()) if chaplygin is None else chaplygin
+    is_affine = draw(st.booleans()) if affine is None else affine
+    coeff_vars = ind if is_chap else q
+
+    # T = ½ q̇ᵀ (D + L Lᵀ) q̇ (+ b·q̇): positive definite for every configuration.
+    L = sp.Matrix(n, n, lambda i, j: _expr(draw, coeff_vars, 1) if draw(st.booleans()) else 0)
+    D = sp.diag(*[2 + sp.sin(draw(st.sampled_from(coeff_vars))) for _ in range(n)])
+    qd = sp.Matrix([qi.diff(t) for qi in q])
+    T = (qd.T * (D + L * L.T) * qd)[0] / 2
+    if gyroscopic or (gyroscopic is None and draw(st.booleans())):
+        T += sum(_expr(draw, coeff_vars, 1) * v for v in qd)
+
+    if integrable:
+        potentials = [_expr(draw, ind, 3) for _ in dep]
+        B = [[sp.diff(f, qi) for qi in ind] for f in potentials]
+    else:
+        B = [[_expr(draw, coeff_vars) for _ in ind] for _ in dep]
+    timed = False
+    constraints: dict[sp.Expr, sp.Expr] = {}
+    for b, d in enumerate(dep):
+        rhs = sum(B[b][s] * ind[s].diff(t) for s in range(len(ind)))
+        if is_affine:
+            b0 = _expr(draw, coeff_vars, 1)
+            if draw(st.booleans()):
+                b0 *= sp.cos(t)
+                timed = True
+            rhs += b0
+        constraints[d.diff(t)] = rhs
+
+    U = _expr(draw, coeff_vars) if draw(st.booleans()) else None
+    Q = None
+    if forces or (forces is None and draw(st.booleans())):
+        s = draw(st.sampled_from(q if dependent_forces else ind))
+        Q = {s: -k_param * s.diff(t) + _expr(draw, coeff_vars, 1)}
+
+    if draw(st.booleans()):
+        # Form A: multiply the solved constraints by an invertible configuration-dependent factor.
+        exprs = [(2 + sp.cos(draw(st.sampled_from(q)))) * (d - rhs) for d, rhs in constraints.items()]
+        system = System(q, T, exprs, dependent=dep, force_function=U, forces=Q, name="random")
+    else:
+        system = System(q, T, constraints, force_function=U, forces=Q, name="random")
+    return Spec(system, is_chap, is_affine, timed)
+
+
+# ------------------------------------------------------------------ numeric oracle
+def random_state(system: System, rng: np.random.Generator) -> dict[sp.Expr, sp.Expr]:
+    """Random ``t``, parameters, coordinates and independent velocities; dependent
+    velocities from the constraints (form B as reported by the system)."""
+    values: dict[sp.Expr, sp.Expr] = {t: sp.Float(rng.uniform(0.2, 1.2))}
+    values.update({p: sp.Float(rng.uniform(0.5, 1.5)) for p in system.parameters})
+    values.update({q: sp.Float(rng.uniform(0.2, 1.2)) for q in system.coordinates})
+    values.update({q.diff(t): sp.Float(rng.uniform(-1, 1)) for q in system.independent})
+    for vel, rhs in system.constraints.items():
+        values[vel] = sp.Float(number(rhs, values))
+    return values
+
+
+def number(expr: sp.Expr, values: dict[sp.Expr, sp.Expr]) -> float:
+    """``expr`` at ``values`` (``xreplace`` matches ``q'(t)`` before the ``q(t)`` inside it)."""
+    return float(sp.N(expr.xreplace(values)))
+
+
+def matrix(m: sp.Matrix, values: dict[sp.Expr, sp.Expr]) -> np.ndarray:
+    return np.array([[number(e, values) for e in row] for row in m.tolist()], dtype=float)

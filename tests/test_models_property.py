@@ -1,0 +1,94 @@
+"""Ground truth on random systems: every reduced form has the accelerations of the
+Chetaev multiplier system (6)/(35) at states that satisfy the constraints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from chaplygin import equivalent
+from randomsystems import Spec, matrix, number, random_state, systems, t
+
+
+def multiplier_solution(spec: Spec, values: dict) -> dict:
+    """Solve the (n+g) Chetaev system M·x = F numerically with NumPy."""
+    eqs = spec.system.equations("chetaev")
+    x = np.linalg.solve(matrix(eqs.mass_matrix, values), matrix(eqs.forcing, values)[:, 0])
+    return dict(zip(eqs.unknowns, x))
+
+
+def reduced_solution(spec: Spec, model: str, form: str, values: dict) -> dict:
+    eqs = spec.system.equations(model, form)
+    x = np.linalg.solve(matrix(eqs.mass_matrix, values), matrix(eqs.forcing, values)[:, 0])
+    return dict(zip(eqs.unknowns, x))
+
+
+def reduced_models(spec: Spec) -> list[tuple[str, str]]:
+    out = [("voronets", "classic"), ("voronets", "new")]
+    if spec.system.is_chaplygin:
+        out += [("chaplygin", "classic"), ("chaplygin", "new")]
+    return out
+
+
+@given(spec=systems(), seed=st.integers(0, 2**32 - 1))
+def test_reduced_forms_match_multiplier_system(spec: Spec, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    values = random_state(spec.system, rng)
+    truth = multiplier_solution(spec, values)
+    for model, form in reduced_models(spec):
+        got = reduced_solution(spec, model, form, values)
+        for acc, value in got.items():
+            assert value == pytest.approx(truth[acc], rel=1e-8, abs=1e-8), (model, form, acc)
+
+
+@given(spec=systems(chaplygin=True))
+def test_chaplygin_detection_and_forms(spec: Spec) -> None:
+    s = spec.system
+    assert s.is_chaplygin
+    for form in ("classic", "new"):
+        report = equivalent(s, s.equations("chaplygin", form), s.equations("chetaev"), symbolic=False, samples=6)
+        assert report, report
+
+
+@given(spec=systems(chaplygin=False))
+def test_voronets_on_non_chaplygin_systems(spec: Spec) -> None:
+    s = spec.system
+    for form in ("classic", "new"):
+        report = equivalent(s, s.equations("voronets", form), s.equations("chetaev"), symbolic=False, samples=6)
+        assert report, report
+
+
+@given(spec=systems(), seed=st.integers(0, 2**32 - 1), admissible=st.booleans())
+@settings(max_examples=8)
+def test_solved_multiplier_accelerations(spec: Spec, seed: int, admissible: bool) -> None:
+    """The symbolic solution of the Chetaev system (q̈ and λ) solves M·x = F, also
+    at states that violate the velocity constraints."""
+    rng = np.random.default_rng(seed)
+    values = random_state(spec.system, rng)
+    if not admissible:
+        values.update({v: sp.Float(rng.uniform(-1, 1)) for v in spec.system.constraints})
+    truth = multiplier_solution(spec, values)
+    solved = spec.system.equations("chetaev").accelerations
+    assert set(solved) == set(truth)
+    for key, expr in solved.items():
+        assert number(expr, values) == pytest.approx(truth[key], rel=1e-8, abs=1e-8), key
+
+
+@given(spec=systems(affine=False, forces=False, gyroscopic=False), seed=st.integers(0, 2**32 - 1))
+def test_energy_is_conserved_by_reduced_equations(spec: Spec, seed: int) -> None:
+    """Physics oracle, independent of the multipliers: with homogeneous scleronomic
+    constraints and potential forces only, d/dt (T − U) = 0 along the motion."""
+    s = spec.system
+    if not s.is_scleronomic:
+        return
+    values = random_state(s, np.random.default_rng(seed))
+    got = reduced_solution(spec, "voronets", "classic", values)
+    # dependent accelerations from the constraints differentiated in time
+    for vel, rhs in s.constraints.items():
+        got[vel.diff(t)] = number(rhs.diff(t), {**values, **got})
+    values.update({k: sp.Float(v) for k, v in got.items()})
+    energy = s.kinetic_energy - s.force_function
+    assert number(energy.diff(t), values) == pytest.approx(0, abs=1e-9)
