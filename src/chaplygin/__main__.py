@@ -34,6 +34,17 @@ def demo() -> int:
     print(f"  virtual work of the constraint forces under (4): {chetaev.virtual_work()}")
     print()
     print(sphere.integrability())
+
+    from . import classify, compare_models
+
+    lindelof = sphere.equations("lindelof", "classic")
+    print("\nVakonomic model: Lindelöf's equations (22) (constraints substituted into T):")
+    print(lindelof.pretty())
+    print(f"\n  (22) vs the paper's new form (39): {equivalent(sphere, lindelof, sphere.equations('lindelof', 'new'))}")
+    print(f"  Lindelöf (22) vs Chaplygin (15):   {equivalent(sphere, lindelof, classic)}")
+    print()
+    print(compare_models(sphere))
+    print(f"\nClassifier on Lindelöf's equations: {classify(sphere, lindelof.equations)}")
     return 0
 
 

@@ -36,8 +36,8 @@ _TITLES = {
     ("voronets", "classic"): "Voronets' equations",
     ("voronets", "new"): "Voronets' equations in the unreduced form of eq. (40), generalised",
     ("vakonomic", "classic"): "Vakonomic model: equations with multipliers mu, eqs. (17)-(18)",
-    ("lindelof", "classic"): "Lindelof's equations (vakonomic, c = 0), eq. (22)",
-    ("lindelof", "new"): "Lindelof's equations in the paper's new form, eq. (39)",
+    ("lindelof", "classic"): "Lindelöf's equations (vakonomic, c = 0), eq. (22)",
+    ("lindelof", "new"): "Lindelöf's equations in the paper's new form, eq. (39)",
     ("vakonomic_family", "classic"): "Reduced vakonomic family with constants c (c = 0: eq. (22))",
     ("vakonomic_family", "new"): "Reduced vakonomic family in the form of eq. (39) with constants c",
 }

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 import sympy as sp
+from sympy.physics.vector.printing import vsstrrepr
 
 from ._sampling import StateSampler, compile_function, parameter_values
 from ._symbols import TIME, functions_of_time, total_derivative
@@ -332,10 +333,10 @@ def equivalent(
         if res[k] > max_res:
             max_res = float(res[k])
             worst = {
-                "acceleration": sp.sstr(watched[k]),
+                "acceleration": vsstrrepr(watched[k]),
                 "first": float(xa[k]),
                 "second": float(xb[k]),
-                "state": {sp.sstr(system.to_user(key)): val for key, val in state.items()},
+                "state": {vsstrrepr(system.to_user(key)): val for key, val in state.items()},
             }
     if used == 0:
         raise ChaplyginError("no random admissible state gave finite values for both sets of equations.")

@@ -27,6 +27,7 @@ from .errors import SystemDefinitionError
 if TYPE_CHECKING:
     from .equations import Equations
     from .integrability import IntegrabilityReport
+    from .simulate import Trajectory
 
 __all__ = ["System"]
 
@@ -636,6 +637,57 @@ class System:
         from .vakonomic import integrated_multipliers
 
         return integrated_multipliers(self, constants)
+
+    def simulate(
+        self,
+        model: str,
+        t_span: tuple[float, float] | float,
+        initial: Mapping[Any, float],
+        parameters: Mapping[Any, float] | None = None,
+        **options: Any,
+    ) -> Trajectory:
+        """Simulate one model from an initial state.
+
+        Parameters
+        ----------
+        model : str
+            Any model of :meth:`equations`.
+        t_span : (t0, t1) or t1
+            Time interval (a single number means ``(0, t1)``).
+        initial : mapping
+            Every coordinate and the independent velocities, keyed by the
+            dynamicsymbols (``x``, ``x.diff(t)``) or their names (``"x"``,
+            ``"x'"``).  Dependent velocities follow from the constraints; a
+            given one that violates them is an error.
+        parameters : mapping
+            A number for every parameter, keyed by symbol or name.
+        form : {"classic", "new"}
+            Form of a reduced model.
+        rtol, atol : float
+            Tolerances (defaults 1e-10 and 1e-12).
+        method : str
+            SciPy stepper: ``"DOP853"`` (default), ``"RK45"``, ``"Radau"``, …
+        samples : int
+            Number of equally spaced output times (default 1001).
+        backend : {"numpy", "numba"}
+            Generated code run as plain Python/NumPy, or compiled with numba.
+        constants : optional
+            Vakonomic models: the constants ``c_β`` (default 0); for
+            ``model="vakonomic"`` the string ``"match"`` starts with ``μ = 0``,
+            i.e. with vakonomic momenta equal to the true ones.
+        multipliers : optional
+            ``model="vakonomic"``: ``μ(0)`` by multiplier or as a sequence.
+
+        Returns
+        -------
+        Trajectory
+            Times, all coordinates and velocities, multipliers, energy and
+            constraint residual at every sample; ``status``/``message`` report
+            a failed run with the trajectory up to the failure.
+        """
+        from .simulate import simulate
+
+        return simulate(self, model, t_span, initial, parameters, **options)
 
     def integrability(self) -> IntegrabilityReport:
         """Integrability of the constraints: conditions (28), (33) and Frobenius."""

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
+from sympy.physics.vector.printing import vsstrrepr
 
 from ._sampling import vanishes
 from ._symbols import simplify_small
@@ -71,7 +72,7 @@ class ModelComparison:
         }[self.verdict]
         lines = [f"{self.system_name}: {head}"]
         if self.verdict == "differ":
-            lines += [f"  {sp.sstr(q)}: {sp.sstr(d)}" for q, d in self.defect.items()]
+            lines += [f"  {vsstrrepr(q)}: {vsstrrepr(d)}" for q, d in self.defect.items()]
         return "\n".join(lines)
 
 

@@ -1,0 +1,289 @@
+"""Numerical code generated from a model's ``M·x = F`` with a fixed argument order.
+
+Every generated function takes ``(t, y, p)``:
+
+* ``t`` — time;
+* ``y`` — the state, in the order given by :class:`Layout`:
+  all coordinates ``q_1 … q_n`` in the system's order, then the velocities the
+  model integrates (the independent ones ``q̇_σ`` for reduced models, all of
+  them for the multiplier models), then the multipliers ``μ_β`` (vakonomic
+  multiplier model only);
+* ``p`` — the parameter values in :attr:`Layout.parameters` order: the
+  system's parameters (sorted by name), then the constants ``c_β`` of a
+  vakonomic family.
+
+The symbolic model stays free of numerics: this module only reads an
+:class:`~chaplygin.Equations` object's mass matrix, forcing and kinematics,
+writes one Python module (plain ``math`` code with common subexpressions
+eliminated) to the cache directory, and imports it.  The ``numpy`` backend
+runs that module as it is; the ``numba`` backend compiles the same functions
+with ``numba.njit``.  Generated modules are written atomically and keyed by a
+hash of their source, so they are never half-written and are shared between
+runs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from ._symbols import TIME
+from .errors import ChaplyginError
+
+if TYPE_CHECKING:
+    from .equations import Equations
+
+__all__ = ["Layout", "CompiledModel", "compile_equations", "BACKENDS", "cache_dir"]
+
+BACKENDS = ("numpy", "numba")
+_MULTIPLIER_MODELS = ("chetaev", "vakonomic")
+
+
+def cache_dir() -> Path:
+    """Where generated code lives: ``$CHAPLYGIN_CACHE`` or the user's cache directory."""
+    root = os.environ.get("CHAPLYGIN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "chaplygin"
+    )
+    return Path(root)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The fixed order of the state ``y`` and the parameters ``p`` of generated functions."""
+
+    model: str
+    form: str
+    coordinates: tuple[str, ...]
+    velocities: tuple[str, ...]
+    multipliers: tuple[str, ...]
+    parameters: tuple[str, ...]
+    #: names of the multipliers computed (not integrated), e.g. Chetaev's λ
+    reactions: tuple[str, ...] = ()
+
+    @property
+    def state(self) -> tuple[str, ...]:
+        """Names of the entries of ``y``."""
+        return self.coordinates + self.velocities + self.multipliers
+
+    def describe(self) -> str:
+        return (
+            f"f(t, y, p) for the {self.model}/{self.form} equations\n"
+            f"  y = [{', '.join(self.state)}]\n"
+            f"  p = [{', '.join(self.parameters)}]"
+        )
+
+
+class CompiledModel:
+    """Numerical functions of one model, all with signature ``(t, y, p)``.
+
+    Attributes
+    ----------
+    layout : Layout
+        The order of ``y`` and ``p`` (also in each function's docstring).
+    rhs : callable
+        ``dy/dt``.
+    observe : callable
+        ``[energy, constraint residuals (g), computed multipliers, full velocities (n)]``.
+    module : module
+        The generated module (its ``__file__`` is the source).
+    """
+
+    def __init__(self, layout: Layout, module: ModuleType, backend: str) -> None:
+        self.layout = layout
+        self.module = module
+        self.backend = backend
+        self.rhs: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = module.rhs
+        self.observe: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = module.observe
+        self.n_observed = int(module.N_OBSERVED)
+
+    def __repr__(self) -> str:
+        return f"<CompiledModel {self.backend}: {self.layout.describe()}>"
+
+
+def _state_symbols(eqs: Equations) -> tuple[Layout, dict[sp.Symbol, sp.Expr], list[sp.Expr], int]:
+    """The layout, the map from internal symbols to ``y[i]``/``p[j]``, the full velocities, k."""
+    s = eqs.system
+    v = s._vars
+    n = s.n
+    y = sp.IndexedBase("y")
+    p = sp.IndexedBase("p")
+    names = [q.func.__name__ for q in s.coordinates]
+    to_num: dict[sp.Symbol, sp.Expr] = {x: y[i] for i, x in enumerate(v.x)}
+    multiplier_model = eqs.model in _MULTIPLIER_MODELS
+    carried = list(range(n)) if multiplier_model else list(s._ind)
+    for k, i in enumerate(carried):
+        to_num[v.xd[i]] = y[n + k]
+    mus = list(eqs._state)
+    for b, mu in enumerate(mus):
+        to_num[mu] = y[n + len(carried) + b]
+    params = [*s.parameters, *eqs.constants]
+    for j, par in enumerate(params):
+        to_num[par] = p[j]
+    if multiplier_model:
+        velocities = [v.xd[i] for i in range(n)]
+        k = n + len(mus)  # q̈ (and μ̇) come from the solve; λ are observed
+    else:
+        velocities = [s._velocity_substitution.get(v.xd[i], v.xd[i]) for i in range(n)]
+        k = len(carried)
+    layout = Layout(
+        eqs.model,
+        eqs.form,
+        tuple(names),
+        tuple(names[i] + "'" for i in carried),
+        tuple(sp.sstr(eqs._user(m)).replace("(t)", "") for m in mus),
+        tuple(par.name for par in params),
+        tuple(sp.sstr(eqs._user(m)).replace("(t)", "") for m in eqs._multipliers if m not in mus),
+    )
+    return layout, to_num, velocities, k
+
+
+class _Printer(PythonCodePrinter):
+    def _print_Indexed(self, expr: sp.Indexed) -> str:
+        return f"{expr.base}[{', '.join(self._print(i) for i in expr.indices)}]"
+
+
+def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
+    s = eqs.system
+    layout, to_num, velocities, k = _state_symbols(eqs)
+    full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
+    energy = (s._T - s._U).xreplace(full_xd)
+    residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
+    M, F = eqs._M, eqs._F
+    dim = M.shape[0]
+    exprs = [*M, *F, *velocities, energy, *residual]
+    exprs = [sp.S.Zero + e for e in exprs]  # plain numbers become SymPy numbers
+    exprs = [e.xreplace(to_num).xreplace({TIME: sp.Symbol("t")}) for e in exprs]
+    replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
+    pr = _Printer({"fully_qualified_modules": True, "standard": "python3"})
+    body = [f"    {sym} = {pr.doprint(e)}" for sym, e in replacements]
+    nM, nF, nV = dim * dim, dim, s.n
+    fill = []
+    for idx in range(nM):
+        if reduced[idx] != 0:
+            fill.append(f"    M[{idx // dim}, {idx % dim}] = {pr.doprint(reduced[idx])}")
+    fill += [f"    F[{i}] = {pr.doprint(reduced[nM + i])}" for i in range(nF)]
+    fill += [f"    V[{i}] = {pr.doprint(reduced[nM + nF + i])}" for i in range(nV)]
+    fill += [f"    O[0] = {pr.doprint(reduced[nM + nF + nV])}"]
+    fill += [f"    O[{1 + b}] = {pr.doprint(e)}" for b, e in enumerate(reduced[nM + nF + nV + 1 :])]
+    n_reactions = len(layout.reactions)
+    n_observed = 1 + s.g + n_reactions + s.n
+    deco = "@_jit\n" if jit else ""
+    header = (
+        '"""Generated by chaplygin from the {model}/{form} equations of {name}.\n\n'
+        "Every function takes (t, y, p):\n"
+        "    y = [{state}]\n"
+        "    p = [{params}]\n"
+        "observe() returns [energy, constraint residuals ({g}), computed multipliers "
+        "({reactions}), velocities ({n})].\n"
+        '"""\n'
+    ).format(
+        model=eqs.model, form=eqs.form, name=s.name, state=", ".join(layout.state),
+        params=", ".join(layout.parameters), g=s.g, reactions=", ".join(layout.reactions) or "none",
+        n=s.n,
+    )
+    jit_line = (
+        "from numba import njit\n_jit = njit(cache=True, fastmath=False)\n" if jit else ""
+    )
+    src = f'''{header}
+import math
+
+import numpy as np
+{jit_line}
+DIM = {dim}
+N = {s.n}
+K = {k}
+N_OBSERVED = {n_observed}
+
+
+{deco}def fill(t, y, p, M, F, V, O):
+{chr(10).join(body) if body else "    pass"}
+{chr(10).join(fill)}
+
+
+{deco}def rhs(t, y, p):
+    """dy/dt = [velocities of q, solve(M, F)[:K]]."""
+    M = np.zeros((DIM, DIM))
+    F = np.zeros(DIM)
+    V = np.zeros(N)
+    O = np.zeros(N_OBSERVED)
+    fill(t, y, p, M, F, V, O)
+    x = np.linalg.solve(M, F)
+    dy = np.empty(N + K)
+    dy[:N] = V
+    dy[N:] = x[:K]
+    return dy
+
+
+{deco}def observe(t, y, p):
+    """[energy, residuals, computed multipliers, velocities]."""
+    M = np.zeros((DIM, DIM))
+    F = np.zeros(DIM)
+    V = np.zeros(N)
+    O = np.zeros(N_OBSERVED)
+    fill(t, y, p, M, F, V, O)
+    if N_OBSERVED - 1 - {s.g} - N > 0:
+        x = np.linalg.solve(M, F)
+        O[1 + {s.g}:1 + {s.g} + {n_reactions}] = x[DIM - {n_reactions}:]
+    O[N_OBSERVED - N:] = V
+    return O
+'''
+    return layout, src
+
+
+def _import(source: str, tag: str) -> ModuleType:
+    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+    directory = cache_dir() / "codegen"
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / f"chaplygin_{tag}_{digest}.py"
+    if not path.exists() or path.read_text(encoding="utf-8") != source:
+        fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(source)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    if spec is None or spec.loader is None:  # pragma: no cover
+        raise ChaplyginError(f"cannot load generated code from {path}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
+    """Generate and load the numerical functions of ``eqs`` for ``backend``.
+
+    Parameters
+    ----------
+    eqs : Equations
+        Any model's equations (reduced or with multipliers).
+    backend : {"numpy", "numba"}
+        ``"numpy"``: plain Python/NumPy, no compile step.  ``"numba"``: the
+        same code compiled with ``numba.njit`` (microseconds per call; the
+        first call compiles, later runs load from numba's cache).
+    """
+    if backend not in BACKENDS:
+        raise ChaplyginError(
+            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
+        )
+    if backend == "numba":
+        try:
+            import numba  # noqa: F401
+        except ImportError as exc:  # pragma: no cover - numba is a dependency
+            raise ChaplyginError("backend 'numba' needs numba: pip install numba") from exc
+    layout, source = _source(eqs, jit=backend == "numba")
+    module = _import(source, backend)
+    return CompiledModel(layout, module, backend)
+
+
+def parameter_vector(layout: Layout, values: dict[str, float]) -> np.ndarray:
+    """``p`` in layout order from a name → value map (every name must be present)."""
+    return np.array([float(values[name]) for name in layout.parameters], dtype=float)
