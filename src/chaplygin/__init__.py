@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from . import examples
 from .equations import Equations
+from .compare import Comparison, compare
 from .equivalence import EquivalenceReport, equivalent
+from .simulate import Trajectory
 from .integrability import IntegrabilityReport
 from .errors import ChaplyginError, ModelError, SystemDefinitionError
 from .system import System
@@ -24,6 +26,9 @@ __all__ = [
     "SystemDefinitionError",
     "ModelError",
     "examples",
+    "Trajectory",
+    "compare",
+    "Comparison",
 ]
 
 __version__ = "0.1.0"

@@ -1,0 +1,167 @@
+"""Simulation of every model: known motions, invariants, agreement between forms, failures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+
+from chaplygin import ChaplyginError, System, compare, examples
+
+t = dynamicsymbols._t
+SPHERE_START = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
+                "psi'": 0.5, "theta'": 0.4, "phi'": -0.7}
+UNIT = {"m": 1.0, "a": 1.0}
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return examples.rolling_sphere()
+
+
+@pytest.fixture(scope="module")
+def sphere_runs(sphere):
+    return {
+        model: sphere.simulate(model, 100.0, SPHERE_START, UNIT, samples=501)
+        for model in ("chetaev", "chaplygin", "lindelof")
+    }
+
+
+def omega(tr) -> np.ndarray:
+    """Space components of ω (z-x-z Euler angles), computed from the trajectory."""
+    psi, theta = tr["psi"], tr["theta"]
+    dpsi, dtheta, dphi = tr["psi'"], tr["theta'"], tr["phi'"]
+    return np.array([
+        dtheta * np.cos(psi) + dphi * np.sin(theta) * np.sin(psi),
+        dtheta * np.sin(psi) - dphi * np.sin(theta) * np.cos(psi),
+        dpsi + dphi * np.cos(theta),
+    ])
+
+
+def test_sphere_true_motion_keeps_omega_and_centre_velocity(sphere_runs) -> None:
+    for model in ("chetaev", "chaplygin"):
+        tr = sphere_runs[model]
+        assert tr.success, tr.message
+        w = omega(tr)
+        assert np.max(np.abs(w - w[:, :1])) < 1e-8
+        for v in ("x'", "y'"):
+            assert np.max(np.abs(tr[v] - tr[v][0])) < 1e-8
+        assert tr.energy_drift() <= 1e-9
+        assert np.max(tr.constraint_residual) <= 1e-9
+
+
+def test_sphere_chetaev_and_chaplygin_agree(sphere_runs) -> None:
+    a, b = sphere_runs["chetaev"], sphere_runs["chaplygin"]
+    for name in a.coordinates:
+        assert np.max(np.abs(a[name] - b[name])) < 1e-7 * max(1.0, np.max(np.abs(a[name])))
+    assert set(a.multipliers) == {"lambda_1", "lambda_2"}
+    assert np.max(np.abs(a["lambda_1"])) < 1e-8  # no friction force needed by a free sphere
+
+
+def test_lindelof_run_differs_and_comparison_says_by_how_much(sphere) -> None:
+    result = compare(sphere, ["chaplygin", "lindelof", "chetaev"], 30.0, SPHERE_START, UNIT, samples=301)
+    far, near = result.distance("lindelof"), result.distance("chetaev")
+    assert np.max(far) > 1.0 and np.max(near) < 1e-6
+    text = result.summary()
+    assert "lindelof" in text and "max distance of path (x, y)" in text
+    assert result.trajectories["lindelof"].energy_drift() <= 1e-9
+
+
+def test_comparison_figures(sphere, tmp_path) -> None:
+    result = compare(sphere, ["chaplygin", "lindelof"], 5.0, SPHERE_START, UNIT, samples=51)
+    paths = result.save_figures(tmp_path)
+    assert [p.name for p in paths] == ["paths.svg", "coordinates.svg", "invariants.svg"]
+    assert all(p.read_text().startswith("<?xml") for p in paths)
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+@pytest.mark.parametrize("model", ["chetaev", "chaplygin"])
+def test_rolling_disk_energy_over_t_100(model: str) -> None:
+    disk = examples.rolling_disk()
+    start = {"psi": 0.0, "theta": 0.2, "phi": 0.0, "x": 0.0, "y": 0.0,
+             "psi'": 0.3, "theta'": 0.0, "phi'": 8.0}
+    params = {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81}
+    tr = disk.simulate(model, 100.0, start, params, samples=201)
+    assert tr.success, tr.message
+    assert tr.energy_drift() <= 1e-9
+    assert np.max(tr.constraint_residual) <= 1e-9
+
+
+def test_vertical_disk_closed_form() -> None:
+    """φ = ω_φ t + φ0, θ = ω_θ t + θ0, x = ρ(sin φ − sin φ0) + x0, y = −ρ(cos φ − cos φ0) + y0."""
+    disk = examples.vertical_rolling_disk()
+    w_theta, w_phi, theta0, phi0, x0, y0, R = 2.0, 0.7, 0.1, 0.4, 1.0, -2.0, 0.5
+    start = {"theta": theta0, "phi": phi0, "x": x0, "y": y0, "theta'": w_theta, "phi'": w_phi}
+    for model in ("chetaev", "chaplygin", "lindelof"):
+        tr = disk.simulate(model, 50.0, start, {"m": 1.0, "R": R, "I": 0.3, "J": 0.2}, samples=201)
+        phi = w_phi * tr.t + phi0
+        rho = R * w_theta / w_phi
+        expected = {"theta": w_theta * tr.t + theta0, "phi": phi,
+                    "x": rho * (np.sin(phi) - np.sin(phi0)) + x0,
+                    "y": -rho * (np.cos(phi) - np.cos(phi0)) + y0}
+        for name, values in expected.items():
+            assert np.max(np.abs(tr[name] - values)) < 1e-9 * max(1.0, np.max(np.abs(values))), (model, name)
+
+
+def test_vakonomic_runs_from_the_same_state(sphere) -> None:
+    family = sphere.simulate("vakonomic_family", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
+    multiplier = sphere.simulate("vakonomic", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
+    for name in family.coordinates:
+        assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
+    assert set(multiplier.multipliers) == {"mu_1", "mu_2"}
+    matched = sphere.simulate("vakonomic", 1.0, SPHERE_START, UNIT, samples=11, constants="match")
+    assert matched["mu_1"][0] == 0.0 and matched["mu_2"][0] == 0.0
+    given = sphere.simulate("vakonomic", 1.0, SPHERE_START, UNIT, samples=11, multipliers=[0.5, 0.25])
+    assert given["mu_1"][0] == 0.5 and given["mu_2"][0] == 0.25
+
+
+def test_initial_data_errors(sphere) -> None:
+    with pytest.raises(ChaplyginError, match="missing theta'"):
+        sphere.simulate("chaplygin", 1.0, {k: v for k, v in SPHERE_START.items() if k != "theta'"}, UNIT)
+    with pytest.raises(ChaplyginError, match=r"x' = 5 violates the constraints.*residual"):
+        sphere.simulate("chaplygin", 1.0, {**SPHERE_START, "x'": 5.0}, UNIT)
+    with pytest.raises(ChaplyginError, match="no value for a"):
+        sphere.simulate("chaplygin", 1.0, SPHERE_START, {"m": 1.0})
+    with pytest.raises(ChaplyginError, match="'z' is neither a coordinate"):
+        sphere.simulate("chaplygin", 1.0, {**SPHERE_START, "z": 1.0}, UNIT)
+    with pytest.raises(ChaplyginError, match="unknown backend"):
+        sphere.simulate("chaplygin", 1.0, SPHERE_START, UNIT, backend="fortran")
+    # a consistent dependent velocity is accepted, keyed by the dynamicsymbol
+    psi, theta, phi, x, y = sphere.coordinates
+    ok = {psi: 0.3, theta: np.pi / 2, phi: 0.0, x: 0.0, y: 0.0, psi.diff(t): 0.0, theta.diff(t): 0.0,
+          phi.diff(t): 1.0, x.diff(t): -np.cos(0.3)}
+    assert sphere.simulate("chaplygin", 1.0, ok, UNIT, samples=3).success
+
+
+def test_blow_up_returns_partial_trajectory() -> None:
+    x, z = dynamicsymbols("x z")
+    s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=x**4)
+    tr = s.simulate("chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101)
+    assert tr.status == "failed" and tr.message
+    assert 0 < len(tr.t) < 101 and tr.t[-1] < 10.0
+    assert np.all(np.isfinite(tr["x"]))
+
+
+def test_export_csv_and_npz(sphere, tmp_path) -> None:
+    tr = sphere.simulate("chetaev", 1.0, SPHERE_START, UNIT, samples=11)
+    csv = tr.to_csv(tmp_path / "run.csv")
+    header = csv.read_text().splitlines()[0].split(",")
+    assert header[:6] == ["t", "psi", "theta", "phi", "x", "y"]
+    assert {"x'", "energy", "constraint_residual", "lambda_1"} <= set(header)
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    assert data.shape == (11, len(header))
+    assert np.allclose(data[:, header.index("x'")], tr["x'"], rtol=1e-15)
+    npz = np.load(tr.to_npz(tmp_path / "run.npz"))
+    assert np.array_equal(npz["theta"], tr["theta"]) and "energy" in npz.files
+
+
+def test_failed_write_keeps_previous_file(sphere, tmp_path) -> None:
+    tr = sphere.simulate("chaplygin", 1.0, SPHERE_START, UNIT, samples=5)
+    target = tmp_path / "run.csv"
+    target.write_text("previous")
+    broken = type(tr)(**{**tr.__dict__, "energy": np.ones(2)})  # wrong length: writing fails
+    with pytest.raises(ValueError):
+        broken.to_csv(target)
+    assert target.read_text() == "previous"
+    assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]
