@@ -211,3 +211,19 @@ def test_family_errors() -> None:
         s.equations("lindelof", constants=[1])
     with pytest.raises(ModelError, match="unknown key 'd_1'"):
         s.equations("vakonomic_family", constants={"d_1": 1})
+
+
+def test_multipliers_may_carry_their_own_constants() -> None:
+    knife = examples.knife_edge()
+    vak, lin = knife.equations("vakonomic"), knife.equations("lindelof")
+    mu = knife.integrated_multipliers()  # symbolic c_1
+    assert equivalent(knife, vak, lin, multipliers=mu, parameters={"c_1": 0.0})
+    assert not equivalent(knife, vak, lin, multipliers=mu, parameters={"c_1": 0.7})
+    with pytest.raises(Exception, match="cannot evaluate"):
+        equivalent(knife, vak, lin, multipliers={vak.multipliers[0]: sp.Symbol("w")})
+
+
+def test_best_fit_residual_is_not_worse_than_lindelof() -> None:
+    knife = examples.knife_edge()
+    residuals = classify(knife, knife.equations("chaplygin")).residuals
+    assert residuals["vakonomic_family"] <= residuals["lindelof"] + 1e-12

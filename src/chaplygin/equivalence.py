@@ -208,6 +208,14 @@ class _States:
         self.system, self.reps = system, reps
         self.rng = np.random.default_rng(seed)
         constants = {c.name: c for r in reps for c in r.constants}
+        from .vakonomic import constant_symbols
+
+        family = {c.name for c in constant_symbols(system)}
+        for expr in (multipliers or {}).values():
+            if isinstance(expr, sp.Basic):  # c_β of integrated_multipliers(): more constants
+                for sym in expr.free_symbols:
+                    if getattr(sym, "name", None) in family:
+                        constants.setdefault(sym.name, sym)
         given = dict(parameters or {})
         fixed_constants = {constants[str(k)]: float(given.pop(k)) for k in list(given) if str(k) in constants}
         params = parameter_values(system, self.rng, given)
@@ -230,7 +238,13 @@ class _States:
                     f"multipliers: {name} is not a state multiplier of these equations; they have "
                     f"{', '.join(known) or 'none'}."
                 )
-            value = expr.xreplace(self.system._to_sym) if isinstance(expr, sp.Basic) else expr
+            value = expr.xreplace(self.system._to_sym) if isinstance(expr, sp.Basic) else sp.Float(expr)
+            unknown = value.free_symbols - set(args)
+            if unknown:
+                raise ChaplyginError(
+                    f"multipliers[{name}]: cannot evaluate {', '.join(sorted(map(str, unknown)))}; "
+                    "write μ in the coordinates, velocities and parameters of the system."
+                )
             out[name] = compile_function(value, args)
         return out
 

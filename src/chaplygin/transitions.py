@@ -64,8 +64,8 @@ class ModelComparison:
 
     def __str__(self) -> str:
         head = {
-            "coincide": "the models coincide: Chaplygin ≡ Lindelöf ≡ vakonomic (c = 0), "
-            "the brackets W_βσ vanish (condition (28)).",
+            "coincide": "the models coincide: Chaplygin ≡ Lindelöf ≡ every vakonomic motion "
+            "(any c), since the brackets W_βσ vanish (condition (28)).",
             "lindelof_right_here": "condition (28) fails, but the Lindelöf defect vanishes: "
             "Lindelöf's equations happen to be right here.",
             "differ": "the models differ: Chaplygin's equations (15) = Lindelöf's (22) + the defect below.",
@@ -174,14 +174,14 @@ def classify(
         a_user, a_true = user.accelerations(values), reps[1].accelerations(values)
         if a_user is None or a_true is None:
             continue
-        scale = np.maximum(1.0, np.abs(a_user))
-        diffs_true.append(np.max(np.abs(a_user - a_true) / np.maximum(scale, np.abs(a_true))))
+        scale = np.maximum(1.0, np.abs(a_user))  # every residual is relative to this
+        diffs_true.append(np.max(np.abs(a_user - a_true) / scale))
         if family is not None:
             values.update({c: 0.0 for c in consts})
             a_l = family.accelerations(values)
             if a_l is None:
                 continue
-            diffs_lindelof.append(np.max(np.abs(a_user - a_l) / np.maximum(scale, np.abs(a_l))))
+            diffs_lindelof.append(np.max(np.abs(a_user - a_l) / scale))
             columns = []
             for c in consts:
                 values[c] = 1.0
