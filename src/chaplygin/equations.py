@@ -186,7 +186,6 @@ class Equations:
         """
         from .multipliers import virtual_work
 
-        self._require_reactions("virtual_work")
         return virtual_work(self, chetaev_condition=chetaev_condition)
 
     def _require_reactions(self, what: str) -> list[sp.Expr]:

@@ -92,7 +92,7 @@ class _Linear:
             self.extra_state = list(eqs._state)
             self.constants = list(eqs.constants)
             self.names = {u: eqs._user(u) for u in eqs._state}
-            self.symbolic = eqs
+            self.symbolic: Equations | None = eqs
             return
         self.symbolic = None
         if isinstance(eqs, Mapping):
@@ -188,7 +188,7 @@ class _Linear:
                 + ", ".join(sp.sstr(self.system.to_user(u)) for u in self.unknowns)
                 + " at a random admissible state."
             )
-        if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, np.linalg.norm(F)):
+        if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, float(np.linalg.norm(F))):
             raise ChaplyginError(f"{self.label}: the equations are inconsistent at a random admissible state.")
         return x[self.independent]
 

@@ -135,7 +135,8 @@ def virtual_work(equations: Equations, *, chetaev_condition: bool = True) -> sp.
     """
     s = equations.system
     dq = virtual_displacements(s)
-    work = sum((r * d for r, d in zip(equations._reactions, dq)), sp.S.Zero)
+    reactions = equations._require_reactions("virtual_work")
+    work: sp.Expr = sp.Add(*(r * d for r, d in zip(reactions, dq)))
     if chetaev_condition:
         ind = [dq[i] for i in s._ind]
         cond = {
