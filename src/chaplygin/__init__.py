@@ -6,6 +6,7 @@ from . import examples
 from .equations import Equations
 from .compare import Comparison, compare
 from .equivalence import EquivalenceReport, equivalent
+from .mechanics import from_mechanics
 from .simulate import Trajectory
 from .integrability import IntegrabilityReport
 from .errors import ChaplyginError, ModelError, SystemDefinitionError
@@ -28,6 +29,7 @@ __all__ = [
     "examples",
     "Trajectory",
     "compare",
+    "from_mechanics",
     "Comparison",
 ]
 

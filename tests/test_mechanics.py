@@ -1,0 +1,71 @@
+"""Interop: systems built from sympy.physics.mechanics objects equal the hand-written ones."""
+
+from __future__ import annotations
+
+import pytest
+import sympy as sp
+from sympy.physics.mechanics import Particle, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
+
+from chaplygin import SystemDefinitionError, equivalent, examples
+from chaplygin.mechanics import from_mechanics
+
+t = dynamicsymbols._t
+
+
+def mechanics_disk(gravity_as_load: bool):
+    """The rolling disk as in SymPy's rolling-disc examples, plus the contact point (x, y)."""
+    psi, theta, phi, x, y = q = dynamicsymbols("psi theta phi x y")
+    m, r, A, C, g = sp.symbols("m r A C g", positive=True)
+    N = ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [psi, N.z])
+    L = Y.orientnew("L", "Axis", [theta, Y.x])
+    D = L.orientnew("D", "Axis", [phi, L.y])
+    O = Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x + y * N.y)
+    G = P.locatenew("G", r * L.z)
+    G.set_vel(N, G.pos_from(O).dt(N))
+    disk = RigidBody("disk", G, D, m, (inertia(L, A, C, A), G))
+    slip = G.vel(N) + D.ang_vel_in(N).cross(P.pos_from(G))  # velocity of the disk's contact point
+    kwargs = {"loads": [(G, -m * g * N.z)]} if gravity_as_load else {"potential_energy": m * g * r * sp.cos(theta)}
+    return from_mechanics(N, q, [disk], [slip], dependent=[x, y], name="mechanics disk", **kwargs)
+
+
+@pytest.mark.parametrize("gravity_as_load", [False, True])
+def test_rolling_disk_from_mechanics(gravity_as_load: bool) -> None:
+    built = mechanics_disk(gravity_as_load)
+    assert built.g == 2 and built.is_chaplygin  # the vertical slip component vanished
+    reference = examples.rolling_disk()
+    assert sp.simplify(built.kinetic_energy - reference.kinetic_energy) == 0
+    # same dynamics: evaluate the built system's equations in the reference system
+    eqs = [e.lhs for e in built.equations("chetaev").equations[: built.n]]
+    assert equivalent(reference, eqs, reference.equations("chaplygin"), symbolic=False)
+
+
+def test_knife_edge_from_mechanics() -> None:
+    x, y, phi = q = dynamicsymbols("x y phi")
+    m, J = sp.symbols("m J", positive=True)
+    N = ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [phi, N.z])
+    O = Point("O")
+    P = O.locatenew("P", x * N.x + y * N.y)
+    P.set_vel(N, P.pos_from(O).dt(N))
+    blade = RigidBody("blade", P, B, m, (inertia(B, 0, 0, J), P))
+    built = from_mechanics(N, q, [blade], [P.vel(N).dot(B.y)], dependent=[y])
+    reference = examples.knife_edge()
+    assert equivalent(reference, [e.lhs for e in built.equations("chetaev").equations[:3]],
+                      reference.equations("chetaev"), symbolic=False)
+
+
+def test_errors() -> None:
+    x, y = q = dynamicsymbols("x y")
+    N = ReferenceFrame("N")
+    P = Point("P")
+    P.set_vel(N, x.diff(t) * N.x + y.diff(t) * N.y)
+    ball = Particle("ball", P, sp.Symbol("m"))
+    with pytest.raises(SystemDefinitionError, match="2 non-vanishing constraint component"):
+        from_mechanics(N, q, [ball], [P.vel(N)], dependent=[y])
+    with pytest.raises(SystemDefinitionError, match="not a RigidBody or Particle"):
+        from_mechanics(N, q, [P], [y.diff(t)], dependent=[y])
+    with pytest.raises(SystemDefinitionError, match="loads\\[0\\]"):
+        from_mechanics(N, q, [ball], [y.diff(t)], dependent=[y], loads=[(P, 1)])
