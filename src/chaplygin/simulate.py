@@ -5,9 +5,12 @@ all coordinates and the independent velocities; the dependent coordinates
 follow through the constraints.  The multiplier models integrate all
 coordinates and velocities (and μ for the vakonomic model) with the
 constraints imposed at acceleration level; their constraint residual shows the
-drift.  Integration is SciPy's stepper classes (``DOP853`` by default) driven
-step by step, so a failure (step-size underflow, a singular mass matrix, a
-blow-up) ends the run with a status, a message and the trajectory so far.
+drift.  Integration: with ``backend="numba"`` and DOP853, a compiled port of
+SciPy's DOP853 that runs entirely inside numba (:mod:`chaplygin._loop`); with
+``backend="jax"``, diffrax; otherwise SciPy's stepper classes (``DOP853`` by
+default) driven step by step.  Every path ends a failed run (step-size
+underflow, a singular mass matrix, a blow-up) with a status, a message and the
+trajectory so far.
 """
 
 from __future__ import annotations
@@ -127,8 +130,11 @@ def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Pa
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w" if text else "wb") as fh:
+        with os.fdopen(fd, "w", encoding="utf-8") if text else os.fdopen(fd, "wb") as fh:
             write(fh)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a normal file follows the umask
         os.replace(tmp, target)
     except BaseException:
         if os.path.exists(tmp):
@@ -309,10 +315,30 @@ def integrate(
     max_step: float,
     g: int,
 ) -> Trajectory:
-    """Integrate ``compiled.rhs`` from ``y0`` and sample it (SciPy stepper, dense output)."""
+    """Integrate ``compiled.rhs`` from ``y0`` and sample it.
+
+    ``numba`` backend with ``method="DOP853"``: the compiled loop of
+    :mod:`chaplygin._loop` (the whole integration inside numba).  ``jax``
+    backend with ``"DOP853"``, ``"RK45"`` or ``"RK23"``: diffrax
+    (:mod:`chaplygin.jaxbackend`).  Otherwise: SciPy's stepper class driven
+    step by step, with dense output where a sample falls.
+    """
+    times = np.linspace(t_span[0], t_span[1], samples)
+    if compiled.backend == "numba" and method == "DOP853":
+        from ._loop import integrate_dop853, loop_model
+
+        looped = loop_model(compiled)
+        res = integrate_dop853(looped, t_span, y0, p, times, rtol=rtol, atol=atol, max_step=max_step)
+        return _trajectory(looped, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+    if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
+        from .jaxbackend import solve
+
+        res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
+        return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+
     import scipy.integrate as si
 
-    rhs, layout = compiled.rhs, compiled.layout
+    rhs = compiled.rhs
     count = [0]
 
     def fun(t: float, y: np.ndarray) -> np.ndarray:
@@ -325,7 +351,6 @@ def integrate(
             raise _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}")
         return dy
 
-    times = np.linspace(t_span[0], t_span[1], samples)
     out = np.empty((samples, len(y0)))
     status, message, k = "success", "", 0
     try:
@@ -336,6 +361,8 @@ def integrate(
             if stepper.status == "failed":
                 status, message = "failed", f"the integrator stopped at t = {stepper.t:.6g}: {msg}"
                 break
+            if times[k] > stepper.t and stepper.status != "finished":
+                continue  # no sample in this step: skip the dense output (extra evaluations)
             dense = stepper.dense_output()
             while k < samples and times[k] <= stepper.t:
                 out[k] = dense(times[k])

@@ -669,8 +669,10 @@ class System:
             SciPy stepper: ``"DOP853"`` (default), ``"RK45"``, ``"Radau"``, …
         samples : int
             Number of equally spaced output times (default 1001).
-        backend : {"numpy", "numba"}
-            Generated code run as plain Python/NumPy, or compiled with numba.
+        backend : {"numpy", "numba", "jax"}
+            Generated code run as plain Python/NumPy; compiled with numba (with
+            the compiled DOP853 loop of :mod:`chaplygin._loop`); or JAX with
+            diffrax (optional extra ``chaplygin[jax]``).
         constants : optional
             Vakonomic models: the constants ``c_β`` (default 0); for
             ``model="vakonomic"`` the string ``"match"`` starts with ``μ = 0``,

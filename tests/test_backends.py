@@ -1,0 +1,218 @@
+"""Backends and integrators: the compiled DOP853 loop, the jax backend, ensembles.
+
+The compiled loop (``backend="numba"``) is a port of SciPy's DOP853, so it must
+reproduce SciPy's runs (``backend="numpy"`` drives SciPy's stepper) to well
+within the tolerance; failures must come back as a status with the trajectory
+so far.  JAX tests are skipped when the optional extra is not installed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+
+from chaplygin import ChaplyginError, System, examples
+from chaplygin._loop import integrate_dop853, loop_model
+from chaplygin._symbols import TIME
+from chaplygin.codegen import compile_equations
+from chaplygin.ensemble import simulate_ensemble
+from chaplygin.simulate import simulate
+
+DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
+DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
+SPHERE_P = {"m": 1.0, "a": 1.0}
+SPHERE_0 = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0, "psi'": 0.5, "theta'": 0.4, "phi'": -0.7}
+
+
+@pytest.fixture(scope="module")
+def disk() -> System:
+    return examples.rolling_disk()
+
+
+@pytest.fixture(scope="module")
+def sphere() -> System:
+    return examples.rolling_sphere()
+
+
+@pytest.fixture(scope="module")
+def failing() -> System:
+    """ẍ = k ẋ² (blows up at t = 1/(k ẋ(0))); the mass of y drops to exactly 0 at t = a."""
+    x, y, z = dynamicsymbols("x y z")
+    a, k = sp.symbols("a k", positive=True)
+    t = TIME
+    mass_y = sp.Piecewise((1, t < a), (0, True))
+    T = sp.Rational(1, 2) * x.diff(t) ** 2 + sp.Rational(1, 2) * mass_y * y.diff(t) ** 2
+    return System([x, y, z], T, {z.diff(t): y.diff(t)}, forces={x: k * x.diff(t) ** 2}, name="failing")
+
+
+FAILING_0 = {"x": 0.0, "y": 0.0, "z": 0.0, "x'": 1.0, "y'": 1.0}
+
+
+def _max_difference(a, b) -> float:
+    assert a.columns == b.columns
+    assert np.array_equal(a.t, b.t)
+    return max(float(np.max(np.abs(a[c] - b[c]))) for c in a.columns)
+
+
+# ------------------------------------------------------------------ compiled DOP853
+@pytest.mark.parametrize("which", ["disk", "sphere"])
+def test_numba_loop_reproduces_scipy_dop853(which, disk, sphere):
+    system, start, params = (disk, DISK_0, DISK_P) if which == "disk" else (sphere, SPHERE_0, SPHERE_P)
+    scipy_run = simulate(system, "chaplygin", 10.0, start, params, backend="numpy", samples=101)
+    loop_run = simulate(system, "chaplygin", 10.0, start, params, backend="numba", samples=101)
+    assert scipy_run.success and loop_run.success, loop_run.message
+    assert loop_run.backend == "numba"
+    assert _max_difference(scipy_run, loop_run) < 1e-8
+    # the same steps as SciPy's: the same number of right-hand-side evaluations, give or take
+    assert abs(loop_run.rhs_evaluations - scipy_run.rhs_evaluations) <= 0.01 * scipy_run.rhs_evaluations
+    assert loop_run.energy_drift() < 1e-9
+
+
+def test_loop_derivative_equals_generated_rhs(disk):
+    """The loop's allocation-free fill + elimination gives the generated rhs's numbers."""
+    model = loop_model(compile_equations(disk.equations("chaplygin"), "numba"))
+    rng = np.random.default_rng(1)
+    p = np.array([0.0625, 0.125, 9.81, 1.0, 0.5])
+    times = np.array([0.0])
+    for _ in range(5):
+        y0 = rng.uniform(-1, 1, 8)
+        # one sample at t0 and a tiny first step: the first derivative is what we compare
+        first = np.empty(8)
+        module = model.module
+        M, b, V, O = np.empty((module.DIM, module.DIM)), np.empty(module.DIM), np.empty(module.N), np.empty(module.N_OBSERVED)
+        assert module._k_eval(0.0, y0, p, first, M, b, V, O) == 0
+        np.testing.assert_allclose(first, module.rhs(0.0, y0, p), rtol=1e-13, atol=1e-13)
+    result = integrate_dop853(model, (0.0, 1.0), y0, p, times)
+    _t, y, status, message, n_rhs = result[:5]
+    assert status == "success" and message == "reached t = 1" and n_rhs > 0
+    assert np.array_equal(y[0], y0)
+
+
+def test_loop_observe_equals_generated_observe():
+    """The loop's observe (energy, residuals, reactions λ, velocities) is the generated one."""
+    system = examples.vertical_rolling_disk()
+    eqs = system.equations("chetaev")
+    model = loop_model(compile_equations(eqs, "numba"))
+    ref = compile_equations(eqs, "numpy")
+    assert model.layout.reactions  # λ are computed, not integrated
+    rng = np.random.default_rng(3)
+    p = np.array([1.3, 0.4, 0.7, 0.5])
+    for _ in range(4):
+        y = rng.uniform(-1, 1, len(model.layout.state))
+        np.testing.assert_allclose(model.observe(0.0, y, p), ref.observe(0.0, y, p), rtol=1e-12, atol=1e-12)
+
+
+def test_numba_loop_other_methods_fall_back_to_scipy(disk):
+    run = simulate(disk, "chaplygin", 1.0, DISK_0, DISK_P, backend="numba", method="RK45", samples=11)
+    ref = simulate(disk, "chaplygin", 1.0, DISK_0, DISK_P, backend="numpy", method="RK45", samples=11)
+    assert run.success and _max_difference(run, ref) < 1e-12
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_blow_up_is_a_status_with_partial_trajectory(failing, backend):
+    run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 100.0, "k": 1.0}, backend=backend, samples=21)
+    assert run.status == "failed" and not run.success
+    assert "t = 1" in run.message and ("step size" in run.message or "blew up" in run.message)
+    # samples up to the blow-up at t = 1 (x = -ln(1 - t)), none after
+    assert 2 <= len(run.t) < 21 and run.t[-1] <= 1.0
+    before = run.t < 0.95
+    np.testing.assert_allclose(run["x"][before], -np.log1p(-run.t[before]), rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_singular_mass_matrix_is_a_status_with_partial_trajectory(failing, backend):
+    run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend=backend, samples=21)
+    assert run.status == "failed"
+    assert "singular" in run.message.lower(), run.message
+    assert 2 <= len(run.t) <= 6 and run.t[-1] <= 0.5
+    np.testing.assert_allclose(run["x"], run.t, atol=1e-12)  # uniform motion until then
+    assert np.all(np.isfinite(run.table()))
+
+
+# ------------------------------------------------------------------ ensembles
+def test_ensemble_final_states_equal_single_runs(disk):
+    thetas = [0.1, 0.25, 0.4]
+    starts = [{**DISK_0, "theta": th, "phi'": 4.0 + th} for th in thetas]
+    ens = simulate_ensemble(disk, "chaplygin", 5.0, starts, DISK_P, backend="numba")
+    assert ens.success.all() and np.all(ens.t == 5.0)
+    for i, start in enumerate(starts):
+        single = simulate(disk, "chaplygin", 5.0, start, DISK_P, backend="numba", samples=2)
+        for name in ("psi", "theta", "phi", "x", "y", "psi'", "theta'", "phi'", "x'", "y'", "energy"):
+            assert abs(ens[name][i] - single[name][-1]) < 1e-12, name
+    assert np.max(ens.energy_drift()) < 1e-9
+    # the same members as an array in layout order, and with samples kept
+    layout = compile_equations(disk.equations("chaplygin"), "numpy").layout
+    Y0 = np.array([[s[name] for name in layout.state] for s in starts])
+    again = simulate_ensemble(disk, "chaplygin", 5.0, Y0, DISK_P, backend="numba", keep=6)
+    np.testing.assert_allclose(again.y, ens.y, rtol=0, atol=1e-12)
+    single = simulate(disk, "chaplygin", 5.0, starts[1], DISK_P, backend="numpy", samples=6)
+    np.testing.assert_allclose(again.samples[1][:, 1], single["theta"], atol=1e-8)
+
+
+def test_ensemble_parameter_sweep_and_a_failing_member(disk):
+    """One member with no inertia at all (a zero mass matrix) fails; the others run on."""
+    masses = np.array([1.0, 0.0, 2.0])
+    params = {**DISK_P, "m": masses, "A": 0.0625 * masses, "C": 0.125 * masses}
+    ens = simulate_ensemble(disk, "chaplygin", 2.0, [DISK_0] * 3, params, backend="numba")
+    assert list(ens.status) == ["success", "failed", "success"]
+    assert "singular" in ens.messages[1] and ens.t[1] == 0.0 and ens.code[1] == 5
+    # mass scales out of the disk's motion
+    np.testing.assert_allclose(ens.y[0], ens.y[2], rtol=1e-9, atol=1e-9)
+
+
+def test_ensemble_input_errors(disk):
+    with pytest.raises(ChaplyginError, match="shape"):
+        simulate_ensemble(disk, "chaplygin", 1.0, np.zeros((2, 3)), DISK_P)
+    with pytest.raises(ChaplyginError, match="backend"):
+        simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend="numpy")
+    with pytest.raises(ChaplyginError, match="parameters"):
+        simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0, DISK_0], {**DISK_P, "m": [1.0, 2.0, 3.0]})
+
+
+# ------------------------------------------------------------------ jax
+@pytest.fixture(scope="module")
+def jax_disk(disk):
+    pytest.importorskip("jax")
+    pytest.importorskip("diffrax")
+    return compile_equations(disk.equations("chaplygin"), "jax")
+
+
+def test_jax_functions_equal_generated_code(disk, jax_disk):
+    ref = compile_equations(disk.equations("chaplygin"), "numpy")
+    assert jax_disk.layout == ref.layout
+    rng = np.random.default_rng(2)
+    p = np.array([0.0625, 0.125, 9.81, 1.0, 0.5])
+    for _ in range(3):
+        y = rng.uniform(-1, 1, 8)
+        np.testing.assert_allclose(jax_disk.rhs(0.0, y, p), ref.rhs(0.0, y, p), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(jax_disk.observe(0.0, y, p), ref.observe(0.0, y, p), rtol=1e-12, atol=1e-12)
+
+
+def test_jax_simulate_agrees_with_scipy(disk, jax_disk):
+    ref = simulate(disk, "chaplygin", 10.0, DISK_0, DISK_P, backend="numpy", samples=101)
+    run = simulate(disk, "chaplygin", 10.0, DISK_0, DISK_P, backend="jax", samples=101)
+    assert run.success and run.backend == "jax"
+    assert _max_difference(ref, run) < 1e-7  # Dopri8, not DOP853: agreement to tolerance
+    assert run.energy_drift() < 1e-8
+
+
+def test_jax_failure_is_a_status(failing):
+    pytest.importorskip("diffrax")
+    run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend="jax", samples=21)
+    assert run.status == "failed" and "t = 0.5" in run.message
+    assert 2 <= len(run.t) <= 6 and np.all(np.isfinite(run.table()))
+
+
+def test_jax_ensemble_equals_single_runs(disk, jax_disk):
+    starts = [{**DISK_0, "theta": th} for th in (0.3, 0.2)]
+    ens = simulate_ensemble(disk, "chaplygin", 10.0, starts, DISK_P, backend="jax")
+    assert ens.success.all()
+    # the first member is test_jax_simulate_agrees_with_scipy's run (its solver is compiled)
+    single = simulate(disk, "chaplygin", 10.0, starts[0], DISK_P, backend="jax", samples=101)
+    for name in ("psi", "theta", "phi", "x", "y", "theta'", "x'", "energy"):
+        assert abs(ens[name][0] - single[name][-1]) < 1e-10, name
+    for i, start in enumerate(starts):
+        numba_single = simulate(disk, "chaplygin", 10.0, start, DISK_P, backend="numba", samples=2)
+        assert abs(ens["x"][i] - numba_single["x"][-1]) < 1e-7
