@@ -26,6 +26,7 @@ from itertools import combinations
 from typing import TYPE_CHECKING
 
 import sympy as sp
+from sympy.physics.vector.printing import vsstrrepr
 
 from ._sampling import vanishes
 from ._symbols import TIME, simplify_small
@@ -64,7 +65,7 @@ class Condition:
         if self.failures:
             label, expr = self.failures[0]
             more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
-            text += f" — {label} = {sp.sstr(expr)}{more}"
+            text += f" — {label} = {vsstrrepr(expr)}{more}"
         return text + (f". {self.note}" if self.note else "")
 
 
@@ -98,7 +99,7 @@ class IntegrabilityReport:
         if self.integrable:
             if self.relations:
                 lines.append("  Finite relations (each = constant):")
-                lines += [f"    {sp.sstr(r)}" for r in self.relations]
+                lines += [f"    {vsstrrepr(r)}" for r in self.relations]
             else:
                 lines.append("  No finite relation was found in closed form.")
         return "\n".join(lines)
