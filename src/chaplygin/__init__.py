@@ -6,6 +6,7 @@ from . import examples
 from .equations import Equations
 from .compare import Comparison, compare
 from .equivalence import EquivalenceReport, equivalent
+from .files import SystemFile, SystemFileError, dumps, load, loads
 from .mechanics import from_mechanics
 from .simulate import Trajectory
 from .integrability import IntegrabilityReport
@@ -30,6 +31,11 @@ __all__ = [
     "Trajectory",
     "compare",
     "from_mechanics",
+    "load",
+    "loads",
+    "dumps",
+    "SystemFile",
+    "SystemFileError",
     "Comparison",
 ]
 

@@ -33,8 +33,11 @@ def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
     return out
 
 
+_UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of their derivatives
+
+
 def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
-    if not HAVE_SYMENGINE:
+    if not HAVE_SYMENGINE or any(e.has(*_UNSAFE) for e in exprs):
         return None
     try:
         return [_to_symengine(e) for e in exprs]

@@ -51,6 +51,11 @@ BACKENDS = ("numpy", "numba", "jax")
 CODE_FORMAT = 2
 
 
+def _docstring_safe(text: str) -> str:
+    """``text`` escaped so that it cannot end or escape the generated module's docstring."""
+    return text.encode("unicode_escape").decode("ascii").replace('"', "\\x22")
+
+
 def _version() -> str:
     from . import __version__
 
@@ -198,7 +203,7 @@ def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
         '"""\n'
     ).format(
         version=_version(), fmt=CODE_FORMAT,
-        model=eqs.model, form=eqs.form, name=s.name, state=", ".join(layout.state),
+        model=eqs.model, form=eqs.form, name=_docstring_safe(s.name), state=", ".join(layout.state),
         params=", ".join(layout.parameters), g=s.g, reactions=", ".join(layout.reactions) or "none",
         n=s.n,
     )

@@ -3,16 +3,23 @@
 Each constructor returns a :class:`~chaplygin.System` built from SymPy objects;
 parameters are plain symbols (mass ``m``, radius ``a`` …) that the caller may
 replace with numbers by passing them as arguments.
+
+:func:`catalogue` lists them by name (``rolling-sphere``, ``knife-edge``,
+``vertical-rolling-disk``, ``rolling-disk``) with a description, default
+parameter values and an initial state; :func:`get` looks one up.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import difflib
+from collections.abc import Callable, Mapping
+from typing import NamedTuple
 
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
 from ._symbols import TIME
+from .errors import ChaplyginError
 from .system import System
 
 __all__ = [
@@ -20,6 +27,9 @@ __all__ = [
     "knife_edge",
     "vertical_rolling_disk",
     "rolling_disk",
+    "ExampleEntry",
+    "catalogue",
+    "get",
 ]
 
 _t = TIME
@@ -199,3 +209,110 @@ def rolling_disk(
         potential_energy=m_ * g_ * r_ * c(theta),
         name="Disk rolling on a horizontal plane",
     )
+
+
+# ---------------------------------------------------------------------------- catalogue
+class ExampleEntry(NamedTuple):
+    """One built-in example: how to build it, what it is, and numbers to simulate it with.
+
+    ``constructor()`` returns the symbolic :class:`~chaplygin.System`;
+    ``parameters`` gives a default value to each of its parameters and
+    ``initial`` a full initial state (every coordinate and every independent
+    velocity, keyed ``"x"``/``"x'"``) from which every model simulates well
+    over ``0 ≤ t ≤ 20``.
+    """
+
+    constructor: Callable[[], System]
+    description: str
+    parameters: dict[str, float]
+    initial: dict[str, float]
+
+    def system(self) -> System:
+        """The symbolic system (``constructor()``)."""
+        return self.constructor()
+
+    def dumps(self) -> str:
+        """The example as a system file (TOML, see :mod:`chaplygin.files`)."""
+        from .files import dumps
+
+        return dumps(self.constructor(), self.parameters, self.initial)
+
+
+_CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[str, float]]] = {
+    "rolling-sphere": (
+        rolling_sphere,
+        (
+            "The seed paper's §4 example: a homogeneous sphere (mass m, radius a) rolling without "
+            "slipping on a rough horizontal plane; Euler angles psi, theta, phi and the centre x, y. "
+            "A Chaplygin system with non-integrable constraints; the true motion and Lindelöf's "
+            "differ (paper eqs. (41)-(62))."
+        ),
+        {"m": 1.0, "a": 1.0},
+        {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
+         "psi'": 0.5, "theta'": 0.4, "phi'": -0.7},
+    ),
+    "knife-edge": (
+        knife_edge,
+        (
+            "A knife edge (skate) on a horizontal plane: the contact point (x, y) moves only along the "
+            "blade of heading phi, sin(phi)*x' - cos(phi)*y' = 0, with y dependent (y' = tan(phi)*x', "
+            "a pole at phi = ±pi/2). The true motion keeps its speed and turns at a constant rate; "
+            "Lindelöf's equations instead swing phi away from 0 exponentially (rate x'*sqrt(m/J)), "
+            "reaching the pole after t ≈ 25 from the default state."
+        ),
+        {"m": 1.0, "J": 1.0},
+        {"x": 0.0, "y": 0.0, "phi": 0.0, "x'": 0.1, "phi'": 0.02},
+    ),
+    "vertical-rolling-disk": (
+        vertical_rolling_disk,
+        (
+            "A disk rolling upright on a plane (Bloch, Nonholonomic Mechanics and Control, §1.4): "
+            "spin theta, heading phi, contact point x, y; x' = R*cos(phi)*theta', "
+            "y' = R*sin(phi)*theta'. The contact point runs round a circle."
+        ),
+        {"m": 1.0, "R": 1.0, "I": 0.5, "J": 0.25},
+        {"theta": 0.0, "phi": 0.0, "x": 0.0, "y": 0.0, "theta'": 1.0, "phi'": 0.2},
+    ),
+    "rolling-disk": (
+        rolling_disk,
+        (
+            "A thin uniform disk (A = m r²/4, C = m r²/2) rolling without slipping on a horizontal "
+            "plane under gravity: heading psi, lean theta (0 upright), spin phi, contact point x, y. "
+            "The default state rolls fast enough (phi' = 6) to stay up, wobbling about the upright."
+        ),
+        {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81},
+        {"psi": 0.0, "theta": 0.1, "phi": 0.0, "x": 0.0, "y": 0.0,
+         "psi'": 0.0, "theta'": 0.0, "phi'": 6.0},
+    ),
+}
+
+
+def _normalise(name: str) -> str:
+    return name.strip().lower().replace("_", "-").replace(" ", "-")
+
+
+def catalogue() -> dict[str, ExampleEntry]:
+    """The built-in examples by name, each an :class:`ExampleEntry` (fresh copies every call)."""
+    return {
+        name: ExampleEntry(ctor, text, dict(params), dict(init))
+        for name, (ctor, text, params, init) in _CATALOGUE.items()
+    }
+
+
+def get(name: str) -> ExampleEntry:
+    """The example called ``name`` (``"rolling-sphere"``; ``rolling_sphere`` works too).
+
+    Raises
+    ------
+    ChaplyginError
+        For an unknown name, listing the examples.
+    """
+    entries = catalogue()
+    key = _normalise(name) if isinstance(name, str) else name
+    if key not in entries:
+        close = difflib.get_close_matches(str(key), list(entries), n=1)
+        hint = f" Did you mean {close[0]!r}?" if close else ""
+        raise ChaplyginError(
+            f"unknown example {name!r}; the examples are {', '.join(entries)}.{hint}"
+        )
+    return entries[key]

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from functools import cached_property
-from itertools import combinations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -420,11 +419,10 @@ class System:
             )
         if any(self._full_rank(a[:, list(self._dep)]) for a in samples):
             return
-        good = [
-            c
-            for c in combinations(range(self.n), g)
-            if any(self._full_rank(a[:, list(c)]) for a in samples)
-        ][:3]
+        from scipy.linalg import qr
+
+        finite = [a for a in samples if np.all(np.isfinite(a))]
+        good = [tuple(sorted(qr(finite[0], pivoting=True)[2][:g]))] if finite else []
         names = lambda c: "[" + ", ".join(self.coordinates[i].func.__name__ for i in c) + "]"  # noqa: E731
         raise SystemDefinitionError(
             f"dependent={names(self._dep)}: the constraints cannot be solved for these velocities "

@@ -1,0 +1,749 @@
+"""The ``chaplygin`` command line (typer + rich).
+
+Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``report``, ``demo`` and
+``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.files`) or
+``example:NAME`` for a built-in example.
+
+Exit status: 0 on success; 1 on a bad file, a failed run or a refused overwrite (a message on
+stderr, never a traceback); 2 on wrong usage (typer's own: unknown option, missing or invalid
+argument).  Long work shows rich progress on a terminal and nothing when the output is piped.
+An existing output is never replaced without ``--force`` (``demo`` replaces its own report);
+every output is written through a temporary file and renamed, so an interrupted run leaves the
+previous file intact.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from enum import Enum
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Optional
+
+import typer
+from rich.console import Console
+
+from .errors import ChaplyginError
+
+if TYPE_CHECKING:
+    from .compare import Comparison
+    from .equations import Equations
+    from .system import System
+
+__all__ = ["app", "main", "file_syntax", "derive_json", "check_json"]
+
+app = typer.Typer(
+    name="chaplygin",
+    help="Equations of motion of nonholonomic systems: derive, check, simulate, compare, report.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+examples_app = typer.Typer(help="The built-in examples: list them, or print one as a system file.",
+                           no_args_is_help=True)
+app.add_typer(examples_app, name="examples")
+
+DEMO_GENERATOR = "chaplygin demo"
+DEMO_REPORT = Path("demo") / "report.html"
+FILE_HELP = "A TOML system file, or example:NAME for a built-in example (see `chaplygin examples list`)."
+
+
+class Model(str, Enum):
+    chetaev = "chetaev"
+    chaplygin = "chaplygin"
+    voronets = "voronets"
+    vakonomic = "vakonomic"
+    lindelof = "lindelof"
+    vakonomic_family = "vakonomic_family"
+
+
+class Form(str, Enum):
+    classic = "classic"
+    new = "new"
+
+
+class DeriveFormat(str, Enum):
+    text = "text"
+    latex = "latex"
+    json = "json"
+
+
+class CheckFormat(str, Enum):
+    text = "text"
+    json = "json"
+
+
+class Backend(str, Enum):
+    numpy = "numpy"
+    numba = "numba"
+    jax = "jax"
+
+
+class FigureFormat(str, Enum):
+    svg = "svg"
+    png = "png"
+    pdf = "pdf"
+
+
+class OutputExists(ChaplyginError):
+    """An output exists and ``--force`` was not given."""
+
+
+# ====================================================================== consoles, progress, errors
+def _stdout() -> Console:
+    return Console(file=sys.stdout, soft_wrap=True, highlight=False, emoji=False)
+
+
+def _stderr() -> Console:
+    return Console(file=sys.stderr, soft_wrap=True, highlight=False, emoji=False)
+
+
+def _emit(text: str) -> None:
+    """A command's result on stdout, exactly as given (no markup, emoji codes or wrapping)."""
+    sys.stdout.write(text if text.endswith("\n") else text + "\n")
+    sys.stdout.flush()
+
+
+class _Steps:
+    """A rich progress bar over named steps on a terminal; nothing at all when piped."""
+
+    def __init__(self, total: int, description: str, console: Console | None = None) -> None:
+        self.console = console or _stderr()
+        self.total = total
+        self.description = description
+        self.done = -1  # steps finished; the first step() starts step 0
+        self._progress: Any = None
+        self._task: Any = None
+
+    def __enter__(self) -> _Steps:
+        if self.console.is_terminal:
+            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
+                                       TextColumn, TimeElapsedColumn)
+
+            self._progress = Progress(
+                SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                MofNCompleteColumn(), TimeElapsedColumn(), console=self.console, transient=True,
+            )
+            self._progress.start()
+            self._task = self._progress.add_task(self.description, total=self.total)
+        return self
+
+    def step(self, description: str) -> None:
+        """Start the next step; the previous one counts as done."""
+        self.done += 1
+        if self._progress is not None:
+            self._progress.update(self._task, description=description,
+                                  completed=min(self.done, self.total))
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, completed=self.total)
+            self._progress.stop()
+
+
+@contextmanager
+def _failures() -> Iterator[None]:
+    """Turn errors into a message on stderr and exit status 1 (no traceback)."""
+    try:
+        yield
+    except (typer.Exit, typer.Abort, typer.BadParameter):
+        raise
+    except KeyboardInterrupt:
+        _stderr().print("interrupted: no output was left half-written.", markup=False)
+        raise typer.Exit(130) from None
+    except ChaplyginError as exc:
+        _stderr().print(f"error: {exc}", markup=False)
+        raise typer.Exit(1) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        _stderr().print(f"error: {where}{exc.strerror or exc}", markup=False)
+        raise typer.Exit(1) from None
+    except Exception as exc:  # noqa: BLE001 - a bug or an input nobody foresaw: still no traceback
+        if os.environ.get("CHAPLYGIN_DEBUG"):
+            raise
+        _stderr().print(
+            f"error: unexpected {type(exc).__name__}: {exc} (set CHAPLYGIN_DEBUG=1 for the traceback)",
+            markup=False,
+        )
+        raise typer.Exit(1) from None
+
+
+def _refuse_existing(paths: Sequence[Path], force: bool) -> None:
+    existing = [p for p in paths if p.exists()]
+    for p in existing:
+        if p.is_dir():
+            raise OutputExists(f"{p} is a directory; give a file name.")
+    if existing and not force:
+        names = ", ".join(str(p) for p in existing)
+        raise OutputExists(f"{names} already exist{'s' if len(existing) == 1 else ''}; "
+                           "pass --force to overwrite.")
+
+
+# ====================================================================== loading
+def _example(name: str) -> Any:
+    """The catalogue entry ``name`` as a :class:`chaplygin.files.SystemFile`."""
+    from . import examples
+    from .files import SystemFile
+
+    entry = examples.get(name)
+    system = entry.constructor()
+    return SystemFile(system, dict(entry.parameters), dict(entry.initial), system.name, f"example:{name}")
+
+
+def _load(spec: str) -> Any:
+    """A system file, or ``example:NAME``."""
+    if spec.startswith("example:"):
+        return _example(spec[len("example:"):])
+    from . import files
+
+    return files.load(spec)
+
+
+def _overrides(values: Optional[list[str]], option: str) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in values or []:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep or not key.strip():
+                raise ValueError
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise typer.BadParameter(f"{item!r}: expected NAME=NUMBER, e.g. m=1.5", param_hint=option) from None
+    return out
+
+
+def _numbers(loaded: Any, params: Optional[list[str]], initial: Optional[list[str]]) -> tuple[dict[str, float], dict[str, float]]:
+    return ({**dict(loaded.parameters or {}), **_overrides(params, "--param")},
+            {**dict(loaded.initial or {}), **_overrides(initial, "--initial")})
+
+
+# ====================================================================== printing in the file syntax
+def _file_printer() -> Any:
+    from sympy.physics.vector.printing import VectorStrPrinter
+
+    class FilePrinter(VectorStrPrinter):
+        """``x'``, ``x''`` for derivatives, ``**`` for powers, the file syntax's function names."""
+
+        def _print_Abs(self, e: Any) -> str:
+            return f"abs({self._print(e.args[0])})"
+
+        def _print_Exp1(self, e: Any) -> str:
+            return "exp(1)"
+
+    return FilePrinter()
+
+
+def file_syntax(expr: Any) -> str:
+    """An expression as a string in the system-file syntax (``x'`` velocities, ``**`` powers)."""
+    return _file_printer().doprint(expr)
+
+
+def _names(items: Sequence[Any]) -> list[str]:
+    return [file_syntax(q) for q in items]
+
+
+def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[str, Any]:
+    """The JSON document of ``chaplygin derive --format json`` (schema ``chaplygin.derive/1``)."""
+    s = eqs.system
+    return {
+        "schema": "chaplygin.derive/1",
+        "system": s.name,
+        "model": eqs.model,
+        "form": eqs.form,
+        "title": eqs.title,
+        "coordinates": _names(s.coordinates),
+        "independent": _names(s.independent),
+        "dependent": _names(s.dependent),
+        "parameters": [p.name for p in s.parameters],
+        "constraints": {file_syntax(k): file_syntax(v) for k, v in s.constraints.items()},
+        "unknowns": _names(eqs.unknowns),
+        "multipliers": _names(eqs.multipliers),
+        "constants": [c.name for c in eqs.constants],
+        "equations": [file_syntax(e.lhs) for e in eqs.equations],
+        "accelerations": None if accelerations is None else {
+            file_syntax(k): file_syntax(v) for k, v in accelerations.items()
+        },
+    }
+
+
+# ====================================================================== derive
+@app.command()
+def derive(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    model: Model = typer.Option(..., "--model", "-m", help="The model to derive."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."),
+    fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
+    accelerations: bool = typer.Option(True, "--accelerations/--no-accelerations",
+                                       help="Also solve for the accelerations (and multipliers)."),
+) -> None:
+    """Derive the equations of motion of one model and print them."""
+    with _failures():
+        loaded = _load(file)
+        system = loaded.system
+        with _Steps(2 if accelerations else 1, f"deriving {model.value}/{form.value}") as steps:
+            steps.step(f"deriving the {model.value} equations")
+            eqs = system.equations(model.value, form.value)
+            eqs.equations  # noqa: B018 - computed here, under the progress display
+            acc = None
+            if accelerations:
+                steps.step("solving for the accelerations")
+                acc = eqs.accelerations
+        if fmt is DeriveFormat.json:
+            _emit(json.dumps(derive_json(eqs, acc), indent=2, ensure_ascii=False))
+        elif fmt is DeriveFormat.latex:
+            from sympy.physics.vector.printing import vlatex
+
+            lines = [f"% {eqs.title} - {system.name}", eqs.latex()]
+            if acc is not None:
+                rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
+                lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+            _emit("\n".join(lines))
+        else:
+            lines = [f"{eqs.title} - {system.name}"]
+            lines += [f"  {file_syntax(e.lhs)} = 0" for e in eqs.equations]
+            if acc is not None:
+                lines.append("Solved:")
+                lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+            _emit("\n".join(lines))
+
+
+# ====================================================================== check
+def check_json(system: System) -> dict[str, Any]:
+    """The JSON document of ``chaplygin check --format json`` (schema ``chaplygin.check/1``)."""
+    from .report import applicable_models
+    from .transitions import compare_models
+
+    rep = system.integrability()
+
+    def condition(c: Any) -> dict[str, Any]:
+        return {"holds": c.holds, "note": c.note,
+                "failures": [{"component": label, "value": file_syntax(e)} for label, e in c.failures]}
+
+    models, reasons = applicable_models(system)
+    try:
+        cmp = compare_models(system)
+        comparison: dict[str, Any] | None = {
+            "verdict": cmp.verdict, "coincide": cmp.coincide, "condition_28": cmp.condition_28,
+            "defect_vanishes": cmp.defect_vanishes,
+            "defect": {file_syntax(q): file_syntax(d) for q, d in cmp.defect.items()},
+        }
+        why_not = None
+    except ChaplyginError as exc:
+        comparison, why_not = None, str(exc)
+    return {
+        "schema": "chaplygin.check/1",
+        "system": system.name,
+        "coordinates": _names(system.coordinates),
+        "independent": _names(system.independent),
+        "dependent": _names(system.dependent),
+        "constraint_form": system.constraint_form,
+        "affine": system.is_affine,
+        "scleronomic": system.is_scleronomic,
+        "integrability": {
+            "integrable": rep.integrable,
+            "condition_28": condition(rep.condition_28),
+            "condition_33": condition(rep.condition_33),
+            "frobenius": condition(rep.frobenius),
+            "relations": [file_syntax(r) for r in rep.relations],
+        },
+        "chaplygin_system": {"is_chaplygin": system.is_chaplygin,
+                             "obstructions": list(system.chaplygin_obstructions)},
+        "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
+        "comparison": comparison,
+        "comparison_unavailable": why_not,
+    }
+
+
+@app.command()
+def check(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    fmt: CheckFormat = typer.Option(CheckFormat.text, "--format", "-f", help="Output format."),
+) -> None:
+    """Integrability of the constraints, Chaplygin-system test, and how the two models relate."""
+    with _failures():
+        loaded = _load(file)
+        with _Steps(1, "checking"):
+            doc = check_json(loaded.system)
+        if fmt is CheckFormat.json:
+            _emit(json.dumps(doc, indent=2, ensure_ascii=False))
+            return
+        system = loaded.system
+        integ = doc["integrability"]
+        lines = [f"{system.name}: {system.n} coordinates ({', '.join(doc['coordinates'])}), "
+                 f"{system.g} constraint(s); dependent: {', '.join(doc['dependent']) or 'none'}",
+                 "Constraints: " + ("integrable (holonomic)" if integ["integrable"] else
+                                    "not integrable (nonholonomic)") + ", by the Frobenius test."]
+        for key, name in (("condition_28", "(28)"), ("condition_33", "(33)"), ("frobenius", "Frobenius")):
+            c = integ[key]
+            line = f"  {name}: {'holds' if c['holds'] else 'fails'}"
+            if c["failures"]:
+                first = c["failures"][0]
+                more = len(c["failures"]) - 1
+                line += f" - {first['component']} = {first['value']}" + (f" (and {more} more)" if more else "")
+            lines.append(f"{line}. {c['note']}")
+        if integ["integrable"]:
+            lines.append("  Finite relations (each = constant): " + (", ".join(integ["relations"]) or "none found"))
+        chap = doc["chaplygin_system"]
+        lines.append("Chaplygin system: yes (T, U, forces and B free of the dependent coordinates)"
+                     if chap["is_chaplygin"] else
+                     "Chaplygin system: no - " + "; ".join(chap["obstructions"]))
+        lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
+        if doc["comparison"] is not None:
+            from .transitions import compare_models
+
+            lines.append(str(compare_models(system)))
+        else:
+            lines.append(f"Chetaev vs Lindelöf: not compared - {doc['comparison_unavailable']}")
+        _emit("\n".join(lines))
+
+
+# ====================================================================== simulate
+def _model_spec(text: str) -> tuple[str, str]:
+    from .equations import MODELS
+
+    name, _, form = text.strip().partition("/")
+    form = form or "classic"
+    if name not in MODELS or form not in MODELS[name]:
+        choices = ", ".join(f"{m}[/{'|'.join(f)}]" if len(f) > 1 else m for m, f in MODELS.items())
+        raise typer.BadParameter(f"{text!r} is not a model; choose from {choices}.", param_hint="--models")
+    return name, form
+
+
+def _constants(text: Optional[str]) -> Any:
+    if text is None:
+        return None
+    if text.strip() == "match":
+        return "match"
+    try:
+        return [float(c) for c in text.split(",")]
+    except ValueError:
+        raise typer.BadParameter(f"{text!r}: expected numbers separated by commas, or 'match'.",
+                                 param_hint="--constants") from None
+
+
+def _summary_line(label: str, tr: Any) -> str:
+    return (f"{label} [{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
+            f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; energy drift {tr.energy_drift():.3g}, "
+            f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}")
+
+
+@app.command()
+def simulate(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    model: Model = typer.Option(..., "--model", "-m", help="The model to simulate."),
+    t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the run starts at t = 0)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
+    samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
+    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
+) -> None:
+    """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
+    suffix = out.suffix.lower()
+    if suffix not in (".csv", ".npz"):
+        raise typer.BadParameter(f"{out}: the output must end in .csv or .npz.", param_hint="--out")
+    c = _constants(constants)
+    _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
+    with _failures():
+        _refuse_existing([out], force)
+        loaded = _load(file)
+        params, start = _numbers(loaded, param, initial)
+        system = loaded.system
+        label = model.value if form is Form.classic else f"{model.value}/{form.value}"
+        with _Steps(3, f"simulating {label}") as steps:
+            steps.step(f"deriving {label}")
+            if model is not Model.vakonomic_family:  # (the family is derived with its constants)
+                system.equations(model.value, form.value)
+            steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
+            options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value}
+            if c is not None:
+                options["constants"] = c
+            tr = system.simulate(model.value, t_end, start, params, **options)
+            steps.step(f"writing {out}")
+            (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
+        _emit(f"{_summary_line(label, tr)} -> {out}")
+        if not tr.success:
+            raise ChaplyginError(f"the run failed: {tr.message}; {out} holds the trajectory up to then.")
+
+
+# ====================================================================== compare
+def _comparison_outputs(directory: Path, labels: Sequence[str], figure_format: str, with_path: bool) -> list[Path]:
+    from .compare import FIGURES
+
+    files = [directory / "summary.txt", directory / "summary.json"]
+    files += [directory / f"{_safe(label)}.csv" for label in labels]
+    files += [directory / f"{k}.{figure_format}" for k in FIGURES if with_path or k != "paths"]
+    return files
+
+
+def _safe(label: str) -> str:
+    return label.replace("/", "-")
+
+
+def _comparison_json(comparison: Comparison) -> dict[str, Any]:
+    import numpy as np
+
+    rows = {}
+    for label, tr in comparison.trajectories.items():
+        d = comparison.distance(label)
+        k = int(np.argmax(d)) if len(d) else 0
+        rows[label] = {
+            "status": tr.status, "message": tr.message, "backend": tr.backend,
+            "samples": int(len(tr.t)), "t_end": float(tr.t[-1]) if len(tr.t) else None,
+            "max_distance": float(d[k]) if len(d) else None,
+            "at_t": float(tr.t[k]) if len(d) else None,
+            "final_distance": float(d[-1]) if len(d) else None,
+            "energy_drift": tr.energy_drift(),
+            "max_constraint_residual": float(np.max(tr.constraint_residual, initial=0.0)),
+        }
+    return {"schema": "chaplygin.compare/1", "system": comparison.system_name,
+            "reference": comparison.reference, "path": list(comparison.path or []), "models": rows}
+
+
+def _print_comparison(comparison: Comparison) -> None:
+    from rich.table import Table
+
+    doc = _comparison_json(comparison)
+    what = f"path ({', '.join(doc['path'])})" if doc["path"] else "coordinates"
+    table = Table(title=f"{comparison.system_name}: compared with {comparison.reference} from the same initial state")
+    for col in ("model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"):
+        table.add_column(col, justify="left" if col in ("model", "status") else "right")
+    for label, row in doc["models"].items():
+        table.add_row(label, f"{row['max_distance']:.6g}", f"{row['at_t']:.4g}",
+                      f"{row['energy_drift']:.3g}", f"{row['max_constraint_residual']:.3g}", row["status"])
+    out = _stdout()
+    if out.is_terminal:
+        out.print(table)
+    else:
+        _emit(comparison.summary())
+
+
+@app.command()
+def compare(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output directory (created if missing)."),
+    models: Optional[str] = typer.Option(None, "--models", help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's."),
+    samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
+    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    figure_format: FigureFormat = typer.Option(FigureFormat.svg, "--figure-format", help="Format of the figures."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
+) -> None:
+    """Simulate several models from one initial state: summary table, trajectories and figures."""
+    specs = [_model_spec(m) for m in models.split(",")] if models else None
+    _overrides(param, "--param"), _overrides(initial, "--initial")
+    with _failures():
+        if out.exists() and not out.is_dir():
+            raise OutputExists(f"{out} exists and is not a directory.")
+        loaded = _load(file)
+        params, start = _numbers(loaded, param, initial)
+        system = loaded.system
+        from .compare import Comparison, _default_path
+        from .compare import compare as run_compare
+        from .report import default_models
+
+        chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else default_models(system)
+        _refuse_existing(_comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None), force)
+        with _Steps(len(chosen) + 2, "comparing") as steps:
+            runs = {}
+            for label in chosen:
+                steps.step(f"simulating {label}")
+                part = run_compare(system, [label], t_end, start, params, samples=samples, backend=backend.value)
+                runs.update(part.trajectories)
+            comparison = Comparison(system.name, runs, chosen[0], part.path)
+            steps.step("writing trajectories and summary")
+            _write_comparison(comparison, out)
+            steps.step("drawing figures")
+            written = comparison.save_figures(out, fmt=figure_format.value)
+        _print_comparison(comparison)
+        _emit(f"wrote {out}/: summary.txt, summary.json, "
+                        + ", ".join(f"{_safe(k)}.csv" for k in runs) + ", "
+                        + ", ".join(p.name for p in written))
+        failed = [k for k, tr in runs.items() if not tr.success]
+        if failed:
+            raise ChaplyginError("failed: " + "; ".join(f"{k}: {runs[k].message}" for k in failed))
+
+
+def _write_comparison(comparison: Comparison, directory: Path) -> None:
+    from .simulate import _atomic_write
+
+    directory.mkdir(parents=True, exist_ok=True)
+    for label, tr in comparison.trajectories.items():
+        tr.to_csv(directory / f"{_safe(label)}.csv")
+    summary = comparison.summary() + "\n"
+    _atomic_write(directory / "summary.txt", lambda fh: fh.write(summary.encode("utf-8")), text=False)
+    doc = json.dumps(_comparison_json(comparison), indent=2, ensure_ascii=False) + "\n"
+    _atomic_write(directory / "summary.json", lambda fh: fh.write(doc.encode("utf-8")), text=False)
+
+
+# ====================================================================== report
+def _report_progress(steps: _Steps) -> Any:
+    return lambda stage: steps.step(f"report: {stage}")
+
+
+@app.command()
+def report(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
+    models: Optional[str] = typer.Option(None, "--models", help="Models to simulate and compare (comma-separated), the reference first."),
+    t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
+    samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
+    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
+) -> None:
+    """Write one self-contained HTML report: system, integrability, equations, simulations."""
+    from .report import STAGES, write_report
+
+    specs = [_model_spec(m) for m in models.split(",")] if models else None
+    _overrides(param, "--param"), _overrides(initial, "--initial")
+    with _failures():
+        _refuse_existing([out], force)
+        loaded = _load(file)
+        params, start = _numbers(loaded, param, initial)
+        chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
+        with _Steps(len(STAGES), "report") as steps:
+            write_report(loaded, out, models=chosen, t_end=t_end, samples=samples,
+                         backend=backend.value, parameters=params, initial=start,
+                         progress=_report_progress(steps))
+        _emit(f"wrote {out}")
+
+
+# ====================================================================== demo
+def _is_demo_report(path: Path) -> bool:
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False
+    return f'<meta name="generator" content="{DEMO_GENERATOR}">' in head
+
+
+@app.command()
+def demo(
+    out: Path = typer.Option(DEMO_REPORT, "--out", "-o", help="Where the report goes (a previous demo report there is replaced)."),
+    t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
+    force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
+) -> None:
+    """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
+    from . import compare as run_compare
+    from . import compare_models, equivalent
+    from .report import STAGES, is_paper_sphere, paper_table, write_report
+
+    with _failures():
+        if out.exists() and not force and not _is_demo_report(out):
+            raise OutputExists(f"{out} exists and is not a chaplygin demo report; pass --force to overwrite.")
+        loaded = _load("example:rolling-sphere")
+        system = loaded.system
+        params, start = loaded.parameters, loaded.initial
+        with _Steps(8 + len(STAGES), "demo") as steps:
+            steps.step("deriving Chetaev, Chaplygin (15), (40), Lindelöf (22), (39)")
+            chetaev = system.equations("chetaev")
+            chap, chap_new = system.equations("chaplygin"), system.equations("chaplygin", "new")
+            lind, lind_new = system.equations("lindelof"), system.equations("lindelof", "new")
+            steps.step("checking the true motion")
+            true_ok = [equivalent(system, chap, chetaev), equivalent(system, chap_new, chetaev)]
+            steps.step("checking Lindelöf's equations")
+            lind_ok = equivalent(system, lind, lind_new, symbolic=False)
+            lind_vs_true = equivalent(system, lind, chap, symbolic=False)
+            steps.step("integrability")
+            integrable = system.integrability().integrable
+            steps.step("comparing the models")
+            relation = compare_models(system)
+            steps.step("simulating both models from the same initial state")
+            comparison = run_compare(system, ["chaplygin", "lindelof"], t_end, start, params, samples=401)
+            steps.step("the paper's printed equations (49)-(62)")
+            table = paper_table() if is_paper_sphere(system) else None
+            steps.step("writing the report")
+            write_report(loaded, out, comparison=comparison, paper=table if table is not None else False,
+                         parameters=params, initial=start, generator=DEMO_GENERATOR,
+                         progress=_report_progress(steps))
+
+        def speed_change(tr: Any) -> float:
+            import numpy as np
+
+            return float(max(np.ptp(tr["x'"]), np.ptp(tr["y'"])))
+
+        dist = comparison.distance("lindelof")
+        true_tr, lind_tr = comparison.trajectories["chaplygin"], comparison.trajectories["lindelof"]
+        k = int(dist.argmax())
+        state = ", ".join(f"{k_}={v:g}" for k_, v in start.items())
+        lines = [
+            f"{system.name} - the seed paper's §4 example (Liang & Chen 2000)",
+            f"  constraints (41)-(42): {'integrable' if integrable else 'not integrable (nonholonomic)'} by the Frobenius test; condition (28) {'holds' if relation.condition_28 else 'fails'}",
+            f"  true motion:  Chaplygin (15) = new form (40) = Chetaev multipliers (6): "
+            f"{'yes' if all(true_ok) else 'NO'} ({true_ok[0].method})",
+            f"  vakonomic:    Lindelöf (22) = new form (39): {'yes' if lind_ok else 'NO'}",
+            f"  the models {'coincide' if relation.verdict == 'coincide' else 'differ'}: "
+            f"Lindelöf (22) vs Chaplygin (15): {'equivalent' if lind_vs_true else 'not equivalent'} "
+            f"(largest relative difference {lind_vs_true.max_residual:.2g}); verdict {relation.verdict!r}",
+            f"  simulated t in [0, {t_end:g}] from {state} (m={params.get('m', 1):g}, a={params.get('a', 1):g}):",
+            f"    Lindelöf's centre drifts from the true path: {dist[-1]:.4g} at t = {true_tr.t[-1]:g} "
+            f"(largest {dist[k]:.4g}, at t = {true_tr.t[k]:g})",
+            f"    the centre's velocity changes by {speed_change(true_tr):.2g} in the true motion "
+            f"(uniform straight line, Routh §243), by {speed_change(lind_tr):.2g} in Lindelöf's",
+            f"    energy drift: true {true_tr.energy_drift():.2g}, Lindelöf {lind_tr.energy_drift():.2g}",
+        ]
+        if table is not None:
+            lines.append(f"  {table.summary()}")
+        lines.append(f"  report: {out}")
+        _emit(chap.pretty() + "\n")  # Chaplygin's equations (15) of the sphere, readable
+        _emit("\n".join(lines))
+        if not (all(true_ok) and lind_ok and true_tr.success and lind_tr.success):
+            raise ChaplyginError("the demo's checks failed; see above.")
+
+
+# ====================================================================== examples
+def _first_sentence(text: str) -> str:
+    end = text.find(". ")
+    return text if end < 0 else text[: end + 1]
+
+
+@examples_app.command("list")
+def examples_list(
+    long: bool = typer.Option(False, "--long", "-l", help="Full descriptions."),
+) -> None:
+    """List the built-in examples (use them as FILE: example:NAME)."""
+    from . import examples
+
+    with _failures():
+        table = examples.catalogue()
+        width = max(len(n) for n in table)
+        lines = [f"{name:<{width}}  {entry.description if long else _first_sentence(entry.description)}"
+                 for name, entry in table.items()]
+        _emit("\n".join(lines))
+
+
+@examples_app.command("show")
+def examples_show(name: str = typer.Argument(..., metavar="NAME", help="The example's name (see `chaplygin examples list`).")) -> None:
+    """Print an example as a TOML system file (`chaplygin examples show NAME > mine.toml`)."""
+    from . import examples
+
+    try:
+        entry = examples.get(name)
+    except ChaplyginError as exc:
+        raise typer.BadParameter(str(exc), param_hint="NAME") from None
+    with _failures():
+        text = entry.dumps()
+        sys.stdout.write(text if text.endswith("\n") else text + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    try:
+        app(args=argv, prog_name="chaplygin")
+    except SystemExit as exc:
+        code = exc.code
+        if code is None:
+            return 0
+        return code if isinstance(code, int) else 1
+    return 0
