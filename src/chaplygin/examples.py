@@ -23,6 +23,13 @@ from .errors import ChaplyginError
 from .system import System
 
 __all__ = [
+    "chaplygin_sleigh",
+    "turntable_ball",
+    "chaplygin_ball",
+    "heisenberg",
+    "contact_oscillator",
+    "differential_drive",
+    "sleigh_chain",
     "rolling_sphere",
     "knife_edge",
     "vertical_rolling_disk",
@@ -316,3 +323,147 @@ def get(name: str) -> ExampleEntry:
             f"unknown example {name!r}; the examples are {', '.join(entries)}.{hint}"
         )
     return entries[key]
+
+
+# ---------------------------------------------------------------------- gallery
+def _d(q: sp.Expr) -> sp.Expr:
+    return q.diff(_t)
+
+
+def _space_omega(psi: sp.Expr, theta: sp.Expr, phi: sp.Expr) -> sp.Matrix:
+    """Space components of the angular velocity for z-x-z Euler angles (ψ, θ, φ)."""
+    return sp.Matrix([
+        _d(theta) * sp.cos(psi) + _d(phi) * sp.sin(theta) * sp.sin(psi),
+        _d(theta) * sp.sin(psi) - _d(phi) * sp.sin(theta) * sp.cos(psi),
+        _d(psi) + _d(phi) * sp.cos(theta),
+    ])
+
+
+def chaplygin_sleigh(
+    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    a: sp.Expr | float | None = None,
+) -> System:
+    """The Chaplygin sleigh: a body on a knife edge at (x, y), centre of mass a ahead of it.
+
+    ``T = ½ m (ẋ² + ẏ²) + m a θ̇ (−ẋ sin θ + ẏ cos θ) + ½ (I + m a²) θ̇²`` with the
+    knife-edge constraint ``−ẋ sin θ + ẏ cos θ = 0``.  With the forward speed v
+    and ω = θ̇: ``v̇ = a ω²``, ``ω̇ = −m a v ω / (I + m a²)``; the sleigh ends up
+    moving straight (Chaplygin 1911; Bloch, *Nonholonomic Mechanics and
+    Control*, 2003, §1.7).
+    """
+    x, y, th = dynamicsymbols("x y theta")
+    m_, I_, a_ = _param(m, "m"), _param(I, "I"), _param(a, "a")
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + m_ * a_ * _d(th) * (-_d(x) * sp.sin(th) + _d(y) * sp.cos(th))
+    T += (I_ + m_ * a_**2) / 2 * _d(th) ** 2
+    return System([x, y, th], T, [-sp.sin(th) * _d(x) + sp.cos(th) * _d(y)], dependent=[y],
+                  name="Chaplygin sleigh")
+
+
+def turntable_ball(
+    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
+    Omega: sp.Expr | float | None = None,
+) -> System:
+    """A homogeneous ball rolling on a turntable spinning at the constant rate Ω.
+
+    The contact point moves with the table: ``ẋ = a ω_y − Ω y``, ``ẏ = −a ω_x + Ω x``
+    (affine constraints whose B_0 depends on the dependent x, y: Voronets'
+    case).  The centre moves on a circle with angular frequency 2Ω/7
+    (Pars, *A Treatise on Analytical Dynamics*, 1965; Weckesser, *Am. J. Phys.* 65, 1997).
+    """
+    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
+    m_, a_, W = _param(m, "m"), _param(a, "a"), _param(Omega, "Omega")
+    w = _space_omega(psi, theta, phi)
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + sp.Rational(1, 5) * m_ * a_**2 * sp.trigsimp(sp.expand(w.dot(w)))
+    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1] - W * y, _d(y): -a_ * w[0] + W * x},
+                  name="Ball on a rotating turntable")
+
+
+def chaplygin_ball(
+    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None, B: sp.Expr | float | None = None,
+    C: sp.Expr | float | None = None,
+) -> System:
+    """Chaplygin's ball: centre of mass at the geometric centre, principal moments A, B, C.
+
+    Rolls on a plane like the paper's sphere (same constraints); the angular
+    momentum about the contact point is constant in space (Chaplygin 1903;
+    Borisov & Mamaev, *Regular and Chaotic Dynamics* 7, 2002).
+    """
+    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
+    m_, a_, A_, B_, C_ = (_param(v, n) for v, n in ((m, "m"), (a, "a"), (A, "A"), (B, "B"), (C, "C")))
+    body = sp.Matrix([
+        _d(psi) * sp.sin(theta) * sp.sin(phi) + _d(theta) * sp.cos(phi),
+        _d(psi) * sp.sin(theta) * sp.cos(phi) - _d(theta) * sp.sin(phi),
+        _d(psi) * sp.cos(theta) + _d(phi),
+    ])
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + (A_ * body[0] ** 2 + B_ * body[1] ** 2 + C_ * body[2] ** 2) / 2
+    w = _space_omega(psi, theta, phi)
+    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1], _d(y): -a_ * w[0]}, name="Chaplygin ball")
+
+
+def heisenberg() -> System:
+    """The Heisenberg (Brockett) system: ``ż = (x ẏ − y ẋ)/2``, ``T = ½ (ẋ² + ẏ²)``.
+
+    True motions are straight lines; vakonomic motions are circles, the
+    sub-Riemannian geodesics (Brockett 1981; Bloch 2003, §7.3).
+    """
+    x, y, z = dynamicsymbols("x y z")
+    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2) / 2, {_d(z): (x * _d(y) - y * _d(x)) / 2},
+                  name="Heisenberg system")
+
+
+def contact_oscillator(eps: sp.Expr | float | None = None) -> System:
+    """The contact oscillator ``ẋ + y ż = 0``, ``H = ½|v|² + ½|q|² + ½ ε x² z²``.
+
+    A test problem for nonholonomic integrators (McLachlan & Perlmutter,
+    *J. Nonlinear Sci.* 16, 2006).
+    """
+    x, y, z = dynamicsymbols("x y z")
+    e = _param(eps, "epsilon")
+    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2 + _d(z) ** 2) / 2, {_d(x): -y * _d(z)},
+                  potential_energy=(x**2 + y**2 + z**2) / 2 + e * x**2 * z**2 / 2,
+                  name="Contact oscillator")
+
+
+def differential_drive(
+    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    J: sp.Expr | float | None = None, r: sp.Expr | float | None = None,
+    b: sp.Expr | float | None = None,
+) -> System:
+    """A differential-drive robot: wheels of radius r at ±b on an axle through the centre of mass.
+
+    Coordinates x, y, θ and the wheel angles φ_L, φ_R; ``v = r (φ̇_R + φ̇_L)/2``,
+    ``θ̇ = r (φ̇_R − φ̇_L)/(2b)`` (Siegwart & Nourbakhsh, *Autonomous Mobile Robots*, 2004, §3.2).
+    """
+    x, y, th, pl, pr = dynamicsymbols("x y theta phi_L phi_R")
+    m_, I_, J_, r_, b_ = (_param(v, n) for v, n in ((m, "m"), (I, "I"), (J, "J"), (r, "r"), (b, "b")))
+    v, w = r_ / 2 * (_d(pr) + _d(pl)), r_ / (2 * b_) * (_d(pr) - _d(pl))
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + I_ / 2 * _d(th) ** 2 + J_ / 2 * (_d(pl) ** 2 + _d(pr) ** 2)
+    return System([x, y, th, pl, pr], T, {_d(x): v * sp.cos(th), _d(y): v * sp.sin(th), _d(th): w},
+                  name="Differential-drive robot")
+
+
+def sleigh_chain(
+    n: int, m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    L: sp.Expr | float | None = None,
+) -> System:
+    """A knife-edge sleigh at (x, y) pulling ``n`` sleighs, each hitched at distance L behind the last.
+
+    Every body has mass m at its knife edge and moment of inertia I; each
+    knife edge forbids sideways motion.  n + 3 coordinates, n + 1 constraints:
+    the scalable system for benchmarks (a chain of sleighs, cf. the N-trailer
+    of Sørdalen, *Automatica* 29, 1993).
+    """
+    if not isinstance(n, int) or n < 0:
+        raise ValueError(f"sleigh_chain: n must be a non-negative integer, got {n!r}.")
+    x, y = dynamicsymbols("x y")
+    th = list(dynamicsymbols(f"theta0:{n + 1}"))
+    m_, I_, L_ = _param(m, "m"), _param(I, "I"), _param(L, "L")
+    px, py, T, cons = x, y, sp.S.Zero, []
+    for i, ti in enumerate(th):
+        if i:
+            px, py = px - L_ * sp.cos(ti), py - L_ * sp.sin(ti)
+        vx, vy = _d(px), _d(py)
+        T += m_ / 2 * (vx**2 + vy**2) + I_ / 2 * _d(ti) ** 2
+        cons.append(-sp.sin(ti) * vx + sp.cos(ti) * vy)
+    return System([x, y, *th], sp.expand(T), cons, dependent=[y, *th[1:]], name=f"Chain of {n + 1} sleighs")
