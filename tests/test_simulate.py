@@ -164,3 +164,11 @@ def test_failed_write_keeps_previous_file(sphere, tmp_path) -> None:
         broken.to_csv(target)
     assert target.read_text() == "previous"
     assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]
+
+
+def test_matching_constants_for_the_family(sphere) -> None:
+    """constants="match": μ(0) = 0 in the multiplier form equals c = ∂T/∂q̇_dep(0) in the family."""
+    family = sphere.simulate("vakonomic_family", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
+    multiplier = sphere.simulate("vakonomic", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
+    for name in family.coordinates:
+        assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7

@@ -262,10 +262,12 @@ def simulate(
         raise ChaplyginError("samples: at least 2 are needed (the start and the end).")
     params = _parameters(system, parameters)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    q, qd = initial_state(system, initial, params, t0)
+    if isinstance(family_c, str) and family_c == "match":
+        family_c = _matching_constants(system, q, qd, params, t0)
     eqs = system.equations(model, form, constants=family_c) if family_c is not None else system.equations(model, form)
     compiled = compile_equations(eqs, backend)
     layout = compiled.layout
-    q, qd = initial_state(system, initial, params, t0)
 
     y0 = list(q) + ([*qd] if model in ("chetaev", "vakonomic") else [qd[i] for i in system._ind])
     if model == "vakonomic":
@@ -273,6 +275,17 @@ def simulate(
     p = parameter_vector(layout, params)
     return integrate(compiled, (t0, t1), np.array(y0), p, params, rtol=rtol, atol=atol,
                      method=method, samples=samples, max_step=max_step, g=system.g)
+
+
+def _matching_constants(
+    system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+) -> list[float]:
+    """The c with μ(0) = 0 — vakonomic momenta equal to the true ones: ``c_β = ∂T/∂q̇_{ε+β}`` at t0."""
+    v = system._vars
+    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
+    values.update({system.parameter(k): val for k, val in params.items()})
+    subs = {k: sp.Float(x) for k, x in values.items()}
+    return [float(sp.diff(system._T, v.xd[i]).xreplace(subs).evalf()) for i in system._dep]
 
 
 def _initial_multipliers(

@@ -672,9 +672,9 @@ class System:
             the compiled DOP853 loop of :mod:`chaplygin._loop`); or JAX with
             diffrax (optional extra ``chaplygin[jax]``).
         constants : optional
-            Vakonomic models: the constants ``c_β`` (default 0); for
-            ``model="vakonomic"`` the string ``"match"`` starts with ``μ = 0``,
-            i.e. with vakonomic momenta equal to the true ones.
+            Vakonomic models: the constants ``c_β`` (default 0), or the string
+            ``"match"``: start with ``μ = 0``, i.e. with vakonomic momenta equal
+            to the true ones (for the family, ``c_β = ∂T/∂q̇_{ε+β}`` at t0).
         multipliers : optional
             ``model="vakonomic"``: ``μ(0)`` by multiplier or as a sequence.
 
