@@ -56,14 +56,9 @@ load it.
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
 import inspect
 import math
 import os
-import sys
-import tempfile
-import threading
 import warnings
 from pathlib import Path
 from types import ModuleType
@@ -71,7 +66,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .codegen import CompiledModel, cache_dir
+from .codegen import CompiledModel, _import
 from .errors import ChaplyginError
 
 __all__ = ["LoopResult", "integrate_dop853", "loop_model", "ensemble_dop853", "STATUS", "default_threads"]
@@ -556,40 +551,9 @@ def _kernel_source() -> str:
 
 
 # ------------------------------------------------------------------ loading
-_LOADED: dict[str, ModuleType] = {}
-_LOCK = threading.Lock()
-
-
 def _load(source: str) -> ModuleType:
-    """Write ``source`` to the code cache (atomically, keyed by its hash) and import it.
-
-    The module is registered in ``sys.modules`` under its file name: numba's
-    cache re-imports a function's module by name when it loads compiled code.
-    """
-    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
-    with _LOCK:
-        if digest in _LOADED:
-            return _LOADED[digest]
-        directory = cache_dir() / "codegen"
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"chaplygin_dop853_{digest}.py"
-        if not path.exists() or path.read_text(encoding="utf-8") != source:
-            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        spec = importlib.util.spec_from_file_location(path.stem, path)
-        if spec is None or spec.loader is None:  # pragma: no cover
-            raise ChaplyginError(f"cannot load generated code from {path}")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[path.stem] = module
-        try:
-            spec.loader.exec_module(module)
-        except BaseException:
-            sys.modules.pop(path.stem, None)
-            raise
-        _LOADED[digest] = module
-        return module
+    """Write ``source`` to the code cache and import it (see :func:`chaplygin.codegen._import`)."""
+    return _import(source, "dop853")
 
 
 def loop_model(compiled: CompiledModel) -> CompiledModel:

@@ -29,6 +29,7 @@ import importlib.util
 import os
 import sys
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -256,24 +257,41 @@ N_OBSERVED = {n_observed}
     return layout, src
 
 
+_LOADED: dict[str, ModuleType] = {}
+_LOCK = threading.Lock()
+
+
 def _import(source: str, tag: str) -> ModuleType:
+    """Write ``source`` to the code cache (atomically, keyed by its hash) and import it.
+
+    Each source is imported once per process.  The module is registered in
+    ``sys.modules`` under its file name: numba's cache re-imports a compiled
+    function's module by name when it loads it.
+    """
     digest = hashlib.sha256(source.encode()).hexdigest()[:24]
-    directory = cache_dir() / "codegen"
-    directory.mkdir(parents=True, exist_ok=True)
-    path = directory / f"chaplygin_{tag}_{digest}.py"
-    if not path.exists() or path.read_text(encoding="utf-8") != source:
-        fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(source)
-        os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    if spec is None or spec.loader is None:  # pragma: no cover
-        raise ChaplyginError(f"cannot load generated code from {path}")
-    module = importlib.util.module_from_spec(spec)
-    # numba's cache re-imports a compiled function's module by name when it loads it
-    sys.modules[path.stem] = module
-    spec.loader.exec_module(module)
-    return module
+    with _LOCK:
+        if digest in _LOADED:
+            return _LOADED[digest]
+        directory = cache_dir() / "codegen"
+        directory.mkdir(parents=True, exist_ok=True)
+        path = directory / f"chaplygin_{tag}_{digest}.py"
+        if not path.exists() or path.read_text(encoding="utf-8") != source:
+            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(source)
+            os.replace(tmp, path)
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        if spec is None or spec.loader is None:  # pragma: no cover
+            raise ChaplyginError(f"cannot load generated code from {path}")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            sys.modules.pop(path.stem, None)
+            raise
+        _LOADED[digest] = module
+        return module
 
 
 def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
