@@ -122,7 +122,7 @@ def naive_lambdify(disk):
     derivatives, functions = dict(zip(u, us)), dict(zip(q, qs))
 
     def plain(expr):
-        return sp.sympify(expr).xreplace(derivatives).xreplace(functions)
+        return expr.xreplace(derivatives).xreplace(functions)
 
     args = [qs, us, params]
     M = sp.lambdify(args, plain(eqs.mass_matrix))

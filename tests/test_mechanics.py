@@ -8,27 +8,19 @@ from sympy.physics.mechanics import Particle, Point, ReferenceFrame, RigidBody, 
 
 from chaplygin import SystemDefinitionError, equivalent, examples
 from chaplygin.mechanics import from_mechanics
+from test_rolling_disk import Mechanics
 
 t = dynamicsymbols._t
 
 
 def mechanics_disk(gravity_as_load: bool):
-    """The rolling disk as in SymPy's rolling-disc examples, plus the contact point (x, y)."""
-    psi, theta, phi, x, y = q = dynamicsymbols("psi theta phi x y")
-    m, r, A, C, g = sp.symbols("m r A C g", positive=True)
-    N = ReferenceFrame("N")
-    Y = N.orientnew("Y", "Axis", [psi, N.z])
-    L = Y.orientnew("L", "Axis", [theta, Y.x])
-    D = L.orientnew("D", "Axis", [phi, L.y])
-    O = Point("O")
-    O.set_vel(N, 0)
-    P = O.locatenew("P", x * N.x + y * N.y)
-    G = P.locatenew("G", r * L.z)
-    G.set_vel(N, G.pos_from(O).dt(N))
-    disk = RigidBody("disk", G, D, m, (inertia(L, A, C, A), G))
-    slip = G.vel(N) + D.ang_vel_in(N).cross(P.pos_from(G))  # velocity of the disk's contact point
-    kwargs = {"loads": [(G, -m * g * N.z)]} if gravity_as_load else {"potential_energy": m * g * r * sp.cos(theta)}
-    return from_mechanics(N, q, [disk], [slip], dependent=[x, y], name="mechanics disk", **kwargs)
+    """The rolling disk of the KanesMethod oracle (tests/test_rolling_disk.py), through from_mechanics."""
+    disk = Mechanics()
+    m, r, _, _, g = disk.params
+    psi, theta, phi, x, y = disk.q
+    kwargs = {"loads": [(disk.centre, -m * g * disk.N.z)]} if gravity_as_load else {"potential_energy": m * g * r * sp.cos(theta)}
+    # its slip velocity, all three components: the vertical one vanishes and is dropped
+    return from_mechanics(disk.N, disk.q, [disk.disk], disk.slip, dependent=[x, y], name="mechanics disk", **kwargs)
 
 
 @pytest.mark.parametrize("gravity_as_load", [False, True])
