@@ -49,7 +49,7 @@ __all__ = ["Layout", "CompiledModel", "compile_equations", "BACKENDS", "cache_di
 
 BACKENDS = ("numpy", "numba", "jax")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
-CODE_FORMAT = 2
+CODE_FORMAT = 3
 
 
 def _docstring_safe(text: str) -> str:
@@ -227,13 +227,19 @@ N_OBSERVED = {n_observed}
 {chr(10).join(fill)}
 
 
-{deco}def rhs(t, y, p):
-    """dy/dt = [velocities of q, solve(M, F)[:K]]."""
+{deco}def evaluate(t, y, p):
+    """Fresh arrays M, F, V, O filled at (t, y, p)."""
     M = np.zeros((DIM, DIM))
     F = np.zeros(DIM)
     V = np.zeros(N)
     O = np.zeros(N_OBSERVED)
     fill(t, y, p, M, F, V, O)
+    return M, F, V, O
+
+
+{deco}def rhs(t, y, p):
+    """dy/dt = [velocities of q, solve(M, F)[:K]]."""
+    M, F, V, O = evaluate(t, y, p)
     x = np.linalg.solve(M, F)
     dy = np.empty(N + K)
     dy[:N] = V
@@ -243,11 +249,7 @@ N_OBSERVED = {n_observed}
 
 {deco}def observe(t, y, p):
     """[energy, residuals, computed multipliers, velocities]."""
-    M = np.zeros((DIM, DIM))
-    F = np.zeros(DIM)
-    V = np.zeros(N)
-    O = np.zeros(N_OBSERVED)
-    fill(t, y, p, M, F, V, O)
+    M, F, V, O = evaluate(t, y, p)
     if N_OBSERVED - 1 - {s.g} - N > 0:
         x = np.linalg.solve(M, F)
         O[1 + {s.g}:1 + {s.g} + {n_reactions}] = x[DIM - {n_reactions}:]

@@ -186,11 +186,9 @@ def initial_state(
             f"velocities ({', '.join(names[i] + chr(39) for i in system._ind)})."
         )
     v = system._vars
-    values = {TIME: t0, **dict(zip(v.x, q)), **{v.xd[i]: qd[i] for i in system._ind}}
-    values.update({system.parameter(k): val for k, val in params.items()})
     for i in system._dep:
         expr = system._velocity_substitution[v.xd[i]]
-        implied = float(expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf())
+        implied = _evaluate(system, expr, q, qd, params, t0)
         if not np.isnan(qd[i]) and abs(qd[i] - implied) > 1e-9 * max(1.0, abs(implied)):
             raise ChaplyginError(
                 f"initial: {names[i]}' = {qd[i]:g} violates the constraints, which give "
@@ -277,15 +275,23 @@ def simulate(
                      method=method, samples=samples, max_step=max_step, g=system.g)
 
 
+def _evaluate(
+    system: System, expr: sp.Expr, q: np.ndarray, qd: np.ndarray,
+    params: Mapping[str, float], t0: float,
+) -> float:
+    """``expr`` (internal symbols) at time ``t0``, state ``(q, q̇)`` and the parameter values."""
+    v = system._vars
+    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
+    values.update({system.parameter(k): val for k, val in params.items()})
+    return float(expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf())
+
+
 def _matching_constants(
     system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
 ) -> list[float]:
     """The c with μ(0) = 0 — vakonomic momenta equal to the true ones: ``c_β = ∂T/∂q̇_{ε+β}`` at t0."""
     v = system._vars
-    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
-    values.update({system.parameter(k): val for k, val in params.items()})
-    subs = {k: sp.Float(x) for k, x in values.items()}
-    return [float(sp.diff(system._T, v.xd[i]).xreplace(subs).evalf()) for i in system._dep]
+    return [_evaluate(system, sp.diff(system._T, v.xd[i]), q, qd, params, t0) for i in system._dep]
 
 
 def _initial_multipliers(
@@ -307,11 +313,7 @@ def _initial_multipliers(
     if isinstance(c, str) and c == "match":
         return np.zeros(system.g)  # μ(0) = 0: vakonomic momenta equal the true ones
     exprs = system.integrated_multipliers(c)
-    v = system._vars
-    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
-    values.update({system.parameter(k): val for k, val in params.items()})
-    subs = {k: sp.Float(x) for k, x in values.items()}
-    return np.array([float(exprs[m].xreplace(system._to_sym).xreplace(subs).evalf()) for m in names])
+    return np.array([_evaluate(system, exprs[m].xreplace(system._to_sym), q, qd, params, t0) for m in names])
 
 
 def integrate(
