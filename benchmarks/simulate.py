@@ -34,6 +34,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import sys
 import time
 from pathlib import Path
@@ -311,7 +312,9 @@ def part_ensemble(disk, eqs, n: int, t_end: float, backends: list[str]) -> None:
     say(f"  {'engine':<24s} {'wall [s]':>9s} {'traj/s':>10s} {'failed':>7s} {'max drift':>10s} {'RHS/member':>11s}")
     for label, wall, rate, failed, drift, evals in rows:
         say(f"  {label:<24s} {wall:9.2f} {rate:10.1f} {failed:7d} {drift:10.1e} {evals:11.0f}")
-    RESULTS["ensemble"] = {"n": n, "t_end": t_end, "rows": [
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux → GiB
+    say(f"  peak resident memory of this process so far: {peak:.2f} GiB")
+    RESULTS["ensemble"] = {"n": n, "t_end": t_end, "peak_rss_gib": peak, "rows": [
         {"engine": r[0], "wall_s": r[1], "trajectories_per_s": r[2], "failed": r[3], "max_energy_drift": r[4],
          "rhs_per_member": r[5]} for r in rows
     ]}

@@ -2,17 +2,48 @@
 
 from __future__ import annotations
 
-from . import examples
-from .equations import Equations
-from .compare import Comparison, compare
-from .equivalence import EquivalenceReport, equivalent
-from .files import SystemFile, SystemFileError, dumps, load, loads
-from .mechanics import from_mechanics
-from .simulate import Trajectory
-from .integrability import IntegrabilityReport
-from .errors import ChaplyginError, ModelError, SystemDefinitionError
-from .system import System
-from .transitions import Classification, ModelComparison, classify, compare_models
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from . import examples
+    from .compare import Comparison, compare
+    from .equations import Equations
+    from .equivalence import EquivalenceReport, equivalent
+    from .errors import ChaplyginError, ModelError, SystemDefinitionError
+    from .files import SystemFile, SystemFileError, dumps, load, loads
+    from .integrability import IntegrabilityReport
+    from .mechanics import from_mechanics
+    from .simulate import Trajectory
+    from .system import System
+    from .transitions import Classification, ModelComparison, classify, compare_models
+
+#: where each public name lives; imported on first use, so that ``import chaplygin``
+#: (and the command line, whose cached answers need no SymPy) starts fast
+_HOME = {
+    "examples": "", "Comparison": "compare", "compare": "compare", "Equations": "equations",
+    "EquivalenceReport": "equivalence", "equivalent": "equivalence",
+    "ChaplyginError": "errors", "ModelError": "errors", "SystemDefinitionError": "errors",
+    "SystemFile": "files", "SystemFileError": "files", "dumps": "files", "load": "files",
+    "loads": "files", "IntegrabilityReport": "integrability", "from_mechanics": "mechanics",
+    "Trajectory": "simulate", "System": "system", "Classification": "transitions",
+    "ModelComparison": "transitions", "classify": "transitions", "compare_models": "transitions",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'chaplygin' has no attribute {name!r}")
+    home = _HOME[name]
+    value = import_module(f".{home or name}", __name__)
+    value = value if not home else getattr(value, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_HOME])
+
 
 __all__ = [
     "System",

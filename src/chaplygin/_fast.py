@@ -1,7 +1,8 @@
-"""SymEngine fast path for the hot symbolic work: differentiation.
+"""SymEngine fast path for the hot symbolic work: differentiation and common subexpressions.
 
-Everything the user sees stays SymPy; only derivatives are taken in SymEngine
-(about 30× faster than SymPy, whose assumption queries dominate). Each call
+Everything the user sees stays SymPy; only derivatives and the common
+subexpressions of generated code are computed in SymEngine (about 30× faster
+than SymPy, whose assumption queries dominate). Each call
 converts its input once and its results once.  Symbols with assumptions (a
 ``positive=True`` mass, say) come back from SymEngine without them, so they
 are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
@@ -9,19 +10,22 @@ are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from typing import Any
 
 import sympy as sp
 
 try:  # the import line names the converter; no user text ever reaches it
+    from symengine import Lambdify as _se_lambdify
+    from symengine import cse as _se_cse
     from symengine import sympify as _to_symengine
 
     HAVE_SYMENGINE = True
 except ImportError:  # pragma: no cover - symengine is a dependency
     HAVE_SYMENGINE = False
 
-__all__ = ["jacobian", "gradient", "total_derivative", "HAVE_SYMENGINE"]
+__all__ = ["jacobian", "gradient", "total_derivative", "cse", "evaluator", "HAVE_SYMENGINE"]
 
 
 def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
@@ -84,3 +88,40 @@ def total_derivative(
         result += f.diff(x) * xd
     restore = _restore_map([expr, *(xd for _, xd in pairs)])
     return _back([result], restore)[0]
+
+
+def cse(
+    exprs: Sequence[sp.Expr], prefix: str = "c_"
+) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]:
+    """Common subexpressions of ``exprs``: ``(replacements, reduced)`` as :func:`sympy.cse` returns.
+
+    The new symbols are ``prefix0, prefix1, …`` in order of definition.  SymEngine's
+    elimination is used when it can represent the expressions; SymPy's (with
+    its cheap "basic" optimisations) otherwise.
+    """
+    exprs = list(exprs)
+    clash = any(re.fullmatch(r"x\d+", s.name) for e in exprs for s in e.free_symbols)
+    fast = None if clash else _convert(exprs)  # SymEngine names its symbols x0, x1, …
+    if fast is None:
+        return sp.cse(exprs, symbols=sp.numbered_symbols(prefix), optimizations="basic")
+    pairs, reduced = _se_cse(fast)
+    rename = {sp.Symbol(str(s)): sp.Symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}
+    restore = {**_restore_map(exprs), **rename}
+    values = _back([v for _, v in pairs] + list(reduced), restore)
+    return list(zip(rename.values(), values[: len(pairs)])), values[len(pairs) :]
+
+
+def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None:
+    """A function of a sample ``(len(args),)`` returning the complex values of ``exprs``.
+
+    SymEngine's ``Lambdify`` (no code generation, so it is cheap to build); None
+    when SymEngine cannot represent the expressions.  Singular points give
+    ``inf``/``nan``.
+    """
+    fast = _convert(list(args) + list(exprs))
+    if fast is None:
+        return None
+    try:
+        return _se_lambdify(fast[: len(args)], fast[len(args) :], real=False)
+    except (RuntimeError, NotImplementedError, TypeError):
+        return None

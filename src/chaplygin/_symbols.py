@@ -71,10 +71,12 @@ def linear_coefficients(
 
     Returns ``None`` when ``expr`` is not affine in ``variables``.
     """
-    coeffs = [sp.diff(expr, v) for v in variables]
+    from ._fast import gradient
+
+    coeffs = gradient(expr, variables) if variables else []
     if variables and any(c.has(*variables) for c in coeffs):
         expr = sp.expand(expr)
-        coeffs = [sp.diff(expr, v) for v in variables]
+        coeffs = gradient(expr, variables)
         if any(c.has(*variables) for c in coeffs):
             return None
     rest = expr.xreplace({v: 0 for v in variables})

@@ -1,6 +1,6 @@
 """The ``chaplygin`` command line (typer + rich).
 
-Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``report``, ``demo`` and
+Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo`` and
 ``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.files`) or
 ``example:NAME`` for a built-in example.
 
@@ -278,36 +278,69 @@ def derive(
     fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
     accelerations: bool = typer.Option(True, "--accelerations/--no-accelerations",
                                        help="Also solve for the accelerations (and multipliers)."),
+    no_cache: bool = typer.Option(False, "--no-cache",
+                                  help="Derive anew: neither read nor write the derivation cache."),
 ) -> None:
-    """Derive the equations of motion of one model and print them."""
-    with _failures():
-        loaded = _load(file)
-        system = loaded.system
-        with _Steps(2 if accelerations else 1, f"deriving {model.value}/{form.value}") as steps:
-            steps.step(f"deriving the {model.value} equations")
-            eqs = system.equations(model.value, form.value)
-            eqs.equations  # noqa: B018 - computed here, under the progress display
-            acc = None
-            if accelerations:
-                steps.step("solving for the accelerations")
-                acc = eqs.accelerations
-        if fmt is DeriveFormat.json:
-            _emit(json.dumps(derive_json(eqs, acc), indent=2, ensure_ascii=False))
-        elif fmt is DeriveFormat.latex:
-            from sympy.physics.vector.printing import vlatex
+    """Derive the equations of motion of one model and print them.
 
-            lines = [f"% {eqs.title} - {system.name}", eqs.latex()]
-            if acc is not None:
-                rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
-                lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
-            _emit("\n".join(lines))
-        else:
-            lines = [f"{eqs.title} - {system.name}"]
-            lines += [f"  {file_syntax(e.lhs)} = 0" for e in eqs.equations]
-            if acc is not None:
-                lines.append("Solved:")
-                lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
-            _emit("\n".join(lines))
+    The result is kept in the derivation cache (see `chaplygin.cache`), keyed by
+    the file's contents, the options and the library version: asking again
+    prints it without deriving.
+    """
+    from . import cache
+
+    with _failures():
+        source = _definition(file)
+        k = None if no_cache or source is None else cache.key(
+            "derive", source, model.value, form.value, fmt.value, str(accelerations))
+        cached = None if k is None else cache.load(k)
+        if isinstance(cached, str):
+            _emit(cached)
+            return
+        text = _derive_text(file, model, form, fmt, accelerations)
+        if k is not None:
+            cache.store(k, text)
+        _emit(text)
+
+
+def _definition(spec: str) -> bytes | None:
+    """What a derivation from ``spec`` depends on: a file's bytes, or an example's name."""
+    if spec.startswith("example:"):  # examples change only with the library version
+        return spec.strip().lower().replace("_", "-").encode()
+    try:
+        return Path(spec).read_bytes()
+    except OSError:
+        return None  # _load reports the problem
+
+
+def _derive_text(file: str, model: Model, form: Form, fmt: DeriveFormat, accelerations: bool) -> str:
+    """What ``derive`` prints."""
+    loaded = _load(file)
+    system = loaded.system
+    with _Steps(2 if accelerations else 1, f"deriving {model.value}/{form.value}") as steps:
+        steps.step(f"deriving the {model.value} equations")
+        eqs = system.equations(model.value, form.value)
+        eqs.equations  # noqa: B018 - computed here, under the progress display
+        acc = None
+        if accelerations:
+            steps.step("solving for the accelerations")
+            acc = eqs.accelerations
+    if fmt is DeriveFormat.json:
+        return json.dumps(derive_json(eqs, acc), indent=2, ensure_ascii=False)
+    if fmt is DeriveFormat.latex:
+        from sympy.physics.vector.printing import vlatex
+
+        lines = [f"% {eqs.title} - {system.name}", eqs.latex()]
+        if acc is not None:
+            rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
+            lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+        return "\n".join(lines)
+    lines = [f"{eqs.title} - {system.name}"]
+    lines += [f"  {file_syntax(e.lhs)} = 0" for e in eqs.equations]
+    if acc is not None:
+        lines.append("Solved:")
+        lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+    return "\n".join(lines)
 
 
 # ====================================================================== check
@@ -443,11 +476,21 @@ def simulate(
     param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
     initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
+    method: str = typer.Option("DOP853", "--method", help="Integrator: DOP853 (adaptive, the default), RK45, RK23, Radau, BDF, LSODA; or, for the true motion (chetaev, chaplygin, voronets), a symmetric fixed-step method that keeps the energy error bounded: midpoint, gauss4, gauss6 (needs --step)."),
+    step: Optional[float] = typer.Option(None, "--step", help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used)."),
 ) -> None:
     """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
+    from .simulate import METHODS, SYMMETRIC_METHODS
+
     suffix = out.suffix.lower()
     if suffix not in (".csv", ".npz"):
         raise typer.BadParameter(f"{out}: the output must end in .csv or .npz.", param_hint="--out")
+    if method not in METHODS:
+        raise typer.BadParameter(f"{method!r} is not a method; choose from {', '.join(METHODS)}.",
+                                 param_hint="--method")
+    if method in SYMMETRIC_METHODS and step is None:
+        raise typer.BadParameter(f"method {method} takes a fixed step: give --step, e.g. --step 0.01.",
+                                 param_hint="--step")
     c = _constants(constants)
     _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
     with _failures():
@@ -461,9 +504,12 @@ def simulate(
             if model is not Model.vakonomic_family:  # (the family is derived with its constants)
                 system.equations(model.value, form.value)
             steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
-            options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value}
+            options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value,
+                                       "method": method}
             if c is not None:
                 options["constants"] = c
+            if step is not None:
+                options["step"] = step
             tr = system.simulate(model.value, t_end, start, params, **options)
             steps.step(f"writing {out}")
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
@@ -582,6 +628,89 @@ def _write_comparison(comparison: Comparison, directory: Path) -> None:
     _atomic_write(directory / "summary.txt", lambda fh: fh.write(summary.encode("utf-8")), text=False)
     doc = json.dumps(_comparison_json(comparison), indent=2, ensure_ascii=False) + "\n"
     _atomic_write(directory / "summary.json", lambda fh: fh.write(doc.encode("utf-8")), text=False)
+
+
+# ====================================================================== sweep
+class SweepBackend(str, Enum):
+    numba = "numba"
+    numpy = "numpy"
+
+
+@contextmanager
+def _run_counter(description: str) -> Iterator[Any]:
+    """A rich bar of finished runs on a terminal (a ``progress(done, total)`` callback); nothing when piped."""
+    console = _stderr()
+    if not console.is_terminal:
+        yield lambda done, total: None
+        return
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
+                               TimeElapsedColumn, TimeRemainingColumn)
+
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda done, total: bar.update(task, completed=done, total=total)
+
+
+@app.command()
+def sweep(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    grid: list[str] = typer.Option(..., "--grid", "-g", help="NAME=START:STOP:COUNT (or NAME=V1,V2,…): a parameter, coordinate or independent velocity to sweep; several make the Cartesian product."),
+    t_end: float = typer.Option(..., "--t-end", "-t", help="End time of every run (from t = 0)."),
+    out: Path = typer.Option(..., "--out", "-o", help="The results: a Parquet dataset directory, e.g. results.parquet."),
+    model: Model = typer.Option(Model.chetaev, "--model", "-m", help="The model to simulate."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
+    samples: int = typer.Option(201, "--samples", "-n", min=2, help="Samples per run, where the energy drift and the constraint residual are measured."),
+    backend: SweepBackend = typer.Option(SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."),
+    constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of a running Dask scheduler (tcp://HOST:8786), or 'serial' for this process without Dask; default: a LocalCluster on this machine."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of the LocalCluster (default: one per core)."),
+    chunk_size: Optional[int] = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
+    resume: bool = typer.Option(False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
+) -> None:
+    """Simulate a model over a grid of parameters and initial values on Dask; one Parquet row per run."""
+    from .sweep import parse_grid
+
+    axes: dict[str, Any] = {}
+    for item in grid:
+        try:
+            name, values = parse_grid(item)
+        except ChaplyginError as exc:
+            raise typer.BadParameter(str(exc).removeprefix("--grid "), param_hint="--grid") from None
+        if name in axes:
+            raise typer.BadParameter(f"{name!r} is given twice; each name is one axis.", param_hint="--grid")
+        axes[name] = values
+    if resume and force:
+        raise typer.BadParameter("--resume keeps the runs there and --force deletes them: give one.",
+                                 param_hint="--resume/--force")
+    c = _constants(constants)
+    fixed_params, fixed_initial = _overrides(param, "--param"), _overrides(initial, "--initial")
+    with _failures():
+        from .sweep import read_results
+        from .sweep import sweep as run_sweep
+
+        label = model.value if form is Form.classic else f"{model.value}/{form.value}"
+        try:
+            with _run_counter(f"sweeping {label} [{backend.value}]") as progress:
+                result = run_sweep(
+                    file, axes, t_end=t_end, out=out, model=model.value, form=form.value,
+                    parameters=fixed_params, initial=fixed_initial, scheduler=scheduler, workers=workers,
+                    resume=resume, force=force, backend=backend.value, samples=samples, constants=c,
+                    chunk_size=chunk_size, progress=progress,
+                )
+        except KeyboardInterrupt:
+            _stderr().print(f"interrupted: the finished runs are saved in {out}; run the same command "
+                            "with --resume to finish the sweep.", markup=False)
+            raise typer.Exit(130) from None
+        _emit(f"{label}: {result.summary()}")
+        if result.failed:
+            table = read_results(out, ["status", "message"]).to_pylist()
+            first = [r for r in table if r["status"] != "success"][:3]
+            _stderr().print("failed runs (status 'failed' in the results), e.g.:\n" + "\n".join(
+                f"  run {r['run_id']}: {r['message']}" for r in first), markup=False)
 
 
 # ====================================================================== report

@@ -33,19 +33,22 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from ._fast import cse
+from .cache import cache_dir
 from ._symbols import TIME
 from .errors import ChaplyginError
 
 if TYPE_CHECKING:
     from .equations import Equations
+    from .system import System
 
-__all__ = ["Layout", "CompiledModel", "compile_equations", "BACKENDS", "cache_dir"]
+__all__ = ["Layout", "CompiledModel", "compile_equations", "compile_model", "BACKENDS", "REDUCTIONS", "cache_dir"]
 
 BACKENDS = ("numpy", "numba", "jax")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
@@ -62,14 +65,6 @@ def _version() -> str:
 
     return __version__
 _MULTIPLIER_MODELS = ("chetaev", "vakonomic")
-
-
-def cache_dir() -> Path:
-    """Where generated code lives: ``$CHAPLYGIN_CACHE`` or the user's cache directory."""
-    root = os.environ.get("CHAPLYGIN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "chaplygin"
-    )
-    return Path(root)
 
 
 @dataclass(frozen=True)
@@ -167,6 +162,40 @@ class _Printer(PythonCodePrinter):
         return f"{expr.base}[{', '.join(self._print(i) for i in expr.indices)}]"
 
 
+def _lines(
+    exprs: list[sp.Expr], targets: list[str], prefix: str, skip_zero: int = 0
+) -> list[str]:
+    """``fill`` body lines: common subexpressions (``prefix0 = …``), then ``target = expr``.
+
+    The first ``skip_zero`` targets (the mass matrix, zeroed before ``fill``) are
+    left out where their expression is 0.
+    """
+    pr = _Printer({"fully_qualified_modules": True, "standard": "python3"})
+    replacements, reduced = cse([sp.S.Zero + e for e in exprs], prefix)
+    out = [f"    {sym} = {pr.doprint(e)}" for sym, e in replacements]
+    out += [
+        f"    {target} = {pr.doprint(e)}"
+        for i, (target, e) in enumerate(zip(targets, reduced))
+        if i >= skip_zero or e != 0
+    ]
+    return out
+
+
+def _targets(dim: int, n: int, g: int) -> list[str]:
+    """Where ``fill`` stores M (row-major), F, the velocities, energy and residuals."""
+    return (
+        [f"M[{i // dim}, {i % dim}]" for i in range(dim * dim)]
+        + [f"F[{i}]" for i in range(dim)]
+        + [f"V[{i}]" for i in range(n)]
+        + [f"O[{i}]" for i in range(1 + g)]
+    )
+
+
+def _plain(to_num: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
+    """``y[i]``, ``p[j]`` as symbols of those names (printed as they are) for SymEngine's cse."""
+    return {k: sp.Symbol(f"{v.base}[{v.indices[0]}]") for k, v in to_num.items()} | {TIME: sp.Symbol("t")}
+
+
 def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
     s = eqs.system
     layout, to_num, velocities, k = _state_symbols(eqs)
@@ -175,21 +204,55 @@ def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
     residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
     M, F = eqs._M, eqs._F
     dim = M.shape[0]
-    exprs = [*M, *F, *velocities, energy, *residual]
-    exprs = [sp.S.Zero + e for e in exprs]  # plain numbers become SymPy numbers
-    exprs = [e.xreplace(to_num).xreplace({TIME: sp.Symbol("t")}) for e in exprs]
-    replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
-    pr = _Printer({"fully_qualified_modules": True, "standard": "python3"})
-    body = [f"    {sym} = {pr.doprint(e)}" for sym, e in replacements]
-    nM, nF, nV = dim * dim, dim, s.n
-    fill = []
-    for idx in range(nM):
-        if reduced[idx] != 0:
-            fill.append(f"    M[{idx // dim}, {idx % dim}] = {pr.doprint(reduced[idx])}")
-    fill += [f"    F[{i}] = {pr.doprint(reduced[nM + i])}" for i in range(nF)]
-    fill += [f"    V[{i}] = {pr.doprint(reduced[nM + nF + i])}" for i in range(nV)]
-    fill += [f"    O[0] = {pr.doprint(reduced[nM + nF + nV])}"]
-    fill += [f"    O[{1 + b}] = {pr.doprint(e)}" for b, e in enumerate(reduced[nM + nF + nV + 1 :])]
+    plain = _plain(to_num)
+    exprs = [(sp.S.Zero + e).xreplace(plain) for e in [*M, *F, *velocities, energy, *residual]]
+    body = _lines(exprs, _targets(dim, s.n, s.g), "c_", skip_zero=dim * dim)
+    return layout, _module(eqs, layout, body, dim, k, jit)
+
+
+def _numeric_reduction_source(eqs: Equations, model: str, jit: bool) -> tuple[Layout, str]:
+    """A reduced model (Chaplygin's or Voronets' equations) computed from the Chetaev model.
+
+    The state is that of the reduced model (coordinates, independent
+    velocities); ``fill`` solves the constraints ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``
+    numerically, then fills the multiplier system (6) with its unknowns ordered
+    ``[q̈_σ, q̈_dep, λ]``, whose leading ε entries are the reduced model's
+    accelerations at that (admissible) state.  No symbolic ``B`` is needed, so
+    systems far too large for a symbolic elimination compile in seconds.
+    """
+    s = eqs.system
+    v, n, g, ind, dep = s._vars, s.n, s.g, list(s._ind), list(s._dep)
+    layout, to_num, _, _ = _state_symbols(eqs)
+    layout = Layout(model, "numeric", layout.coordinates, tuple(layout.coordinates[i] + "'" for i in ind),
+                    (), layout.parameters)
+    to_num = {key: val for key, val in to_num.items() if key not in v.xd}
+    y = sp.IndexedBase("y")
+    to_num.update({v.xd[i]: y[n + k] for k, i in enumerate(ind)})
+    plain = _plain(to_num)
+    a_dep = s._A.extract(list(range(g)), dep).xreplace(plain)
+    b = (-(s._A.extract(list(range(g)), ind) * sp.Matrix([v.xd[i] for i in ind]) + s._A0)).xreplace(plain)
+    stage1 = _lines([*a_dep, *b], [f"Ad[{i // g}, {i % g}]" for i in range(g * g)] + [f"b[{i}]" for i in range(g)], "a_")
+    plain.update({v.xd[i]: sp.Symbol(f"d[{k}]") for k, i in enumerate(dep)})
+    perm = [*ind, *dep, *range(n, n + g)]
+    M = eqs._M.extract(list(range(n + g)), perm)
+    velocities = list(v.xd)
+    energy = s._T - s._U
+    residual = list(s._A * sp.Matrix(velocities) + s._A0)
+    exprs = [(sp.S.Zero + e).xreplace(plain) for e in [*M, *eqs._F, *velocities, energy, *residual]]
+    dim = n + g
+    body = [
+        f"    Ad = np.zeros(({g}, {g}))",
+        f"    b = np.zeros({g})",
+        *stage1,
+        "    d = np.linalg.solve(Ad, b)",
+        *_lines(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim),
+    ]
+    return layout, _module(eqs, layout, body, dim, len(ind), jit)
+
+
+def _module(eqs: Equations, layout: Layout, body: list[str], dim: int, k: int, jit: bool) -> str:
+    """The generated module: ``fill`` (``body``) and the functions built on it."""
+    s = eqs.system
     n_reactions = len(layout.reactions)
     n_observed = 1 + s.g + n_reactions + s.n
     deco = "@_jit\n" if jit else ""
@@ -204,14 +267,14 @@ def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
         '"""\n'
     ).format(
         version=_version(), fmt=CODE_FORMAT,
-        model=eqs.model, form=eqs.form, name=_docstring_safe(s.name), state=", ".join(layout.state),
+        model=layout.model, form=layout.form, name=_docstring_safe(s.name), state=", ".join(layout.state),
         params=", ".join(layout.parameters), g=s.g, reactions=", ".join(layout.reactions) or "none",
         n=s.n,
     )
     jit_line = (
         "from numba import njit\n_jit = njit(cache=True, fastmath=False)\n" if jit else ""
     )
-    src = f'''{header}
+    return f'''{header}
 import math
 
 import numpy as np
@@ -224,7 +287,6 @@ N_OBSERVED = {n_observed}
 
 {deco}def fill(t, y, p, M, F, V, O):
 {chr(10).join(body) if body else "    pass"}
-{chr(10).join(fill)}
 
 
 {deco}def evaluate(t, y, p):
@@ -256,7 +318,6 @@ N_OBSERVED = {n_observed}
     O[N_OBSERVED - N:] = V
     return O
 '''
-    return layout, src
 
 
 _LOADED: dict[str, ModuleType] = {}
@@ -318,6 +379,59 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
     if backend not in cache:
         cache[backend] = _compile(eqs, backend)
     return cache[backend]
+
+
+#: ``reduction="auto"`` reduces numerically from this many coordinates on
+NUMERIC_REDUCTION_FROM = 9
+REDUCTIONS = ("auto", "symbolic", "numeric")
+
+
+def compile_model(
+    system: System,
+    model: str,
+    form: str = "classic",
+    backend: str = "numpy",
+    *,
+    constants: Any = None,
+    reduction: str = "auto",
+) -> CompiledModel:
+    """Compile one model of ``system``, deriving what it needs.
+
+    Parameters
+    ----------
+    reduction : {"auto", "symbolic", "numeric"}
+        How Chaplygin's and Voronets' equations are computed.  ``"symbolic"``
+        compiles the derived equations (15)/(40); ``"numeric"`` compiles the
+        Chetaev model (6) and eliminates the dependent velocities, accelerations
+        and multipliers numerically at each call (:func:`_numeric_reduction_source`):
+        the same accelerations at every admissible state, without the symbolic
+        elimination whose size grows fast with the number of constraints.
+        ``"auto"`` chooses ``"numeric"`` from :data:`NUMERIC_REDUCTION_FROM`
+        coordinates on (never for the ``jax`` backend).  Other models ignore it.
+    """
+    if reduction not in REDUCTIONS:
+        raise ChaplyginError(
+            f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}."
+        )
+    numeric = (
+        model in ("chaplygin", "voronets")
+        and backend != "jax"
+        and (reduction == "numeric" or (reduction == "auto" and system.n >= NUMERIC_REDUCTION_FROM))
+    )
+    if not numeric:
+        kwargs = {} if constants is None else {"constants": constants}
+        return compile_equations(system.equations(model, form, **kwargs), backend)
+    if model == "chaplygin" and not system.is_chaplygin:
+        system.equations(model, form)  # raises the error that explains why
+    if backend not in BACKENDS:
+        compile_equations(system.equations("chetaev"), backend)  # raises the error that lists them
+    eqs = system.equations("chetaev")
+    cache = eqs.__dict__.setdefault("_compiled", {})
+    key = (backend, model)
+    if key not in cache:
+        layout, source = _numeric_reduction_source(eqs, model, jit=backend == "numba")
+        cache[key] = CompiledModel(layout, _import(source, backend), backend)
+    return cache[key]
 
 
 def _compile(eqs: Equations, backend: str) -> CompiledModel:

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .codegen import CompiledModel, Layout, compile_equations
+from .codegen import CompiledModel, Layout, compile_model
 from .errors import ChaplyginError
 from .simulate import _initial_multipliers, _parameters, _vakonomic_setup, initial_state
 
@@ -229,15 +229,16 @@ def simulate_ensemble(
     max_step: float = np.inf,
     max_steps: int = 1_000_000,
     threads: int | None = None,
+    reduction: str = "auto",
 ) -> Ensemble:
     """Integrate ``model`` of ``system`` from many initial states.
 
     Parameters
     ----------
-    system, model, t_span, form, rtol, atol, constants, multipliers, max_step :
+    system, model, t_span, form, rtol, atol, constants, multipliers, max_step, reduction :
         As for :func:`chaplygin.simulate.simulate`.
     initial_states : array (N, len(state)) or list of mappings
-        Either states in layout order (``compile_equations(eqs).layout.state``:
+        Either states in layout order (``compile_model(system, model).layout.state``:
         coordinates, the integrated velocities, multipliers), or ``N``
         mappings like ``simulate``'s ``initial`` (dependent velocities follow
         from the constraints).  An array for a multiplier model (all
@@ -271,8 +272,7 @@ def simulate_ensemble(
         raise ChaplyginError(f"method {method!r}: the numba ensemble integrates with 'DOP853' only.")
     times = _keep_times(keep, t0, t1)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
-    eqs = system.equations(model, form, constants=family_c) if family_c is not None else system.equations(model, form)
-    compiled = compile_equations(eqs, backend)
+    compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
     if backend == "numba":
         from ._loop import loop_model
 

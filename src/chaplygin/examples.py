@@ -5,8 +5,12 @@ parameters are plain symbols (mass ``m``, radius ``a`` …) that the caller may
 replace with numbers by passing them as arguments.
 
 :func:`catalogue` lists them by name (``rolling-sphere``, ``knife-edge``,
-``vertical-rolling-disk``, ``rolling-disk``) with a description, default
-parameter values and an initial state; :func:`get` looks one up.
+``vertical-rolling-disk``, ``rolling-disk``, ``chaplygin-sleigh``,
+``turntable-ball``, ``chaplygin-ball``, ``heisenberg``, ``contact-oscillator``,
+``differential-drive``, ``sleigh-chain``) with a description, default
+parameter values and an initial state; :func:`get` looks one up.  Each has a
+page in the documentation's gallery (``docs/gallery/<name>.md``) with what is
+known about it and the sources.
 """
 
 from __future__ import annotations
@@ -100,7 +104,8 @@ def knife_edge(
 
     Coordinates ``x, y`` (contact point) and heading ``φ``;
     ``T = ½ m (ẋ² + ẏ²) + ½ J φ̇²``.  The classic non-integrable constraint
-    (Neimark & Fufaev, *Dynamics of Nonholonomic Systems*, 1972, ch. I).
+    (Neimark & Fufaev, *Dynamics of Nonholonomic Systems*, 1972).  See
+    ``docs/gallery/knife-edge.md``.
     """
     x, y, phi = dynamicsymbols("x y phi")
     m_, J_ = _param(m, "m"), _param(J, "J")
@@ -121,6 +126,7 @@ def vertical_rolling_disk(
 
     Coordinates: spin ``θ``, heading ``φ``, contact point ``x, y``;
     ``T = ½ m (ẋ² + ẏ²) + ½ I θ̇² + ½ J φ̇²``, ``ẋ = R θ̇ cos φ``, ``ẏ = R θ̇ sin φ``.
+    See ``docs/gallery/vertical-rolling-disk.md``.
     """
     theta, phi, x, y = dynamicsymbols("theta phi x y")
     m_, R_, I_, J_ = (_param(v, n) for v, n in ((m, "m"), (R, "R"), (I, "I"), (J, "J")))
@@ -170,7 +176,10 @@ def rolling_disk(
                −r θ̇ sin θ)
 
     and ``V = m g r cos θ``.  T, V and the constraints are free of ``x, y``:
-    this is a Chaplygin system, with non-integrable constraints.
+    this is a Chaplygin system, with non-integrable constraints.  A coin, a hoop
+    or any body of revolution rolling on a circular edge centred at its centre
+    of mass (Lindelöf's problem); steady motions and their stability are on
+    ``docs/gallery/rolling-disk.md``.
 
     Parameters
     ----------
@@ -189,7 +198,9 @@ def rolling_disk(
     Ju. I. Neimark and N. A. Fufaev, *Dynamics of Nonholonomic Systems*,
     AMS Translations of Mathematical Monographs 33, 1972 (the rolling disk is
     their recurring example).  O. M. O'Reilly, "The dynamics of rolling disks and
-    sliding disks", *Nonlinear Dynamics* 10 (1996), 287–305.
+    sliding disks", *Nonlinear Dynamics* 10 (1996), 287–305.  E. J. Routh, *The
+    Advanced Part of a Treatise on the Dynamics of a System of Rigid Bodies*,
+    1905, art. 244.
     """
     psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
     m_, r_, A_, C_, g_ = (
@@ -217,6 +228,248 @@ def rolling_disk(
         name="Disk rolling on a horizontal plane",
     )
 
+
+# ---------------------------------------------------------------------- gallery
+def _d(q: sp.Expr) -> sp.Expr:
+    return q.diff(_t)
+
+
+def _space_omega(psi: sp.Expr, theta: sp.Expr, phi: sp.Expr) -> sp.Matrix:
+    """Space components of the angular velocity for z-x-z Euler angles (ψ, θ, φ)."""
+    return sp.Matrix([
+        _d(theta) * sp.cos(psi) + _d(phi) * sp.sin(theta) * sp.sin(psi),
+        _d(theta) * sp.sin(psi) - _d(phi) * sp.sin(theta) * sp.cos(psi),
+        _d(psi) + _d(phi) * sp.cos(theta),
+    ])
+
+
+def chaplygin_sleigh(
+    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    a: sp.Expr | float | None = None,
+) -> System:
+    """The Chaplygin sleigh: a body on a knife edge at (x, y), centre of mass a ahead of it.
+
+    ``T = ½ m (ẋ² + ẏ²) + m a θ̇ (−ẋ sin θ + ẏ cos θ) + ½ (I + m a²) θ̇²`` with the
+    knife-edge constraint ``−ẋ sin θ + ẏ cos θ = 0`` (dependent ``y``; the split
+    ``ẏ = tan θ ẋ`` has a pole at ``θ = ±π/2``).  With the forward speed v and
+    ω = θ̇: ``v̇ = a ω²``, ``ω̇ = −m a v ω / (I + m a²)``; the sleigh ends up
+    moving straight.  See ``docs/gallery/chaplygin-sleigh.md``.
+
+    Parameters
+    ----------
+    m, I, a : optional
+        Mass, moment of inertia about the centre of mass, distance of the
+        centre of mass ahead of the knife edge; positive symbols by default.
+
+    References
+    ----------
+    S. A. Chaplygin, "On the theory of motion of nonholonomic systems. The
+    theorem on the reducing multiplier", *Mat. Sbornik* 28(2), 1911 (English:
+    *Regular and Chaotic Dynamics* 13(4), 2008, 369–376).  A. M. Bloch,
+    *Nonholonomic Mechanics and Control*, Springer, 2003, §1.7.
+    """
+    x, y, th = dynamicsymbols("x y theta")
+    m_, I_, a_ = _param(m, "m"), _param(I, "I"), _param(a, "a")
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + m_ * a_ * _d(th) * (-_d(x) * sp.sin(th) + _d(y) * sp.cos(th))
+    T += (I_ + m_ * a_**2) / 2 * _d(th) ** 2
+    return System([x, y, th], T, [-sp.sin(th) * _d(x) + sp.cos(th) * _d(y)], dependent=[y],
+                  name="Chaplygin sleigh")
+
+
+def turntable_ball(
+    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
+    Omega: sp.Expr | float | None = None,
+) -> System:
+    """A homogeneous ball rolling on a turntable spinning at the constant rate Ω.
+
+    Euler angles ``ψ, θ, φ`` (z-x-z, as :func:`rolling_sphere`) and the centre
+    ``x, y``; ``T = ½ m (ẋ² + ẏ²) + ⅕ m a² |ω|²``.  The contact point moves with
+    the table: ``ẋ = a ω_y − Ω y``, ``ẏ = −a ω_x + Ω x`` (affine constraints whose
+    B_0 depends on the dependent x, y: Voronets' case, no Lindelöf equations).
+    The centre moves on a circle with angular frequency 2Ω/7; the energy is not
+    conserved, ``E − Ω L_z`` is.  See ``docs/gallery/turntable-ball.md``.
+
+    Parameters
+    ----------
+    m, a, Omega : optional
+        Mass and radius of the ball, rate of the table; positive symbols by default.
+
+    References
+    ----------
+    K. Weltner, "Stable circular orbits of freely moving balls on rotating
+    discs", *Am. J. Phys.* 47, 1979, 984–986.  W. Weckesser, "A ball rolling on
+    a freely spinning turntable", *Am. J. Phys.* 65, 1997, 736–738.  F. Fassò
+    and N. Sansonetto, "Conservation of 'moving' energy in nonholonomic systems
+    with affine constraints and integrability of spheres on rotating surfaces",
+    *J. Nonlinear Sci.* 26, 2016, 519–544.
+    """
+    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
+    m_, a_, W = _param(m, "m"), _param(a, "a"), _param(Omega, "Omega")
+    w = _space_omega(psi, theta, phi)
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + sp.Rational(1, 5) * m_ * a_**2 * sp.trigsimp(sp.expand(w.dot(w)))
+    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1] - W * y, _d(y): -a_ * w[0] + W * x},
+                  name="Ball on a rotating turntable")
+
+
+def chaplygin_ball(
+    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None, B: sp.Expr | float | None = None,
+    C: sp.Expr | float | None = None,
+) -> System:
+    """Chaplygin's ball: centre of mass at the geometric centre, principal moments A, B, C.
+
+    Euler angles ``ψ, θ, φ`` (z-x-z) and the centre ``x, y``; rolls on a plane
+    with the paper's sphere's constraints.  The energy and the angular momentum
+    about the contact point, ``I ω + m a² (ω − ω_z e_z)``, are constant.  See
+    ``docs/gallery/chaplygin-ball.md``.
+
+    Parameters
+    ----------
+    m, a, A, B, C : optional
+        Mass, radius, principal central moments of inertia; positive symbols by default.
+
+    References
+    ----------
+    S. A. Chaplygin, "On a ball's rolling on a horizontal plane", *Mat.
+    Sbornik* 24, 1903, 139–168 (English: *Regular and Chaotic Dynamics* 7(2),
+    2002, 131–148).  A. V. Borisov and I. S. Mamaev, "Rolling of a rigid body on
+    plane and sphere. Hierarchy of dynamics", *Regular and Chaotic Dynamics*
+    7(2), 2002, 177–200.
+    """
+    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
+    m_, a_, A_, B_, C_ = (_param(v, n) for v, n in ((m, "m"), (a, "a"), (A, "A"), (B, "B"), (C, "C")))
+    body = sp.Matrix([
+        _d(psi) * sp.sin(theta) * sp.sin(phi) + _d(theta) * sp.cos(phi),
+        _d(psi) * sp.sin(theta) * sp.cos(phi) - _d(theta) * sp.sin(phi),
+        _d(psi) * sp.cos(theta) + _d(phi),
+    ])
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + (A_ * body[0] ** 2 + B_ * body[1] ** 2 + C_ * body[2] ** 2) / 2
+    w = _space_omega(psi, theta, phi)
+    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1], _d(y): -a_ * w[0]}, name="Chaplygin ball")
+
+
+def heisenberg() -> System:
+    """The Heisenberg (Brockett) system: ``ż = (x ẏ − y ẋ)/2``, ``T = ½ (ẋ² + ẏ²)``.
+
+    True motions are straight lines; vakonomic motions are circles, the
+    sub-Riemannian geodesics, along which ``z`` gains the enclosed area.  See
+    ``docs/gallery/heisenberg.md``.
+
+    References
+    ----------
+    R. W. Brockett, "Control theory and singular Riemannian geometry", in
+    *New Directions in Applied Mathematics*, Springer, 1981, 11–27.
+    R. Montgomery, *A Tour of Subriemannian Geometries, Their Geodesics and
+    Applications*, AMS, 2002, ch. 1.
+    """
+    x, y, z = dynamicsymbols("x y z")
+    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2) / 2, {_d(z): (x * _d(y) - y * _d(x)) / 2},
+                  name="Heisenberg system")
+
+
+def contact_oscillator(eps: sp.Expr | float | None = None) -> System:
+    """The contact oscillator ``ẋ + y ż = 0``, ``H = ½|v|² + ½|q|² + ½ ε x² z²``.
+
+    Dependent ``x``; the potential depends on it, so this is a Voronets system
+    (no Lindelöf equations).  ``y`` is a harmonic oscillator for every ε.  See
+    ``docs/gallery/contact-oscillator.md``.
+
+    Parameters
+    ----------
+    eps : optional
+        The coupling ε, parameter ``epsilon``; a positive symbol by default.
+
+    References
+    ----------
+    R. I. McLachlan and M. Perlmutter, "Integrators for nonholonomic
+    mechanical systems", *J. Nonlinear Sci.* 16, 2006, 283–328 (nonholonomic
+    test problems for integrators).
+    """
+    x, y, z = dynamicsymbols("x y z")
+    e = _param(eps, "epsilon")
+    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2 + _d(z) ** 2) / 2, {_d(x): -y * _d(z)},
+                  potential_energy=(x**2 + y**2 + z**2) / 2 + e * x**2 * z**2 / 2,
+                  name="Contact oscillator")
+
+
+def differential_drive(
+    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    J: sp.Expr | float | None = None, r: sp.Expr | float | None = None,
+    b: sp.Expr | float | None = None,
+) -> System:
+    """A differential-drive robot: wheels of radius r at ±b on an axle through the centre of mass.
+
+    Coordinates x, y, θ and the wheel angles φ_L, φ_R (dependent ``x, y, θ``);
+    ``ẋ = v cos θ``, ``ẏ = v sin θ``, ``θ̇ = ω`` with ``v = r (φ̇_R + φ̇_L)/2``,
+    ``ω = r (φ̇_R − φ̇_L)/(2b)``; ``T = ½ m (ẋ² + ẏ²) + ½ I θ̇² + ½ J (φ̇_L² + φ̇_R²)``.
+    Free of torques, the wheels keep their speeds.  See
+    ``docs/gallery/differential-drive.md``.
+
+    Parameters
+    ----------
+    m, I, J, r, b : optional
+        Mass, moment of inertia about the vertical, each wheel's moment of
+        inertia about the axle, wheel radius, half the track; positive symbols
+        by default.
+
+    References
+    ----------
+    R. Siegwart and I. R. Nourbakhsh, *Introduction to Autonomous Mobile
+    Robots*, MIT Press, 2004, ch. 3 (mobile robot kinematics).
+    """
+    x, y, th, pl, pr = dynamicsymbols("x y theta phi_L phi_R")
+    m_, I_, J_, r_, b_ = (_param(v, n) for v, n in ((m, "m"), (I, "I"), (J, "J"), (r, "r"), (b, "b")))
+    v, w = r_ / 2 * (_d(pr) + _d(pl)), r_ / (2 * b_) * (_d(pr) - _d(pl))
+    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + I_ / 2 * _d(th) ** 2 + J_ / 2 * (_d(pl) ** 2 + _d(pr) ** 2)
+    return System([x, y, th, pl, pr], T, {_d(x): v * sp.cos(th), _d(y): v * sp.sin(th), _d(th): w},
+                  name="Differential-drive robot")
+
+
+def sleigh_chain(
+    n: int, m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    L: sp.Expr | float | None = None,
+) -> System:
+    """A knife-edge sleigh at (x, y) pulling ``n`` sleighs, each hitched at distance L behind the last.
+
+    Body ``i`` has heading ``θ_i`` and its knife edge at
+    ``p_i = (x, y) − L Σ_{j=1..i} (cos θ_j, sin θ_j)``, hitched to the knife
+    edge of body ``i − 1``; every body has mass m at its knife edge and moment
+    of inertia I about it, and its knife edge forbids sideways motion::
+
+        T = Σ_i [½ m |ṗ_i|² + ½ I θ̇_i²],
+        −sin θ_i ẋ + cos θ_i ẏ − L Σ_{j=1..i} θ̇_j cos(θ_j − θ_i) = 0   (i = 0 … n)
+
+    n + 3 coordinates ``x, y, θ_0 … θ_n`` and n + 1 constraints (dependent
+    ``y, θ_1 … θ_n``): the scalable system for benchmarks.  Its kinematics are
+    those of the standard N-trailer (D. Tilbury, R. M. Murray and S. S. Sastry,
+    "Trajectory generation for the N-trailer problem using Goursat normal
+    form", *IEEE Trans. Automatic Control* 40(5), 1995, 802–819).
+
+    Raises
+    ------
+    ValueError
+        If ``n`` is not a non-negative integer.
+    """
+    if not isinstance(n, int) or n < 0:
+        raise ValueError(f"sleigh_chain: n must be a non-negative integer, got {n!r}.")
+    x, y = dynamicsymbols("x y")
+    th = list(dynamicsymbols(f"theta0:{n + 1}"))
+    m_, I_, L_ = _param(m, "m"), _param(I, "I"), _param(L, "L")
+    T, cons = sp.S.Zero, []
+    for i, ti in enumerate(th):
+        trailing = th[1:i + 1]                     # the headings θ_1 … θ_i behind the lead
+        speed2 = _d(x) ** 2 + _d(y) ** 2 + 2 * L_ * sum(
+            (_d(tj) * (_d(x) * sp.sin(tj) - _d(y) * sp.cos(tj)) for tj in trailing), sp.S.Zero
+        ) + L_**2 * sum((_d(tj) * _d(tk) * sp.cos(tj - tk) for tj in trailing for tk in trailing), sp.S.Zero)
+        T += m_ / 2 * speed2 + I_ / 2 * _d(ti) ** 2
+        cons.append(-sp.sin(ti) * _d(x) + sp.cos(ti) * _d(y)
+                    - L_ * sum((_d(tj) * sp.cos(tj - ti) for tj in trailing), sp.S.Zero))
+    return System([x, y, *th], sp.expand(T), cons, dependent=[y, *th[1:]], name=f"Chain of {n + 1} sleighs")
+
+
+def _sleigh_chain_2() -> System:
+    """``sleigh_chain(2)``: a lead sleigh pulling two sleighs (the catalogue's ``sleigh-chain``)."""
+    return sleigh_chain(2)
 
 # ---------------------------------------------------------------------------- catalogue
 class ExampleEntry(NamedTuple):
@@ -291,6 +544,92 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
         {"psi": 0.0, "theta": 0.1, "phi": 0.0, "x": 0.0, "y": 0.0,
          "psi'": 0.0, "theta'": 0.0, "phi'": 6.0},
     ),
+    "chaplygin-sleigh": (
+        chaplygin_sleigh,
+        (
+            "The Chaplygin sleigh (Chaplygin 1911; Bloch, Nonholonomic Mechanics and Control, §1.7): "
+            "a body on a knife edge at (x, y) of heading theta, its centre of mass a ahead of the "
+            "edge; y' = tan(theta)*x' (a pole at theta = ±pi/2). The true motion has v' = a*w^2, "
+            "w' = -m*a*v*w/(I + m*a^2) and ends in straight-line motion; Lindelöf's equations are "
+            "the knife edge's with J = I + m*a^2 and swing theta away from 0 (rate x'*sqrt(m/J)), "
+            "so the default state is slow enough to keep every model below the pole up to t = 20."
+        ),
+        {"m": 1.0, "I": 1.0, "a": 1.0},
+        {"x": 0.0, "y": 0.0, "theta": 0.0, "x'": 0.1, "theta'": 0.01},
+    ),
+    "turntable-ball": (
+        turntable_ball,
+        (
+            "A homogeneous ball (mass m, radius a) rolling on a turntable that turns at the constant "
+            "rate Omega: affine constraints x' = a*w_y - Omega*y, y' = -a*w_x + Omega*x with Euler "
+            "angles psi, theta, phi (singular at theta = 0, pi). Not a Chaplygin system (no Lindelöf "
+            "equations); the centre circles at 2*Omega/7. The default ball starts carried by the "
+            "table at (0.5, 0) and circles about (-1.25, 0); energy is not conserved (the table "
+            "does work), but E - Omega*L_z is; the vakonomic motion from it gains energy fast."
+        ),
+        {"m": 1.0, "a": 1.0, "Omega": 0.5},
+        {"psi": 0.0, "theta": 1.5, "phi": 0.0, "x": 0.5, "y": 0.0,
+         "psi'": 0.2, "theta'": 0.0, "phi'": 0.0},
+    ),
+    "chaplygin-ball": (
+        chaplygin_ball,
+        (
+            "Chaplygin's ball (1903): a ball of radius a whose centre of mass is its centre, with "
+            "principal moments A, B, C, rolling on a rough plane (the sphere's constraints, Euler "
+            "angles psi, theta, phi, singular at theta = 0, pi). The angular momentum about the "
+            "contact point is conserved in the true motion, not in Lindelöf's."
+        ),
+        {"m": 1.0, "a": 1.0, "A": 0.3, "B": 0.4, "C": 0.5},
+        {"psi": 0.2, "theta": 1.1, "phi": 0.3, "x": 0.0, "y": 0.0,
+         "psi'": 0.4, "theta'": -0.3, "phi'": 0.8},
+    ),
+    "heisenberg": (
+        heisenberg,
+        (
+            "The Heisenberg (Brockett) system: T = (x'^2 + y'^2)/2 with z' = (x*y' - y*x')/2. "
+            "True motions are straight lines (and so are Lindelöf's: the defect vanishes); the other "
+            "vakonomic motions are circles, the sub-Riemannian geodesics, and z gains the area "
+            "they enclose."
+        ),
+        {},
+        {"x": 1.0, "y": 0.0, "z": 0.0, "x'": 0.0, "y'": 1.0},
+    ),
+    "contact-oscillator": (
+        contact_oscillator,
+        (
+            "A nonholonomic oscillator: a unit mass in R^3 with x' + y*z' = 0 (x dependent) and "
+            "V = (x^2 + y^2 + z^2)/2 + epsilon*x^2*z^2/2. Not a Chaplygin system (V depends on x): "
+            "Voronets' equations, no Lindelöf equations. In the true motion y is a harmonic "
+            "oscillator for every epsilon; the energy is conserved."
+        ),
+        {"epsilon": 0.01},
+        {"x": 0.0, "y": 1.0, "z": 0.5, "y'": 0.2, "z'": 0.4},
+    ),
+    "differential-drive": (
+        differential_drive,
+        (
+            "A differential-drive robot: wheels of radius r at ±b on an axle through the centre of "
+            "mass, wheel angles phi_L, phi_R; x' = v*cos(theta), y' = v*sin(theta), theta' = w with "
+            "v = r*(phi_R' + phi_L')/2, w = r*(phi_R' - phi_L')/(2*b). Free of torques the wheels "
+            "keep their speeds: the default robot drives round a circle of radius 1.5."
+        ),
+        {"m": 1.0, "I": 0.5, "J": 0.1, "r": 0.1, "b": 0.3},
+        {"x": 0.0, "y": 0.0, "theta": 0.0, "phi_L": 0.0, "phi_R": 0.0,
+         "phi_L'": 4.0, "phi_R'": 6.0},
+    ),
+    "sleigh-chain": (
+        _sleigh_chain_2,
+        (
+            "A lead sleigh at (x, y) of heading theta0 pulling two sleighs, each hitched at the "
+            "knife edge of the one ahead at distance L (sleigh_chain(2); mass m and inertia I at "
+            "each knife edge): the N-trailer kinematics with dynamics. Not a Chaplygin system. "
+            "In the true motion theta0' is constant; the default lead runs straight and the "
+            "trailers line up behind it."
+        ),
+        {"m": 1.0, "I": 0.5, "L": 1.0},
+        {"x": 0.0, "y": 0.0, "theta0": 0.0, "theta1": 0.2, "theta2": 0.0,
+         "x'": 1.0, "theta0'": 0.0},
+    ),
 }
 
 
@@ -323,147 +662,3 @@ def get(name: str) -> ExampleEntry:
             f"unknown example {name!r}; the examples are {', '.join(entries)}.{hint}"
         )
     return entries[key]
-
-
-# ---------------------------------------------------------------------- gallery
-def _d(q: sp.Expr) -> sp.Expr:
-    return q.diff(_t)
-
-
-def _space_omega(psi: sp.Expr, theta: sp.Expr, phi: sp.Expr) -> sp.Matrix:
-    """Space components of the angular velocity for z-x-z Euler angles (ψ, θ, φ)."""
-    return sp.Matrix([
-        _d(theta) * sp.cos(psi) + _d(phi) * sp.sin(theta) * sp.sin(psi),
-        _d(theta) * sp.sin(psi) - _d(phi) * sp.sin(theta) * sp.cos(psi),
-        _d(psi) + _d(phi) * sp.cos(theta),
-    ])
-
-
-def chaplygin_sleigh(
-    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
-    a: sp.Expr | float | None = None,
-) -> System:
-    """The Chaplygin sleigh: a body on a knife edge at (x, y), centre of mass a ahead of it.
-
-    ``T = ½ m (ẋ² + ẏ²) + m a θ̇ (−ẋ sin θ + ẏ cos θ) + ½ (I + m a²) θ̇²`` with the
-    knife-edge constraint ``−ẋ sin θ + ẏ cos θ = 0``.  With the forward speed v
-    and ω = θ̇: ``v̇ = a ω²``, ``ω̇ = −m a v ω / (I + m a²)``; the sleigh ends up
-    moving straight (Chaplygin 1911; Bloch, *Nonholonomic Mechanics and
-    Control*, 2003, §1.7).
-    """
-    x, y, th = dynamicsymbols("x y theta")
-    m_, I_, a_ = _param(m, "m"), _param(I, "I"), _param(a, "a")
-    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + m_ * a_ * _d(th) * (-_d(x) * sp.sin(th) + _d(y) * sp.cos(th))
-    T += (I_ + m_ * a_**2) / 2 * _d(th) ** 2
-    return System([x, y, th], T, [-sp.sin(th) * _d(x) + sp.cos(th) * _d(y)], dependent=[y],
-                  name="Chaplygin sleigh")
-
-
-def turntable_ball(
-    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
-    Omega: sp.Expr | float | None = None,
-) -> System:
-    """A homogeneous ball rolling on a turntable spinning at the constant rate Ω.
-
-    The contact point moves with the table: ``ẋ = a ω_y − Ω y``, ``ẏ = −a ω_x + Ω x``
-    (affine constraints whose B_0 depends on the dependent x, y: Voronets'
-    case).  The centre moves on a circle with angular frequency 2Ω/7
-    (Pars, *A Treatise on Analytical Dynamics*, 1965; Weckesser, *Am. J. Phys.* 65, 1997).
-    """
-    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
-    m_, a_, W = _param(m, "m"), _param(a, "a"), _param(Omega, "Omega")
-    w = _space_omega(psi, theta, phi)
-    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + sp.Rational(1, 5) * m_ * a_**2 * sp.trigsimp(sp.expand(w.dot(w)))
-    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1] - W * y, _d(y): -a_ * w[0] + W * x},
-                  name="Ball on a rotating turntable")
-
-
-def chaplygin_ball(
-    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
-    A: sp.Expr | float | None = None, B: sp.Expr | float | None = None,
-    C: sp.Expr | float | None = None,
-) -> System:
-    """Chaplygin's ball: centre of mass at the geometric centre, principal moments A, B, C.
-
-    Rolls on a plane like the paper's sphere (same constraints); the angular
-    momentum about the contact point is constant in space (Chaplygin 1903;
-    Borisov & Mamaev, *Regular and Chaotic Dynamics* 7, 2002).
-    """
-    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
-    m_, a_, A_, B_, C_ = (_param(v, n) for v, n in ((m, "m"), (a, "a"), (A, "A"), (B, "B"), (C, "C")))
-    body = sp.Matrix([
-        _d(psi) * sp.sin(theta) * sp.sin(phi) + _d(theta) * sp.cos(phi),
-        _d(psi) * sp.sin(theta) * sp.cos(phi) - _d(theta) * sp.sin(phi),
-        _d(psi) * sp.cos(theta) + _d(phi),
-    ])
-    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + (A_ * body[0] ** 2 + B_ * body[1] ** 2 + C_ * body[2] ** 2) / 2
-    w = _space_omega(psi, theta, phi)
-    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1], _d(y): -a_ * w[0]}, name="Chaplygin ball")
-
-
-def heisenberg() -> System:
-    """The Heisenberg (Brockett) system: ``ż = (x ẏ − y ẋ)/2``, ``T = ½ (ẋ² + ẏ²)``.
-
-    True motions are straight lines; vakonomic motions are circles, the
-    sub-Riemannian geodesics (Brockett 1981; Bloch 2003, §7.3).
-    """
-    x, y, z = dynamicsymbols("x y z")
-    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2) / 2, {_d(z): (x * _d(y) - y * _d(x)) / 2},
-                  name="Heisenberg system")
-
-
-def contact_oscillator(eps: sp.Expr | float | None = None) -> System:
-    """The contact oscillator ``ẋ + y ż = 0``, ``H = ½|v|² + ½|q|² + ½ ε x² z²``.
-
-    A test problem for nonholonomic integrators (McLachlan & Perlmutter,
-    *J. Nonlinear Sci.* 16, 2006).
-    """
-    x, y, z = dynamicsymbols("x y z")
-    e = _param(eps, "epsilon")
-    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2 + _d(z) ** 2) / 2, {_d(x): -y * _d(z)},
-                  potential_energy=(x**2 + y**2 + z**2) / 2 + e * x**2 * z**2 / 2,
-                  name="Contact oscillator")
-
-
-def differential_drive(
-    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
-    J: sp.Expr | float | None = None, r: sp.Expr | float | None = None,
-    b: sp.Expr | float | None = None,
-) -> System:
-    """A differential-drive robot: wheels of radius r at ±b on an axle through the centre of mass.
-
-    Coordinates x, y, θ and the wheel angles φ_L, φ_R; ``v = r (φ̇_R + φ̇_L)/2``,
-    ``θ̇ = r (φ̇_R − φ̇_L)/(2b)`` (Siegwart & Nourbakhsh, *Autonomous Mobile Robots*, 2004, §3.2).
-    """
-    x, y, th, pl, pr = dynamicsymbols("x y theta phi_L phi_R")
-    m_, I_, J_, r_, b_ = (_param(v, n) for v, n in ((m, "m"), (I, "I"), (J, "J"), (r, "r"), (b, "b")))
-    v, w = r_ / 2 * (_d(pr) + _d(pl)), r_ / (2 * b_) * (_d(pr) - _d(pl))
-    T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + I_ / 2 * _d(th) ** 2 + J_ / 2 * (_d(pl) ** 2 + _d(pr) ** 2)
-    return System([x, y, th, pl, pr], T, {_d(x): v * sp.cos(th), _d(y): v * sp.sin(th), _d(th): w},
-                  name="Differential-drive robot")
-
-
-def sleigh_chain(
-    n: int, m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
-    L: sp.Expr | float | None = None,
-) -> System:
-    """A knife-edge sleigh at (x, y) pulling ``n`` sleighs, each hitched at distance L behind the last.
-
-    Every body has mass m at its knife edge and moment of inertia I; each
-    knife edge forbids sideways motion.  n + 3 coordinates, n + 1 constraints:
-    the scalable system for benchmarks (a chain of sleighs, cf. the N-trailer
-    of Sørdalen, *Automatica* 29, 1993).
-    """
-    if not isinstance(n, int) or n < 0:
-        raise ValueError(f"sleigh_chain: n must be a non-negative integer, got {n!r}.")
-    x, y = dynamicsymbols("x y")
-    th = list(dynamicsymbols(f"theta0:{n + 1}"))
-    m_, I_, L_ = _param(m, "m"), _param(I, "I"), _param(L, "L")
-    px, py, T, cons = x, y, sp.S.Zero, []
-    for i, ti in enumerate(th):
-        if i:
-            px, py = px - L_ * sp.cos(ti), py - L_ * sp.sin(ti)
-        vx, vy = _d(px), _d(py)
-        T += m_ / 2 * (vx**2 + vy**2) + I_ / 2 * _d(ti) ** 2
-        cons.append(-sp.sin(ti) * vx + sp.cos(ti) * vy)
-    return System([x, y, *th], sp.expand(T), cons, dependent=[y, *th[1:]], name=f"Chain of {n + 1} sleighs")

@@ -26,15 +26,16 @@ import numpy as np
 import sympy as sp
 
 from ._symbols import TIME
-from .codegen import CompiledModel, compile_equations, parameter_vector
+from .codegen import CompiledModel, compile_equations, compile_model, parameter_vector
 from .errors import ChaplyginError
+from .symmetric import METHODS as SYMMETRIC_METHODS
 
 if TYPE_CHECKING:
     from .system import System
 
 __all__ = ["Trajectory", "simulate", "METHODS"]
 
-METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
+METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA", *SYMMETRIC_METHODS)
 
 
 @dataclass
@@ -185,10 +186,19 @@ def initial_state(
             f"initial: missing {', '.join(missing)}; give every coordinate and the independent "
             f"velocities ({', '.join(names[i] + chr(39) for i in system._ind)})."
         )
-    v = system._vars
-    for i in system._dep:
-        expr = system._velocity_substitution[v.xd[i]]
-        implied = _evaluate(system, expr, q, qd, params, t0)
+    if not system.g:
+        return q, qd
+    # A_dep q̇_dep = −(A_ind q̇_σ + A_0), solved numerically (no symbolic B needed)
+    ind, dep = list(system._ind), list(system._dep)
+    a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
+    try:
+        implied_all = np.linalg.solve(a[:, dep], -(a[:, ind] @ qd[ind] + a[:, -1]))
+    except np.linalg.LinAlgError:
+        raise ChaplyginError(
+            "initial: the constraints cannot be solved for the dependent velocities "
+            f"({', '.join(names[i] + chr(39) for i in dep)}) at this configuration."
+        ) from None
+    for i, implied in zip(dep, implied_all):
         if not np.isnan(qd[i]) and abs(qd[i] - implied) > 1e-9 * max(1.0, abs(implied)):
             raise ChaplyginError(
                 f"initial: {names[i]}' = {qd[i]:g} violates the constraints, which give "
@@ -249,6 +259,8 @@ def simulate(
     constants: Any = None,
     multipliers: Any = None,
     max_step: float = np.inf,
+    step: float | None = None,
+    reduction: str = "auto",
 ) -> Trajectory:
     """Simulate one model of ``system`` (see :meth:`System.simulate`)."""
     t0, t1 = (0.0, float(t_span)) if np.isscalar(t_span) else map(float, t_span)  # type: ignore[arg-type]
@@ -258,13 +270,23 @@ def simulate(
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
     if samples < 2:
         raise ChaplyginError("samples: at least 2 are needed (the start and the end).")
+    if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.symmetric
+        from .symmetric import simulate_symmetric
+
+        return simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
+                                  form=form, samples=samples, backend=backend, constants=constants,
+                                  multipliers=multipliers)
+    if step is not None:
+        raise ChaplyginError(
+            f"step: a fixed step size is for the symmetric methods ({', '.join(SYMMETRIC_METHODS)}); "
+            f"method {method!r} adapts its steps to rtol/atol (bounded by max_step)."
+        )
     params = _parameters(system, parameters)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
     q, qd = initial_state(system, initial, params, t0)
     if isinstance(family_c, str) and family_c == "match":
         family_c = _matching_constants(system, q, qd, params, t0)
-    eqs = system.equations(model, form, constants=family_c) if family_c is not None else system.equations(model, form)
-    compiled = compile_equations(eqs, backend)
+    compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
     layout = compiled.layout
 
     y0 = list(q) + ([*qd] if model in ("chetaev", "vakonomic") else [qd[i] for i in system._ind])
@@ -276,14 +298,18 @@ def simulate(
 
 
 def _evaluate(
-    system: System, expr: sp.Expr, q: np.ndarray, qd: np.ndarray,
+    system: System, expr: Any, q: np.ndarray, qd: np.ndarray,
     params: Mapping[str, float], t0: float,
-) -> float:
-    """``expr`` (internal symbols) at time ``t0``, state ``(q, q̇)`` and the parameter values."""
+) -> Any:
+    """``expr`` (internal symbols; a matrix gives an array) at time ``t0``, state ``(q, q̇)``
+    and the parameter values (velocities that are NaN are left out)."""
     v = system._vars
-    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
+    values = {TIME: t0, **dict(zip(v.x, q)), **{x: val for x, val in zip(v.xd, qd) if not np.isnan(val)}}
     values.update({system.parameter(k): val for k, val in params.items()})
-    return float(expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf())
+    out = expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf()
+    if isinstance(out, sp.MatrixBase):
+        return np.array(out.tolist(), dtype=float)
+    return float(out)
 
 
 def _matching_constants(
@@ -312,6 +338,16 @@ def _initial_multipliers(
     c = vak["constants"]
     if isinstance(c, str) and c == "match":
         return np.zeros(system.g)  # μ(0) = 0: vakonomic momenta equal the true ones
+    from .vakonomic import family_obstructions
+
+    problems = family_obstructions(system)
+    if problems:
+        raise ChaplyginError(
+            f"initial multipliers: for {system.name} μ(0) does not follow from constants c ("
+            + "; ".join(problems)
+            + "); give multipliers=[μ(0), ...], or "
+            "constants='match' to start with μ(0) = 0."
+        )
     exprs = system.integrated_multipliers(c)
     return np.array([_evaluate(system, exprs[m].xreplace(system._to_sym), q, qd, params, t0) for m in names])
 
@@ -399,7 +435,7 @@ def _trajectory(
 ) -> Trajectory:
     layout = compiled.layout
     n = len(layout.coordinates)
-    obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(len(times), -1)
+    obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(len(times), compiled.n_observed)
     n_react = len(layout.reactions)
     velocities = obs[:, obs.shape[1] - n :] if len(times) else np.empty((0, n))
     residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g and len(times) else np.zeros(len(times))

@@ -344,14 +344,28 @@ class System:
         self._A = sp.Matrix(g, self.n, [c for r in rows for c in r])
         self._A0 = sp.Matrix(g, 1, consts)
         if g:
-            self._check_dependent_block()
-            a_dep = self._A.extract(list(range(g)), list(self._dep))
-            a_ind = self._A.extract(list(range(g)), list(self._ind))
-            self._B = (-a_dep.LUsolve(a_ind)).applyfunc(sp.cancel)
-            self._B0 = (-a_dep.LUsolve(self._A0)).applyfunc(sp.cancel)
+            self._check_dependent_block()  # B and B_0 are solved for when first needed
         else:
             self._B = sp.zeros(0, self.n)
             self._B0 = sp.zeros(0, 1)
+
+    @cached_property
+    def _B(self) -> sp.Matrix:
+        """``B`` of ``q̇_dep = B q̇_ind + B_0``: given in form B, solved for (lazily) in form A.
+
+        Large form-A systems (a chain of sleighs) never need it symbolically when
+        they are simulated with the numeric reduction (see :mod:`chaplygin.codegen`).
+        """
+        return self._solve_dependent(self._A.extract(list(range(self.g)), list(self._ind)))
+
+    @cached_property
+    def _B0(self) -> sp.Matrix:
+        """``B_0`` of ``q̇_dep = B q̇_ind + B_0`` (see :attr:`_B`)."""
+        return self._solve_dependent(self._A0)
+
+    def _solve_dependent(self, rhs: sp.Matrix) -> sp.Matrix:
+        a_dep = self._A.extract(list(range(self.g)), list(self._dep))
+        return (-a_dep.LUsolve(rhs)).applyfunc(sp.cancel)
 
     def _dependent_velocity_index(self, key: Any) -> int:
         if isinstance(key, sp.Derivative) and key.variables == (TIME,) and key.expr in self.coordinates:
@@ -381,15 +395,24 @@ class System:
         Plain substitution and ``evalf``: for the few samples a check needs this is
         much cheaper than compiling the expressions.
         """
+        from ._fast import evaluator
         from ._sampling import COORDINATE_RANGE, PARAMETER_RANGE
 
         rng = np.random.default_rng(20000843)
         free = set().union(*(m.free_symbols for m in matrices))
         params = sorted(free - {TIME, *self._vars.x}, key=str)
+        args = [TIME, *self._vars.x, *params]
+        fast = evaluator(args, [e for m in matrices for e in m])
         out = []
         for _ in range(_SAMPLES):
             values = dict(zip([TIME, *self._vars.x], rng.uniform(*COORDINATE_RANGE, size=self.n + 1)))
             values.update(zip(params, rng.uniform(*PARAMETER_RANGE, size=len(params))))
+            if fast is not None:
+                with np.errstate(all="ignore"):
+                    flat = np.asarray(fast([values[a] for a in args]), dtype=complex).ravel()
+                sizes = np.cumsum([0, *(m.rows * m.cols for m in matrices)])
+                out.append([flat[a:b].reshape(m.shape) for m, a, b in zip(matrices, sizes, sizes[1:])])
+                continue
             floats = {k: sp.Float(v) for k, v in values.items()}
             sample = []
             for m in matrices:
@@ -433,7 +456,8 @@ class System:
 
     def _check_reduced_mass_matrix(self) -> None:
         samples = [
-            c.T @ m @ c for m, c in self._numeric_samples(self._M, self._C)
+            c.T @ m @ c for m, a in self._numeric_samples(self._M, self._A)
+            if (c := self._numeric_C(a)) is not None
         ]
         if not any(self._full_rank(m) for m in samples):
             raise SystemDefinitionError(
@@ -442,6 +466,16 @@ class System:
                 "the accelerations of "
                 f"{', '.join(q.func.__name__ for q in self.independent)} are not determined."
             )
+
+    def _numeric_C(self, a: np.ndarray) -> np.ndarray | None:
+        """``C = [I; B]`` (see :attr:`_C`) from a numerical ``A``; None where ``A_dep`` is singular."""
+        if not (np.all(np.isfinite(a)) and self._full_rank(a[:, list(self._dep)])):
+            return None
+        c = np.zeros((self.n, len(self._ind)), dtype=a.dtype)
+        c[list(self._ind), range(len(self._ind))] = 1
+        if self.g:
+            c[list(self._dep)] = -np.linalg.solve(a[:, list(self._dep)], a[:, list(self._ind)])
+        return c
 
     # ------------------------------------------------------------------ derived data
     @cached_property
@@ -541,7 +575,7 @@ class System:
     @property
     def is_affine(self) -> bool:
         """True when the constraints have a velocity-free term (``B_β0 ≠ 0``)."""
-        return any(e != 0 for e in self._B0)
+        return any(e != 0 for e in self._A0)  # B_0 = −A_dep⁻¹ A_0
 
     @property
     def is_scleronomic(self) -> bool:
@@ -664,7 +698,16 @@ class System:
         rtol, atol : float
             Tolerances (defaults 1e-10 and 1e-12).
         method : str
-            SciPy stepper: ``"DOP853"`` (default), ``"RK45"``, ``"Radau"``, …
+            SciPy stepper: ``"DOP853"`` (default), ``"RK45"``, ``"Radau"``, …;
+            or, for the true motion (``"chetaev"``, ``"chaplygin"``,
+            ``"voronets"``), a symmetric fixed-step Gauss–Legendre method whose
+            energy error stays bounded over long runs: ``"midpoint"`` (order
+            2), ``"gauss4"``, ``"gauss6"`` (see :mod:`chaplygin.symmetric`).
+        step : float
+            The step size of ``"midpoint"``, ``"gauss4"`` and ``"gauss6"``
+            (required by them, refused by the others); the largest step
+            ``≤ step`` that puts every sample on the grid is used.  ``rtol``,
+            ``atol`` and ``max_step`` do not apply to these methods.
         samples : int
             Number of equally spaced output times (default 1001).
         backend : {"numpy", "numba", "jax"}
@@ -677,6 +720,12 @@ class System:
             to the true ones (for the family, ``c_β = ∂T/∂q̇_{ε+β}`` at t0).
         multipliers : optional
             ``model="vakonomic"``: ``μ(0)`` by multiplier or as a sequence.
+        reduction : {"auto", "symbolic", "numeric"}
+            How ``"chaplygin"`` and ``"voronets"`` are computed: from their
+            derived equations, or numerically from the Chetaev model at each
+            step (same accelerations; for large systems, see
+            :func:`chaplygin.codegen.compile_model`).  ``"auto"`` (default)
+            reduces numerically from 9 coordinates on.
 
         Returns
         -------

@@ -1,0 +1,219 @@
+"""How cost grows with size: a chain of N + 1 sleighs, chaplygin vs KanesMethod, same process.
+
+For each N (``examples.sleigh_chain(N)``: N + 3 coordinates, N + 1 nonholonomic
+constraints) this times, each from a cold SymPy cache:
+
+chaplygin
+    build     ``examples.sleigh_chain(N)`` (the System, with its validation)
+    chetaev   the Chetaev equations (6): mass matrix and forcing
+    voronets  Voronets' equations, symbolically (only up to ``--symbolic-max``:
+              the symbolic elimination of the dependent velocities grows very fast)
+    codegen   the numerically reduced Voronets model (``reduction="numeric"``):
+              generated, cse'd and imported (numpy backend)
+    jit       numba compiling that module's ``rhs`` (first call)
+KanesMethod (the same chain: frames, points, rigid bodies, nonholonomic
+constraints on the dependent speeds)
+    derive    ``KanesMethod(...)`` + ``kanes_equations`` + ``mass_matrix_full``/``forcing_full``
+    codegen   ``lambdify(..., cse=True)`` of the full mass matrix and forcing
+
+and µs per right-hand side, called from Python: chaplygin's generated
+``rhs`` (numpy and numba backends) against the lambdified Kane functions
+followed by ``numpy.linalg.solve``.  A step that would exceed ``--budget``
+seconds is stopped (SIGALRM) and reported as ``>budget``.
+
+    .venv/bin/python benchmarks/scaling.py                 # N = 1 2 4 8 16 32
+    .venv/bin/python benchmarks/scaling.py --sizes 1 2 4 --budget 60
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+import sympy.physics.mechanics as me
+from sympy.core.cache import clear_cache
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+
+from chaplygin import examples  # noqa: E402
+from chaplygin.codegen import compile_model  # noqa: E402
+
+
+class OverBudget(Exception):
+    pass
+
+
+def _alarm(signum, frame):  # noqa: ANN001
+    raise OverBudget
+
+
+def timed(budget: float, fn, *args):  # noqa: ANN001, ANN201
+    """(seconds, value), or (inf, None) past the budget."""
+    signal.signal(signal.SIGALRM, _alarm)
+    signal.setitimer(signal.ITIMER_REAL, budget)
+    start = time.perf_counter()
+    try:
+        value = fn(*args)
+    except OverBudget:
+        return math.inf, None
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+    return time.perf_counter() - start, value
+
+
+def per_call(fn, *args, seconds: float = 0.3) -> float:  # noqa: ANN001
+    """µs per call (best of 3 batches)."""
+    fn(*args)
+    reps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < 0.05:
+        fn(*args)
+        reps += 1
+    reps = max(1, int(reps * seconds / 0.05 / 3))
+    best = math.inf
+    for _ in range(3):
+        start = time.perf_counter()
+        for _ in range(reps):
+            fn(*args)
+        best = min(best, (time.perf_counter() - start) / reps)
+    return best * 1e6
+
+
+# ---------------------------------------------------------------- KanesMethod
+def kane_chain(n: int):  # noqa: ANN201
+    """The same chain for KanesMethod; returns (KanesMethod, q, u, parameters)."""
+    q = me.dynamicsymbols(f"x y theta0:{n + 1}")
+    u = me.dynamicsymbols(f"u0:{n + 3}")
+    m, inertia, length = sp.symbols("m I L", positive=True)
+    frame = me.ReferenceFrame("N")
+    origin = me.Point("O")
+    origin.set_vel(frame, 0)
+    point = origin.locatenew("P0", q[0] * frame.x + q[1] * frame.y)
+    point.set_vel(frame, u[0] * frame.x + u[1] * frame.y)
+    bodies, constraints, prev = [], [], point
+    for i in range(n + 1):
+        body_frame = frame.orientnew(f"B{i}", "Axis", [q[2 + i], frame.z])
+        body_frame.set_ang_vel(frame, u[2 + i] * frame.z)
+        if i:
+            point = prev.locatenew(f"P{i}", -length * body_frame.x)
+            point.v2pt_theory(prev, frame, body_frame)
+        prev = point
+        body = me.RigidBody(f"b{i}", point, body_frame, m, (me.inertia(body_frame, 0, 0, inertia), point))
+        bodies.append(body)
+        constraints.append(point.vel(frame).dot(body_frame.y))
+    km = me.KanesMethod(
+        frame, q_ind=q, u_ind=[u[0], u[2]], u_dependent=[u[1], *u[3:]],
+        kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)], velocity_constraints=constraints,
+    )
+    km.kanes_equations(bodies, [])
+    return km, q, u, [m, inertia, length]
+
+
+def kane_derive(n: int):  # noqa: ANN201
+    km, q, u, params = kane_chain(n)
+    return km.mass_matrix_full, km.forcing_full, q, u, params
+
+
+def kane_codegen(derived):  # noqa: ANN001, ANN201
+    M, F, q, u, params = derived
+    args = [*q, *u, *params]
+    return sp.lambdify(args, M, cse=True), sp.lambdify(args, F, cse=True), len(q), len(u)
+
+
+# ---------------------------------------------------------------- chaplygin
+def chaplygin_chetaev(system):  # noqa: ANN001, ANN201
+    eqs = system.equations("chetaev")
+    return eqs.mass_matrix, eqs.forcing
+
+
+def chaplygin_voronets(system):  # noqa: ANN001, ANN201
+    eqs = system.equations("voronets")
+    return eqs.mass_matrix, eqs.forcing
+
+
+def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> dict:
+    row: dict = {"N": n}
+    clear_cache()
+    row["build"], system = timed(budget, examples.sleigh_chain, n)
+    row["chetaev"], _ = timed(budget, chaplygin_chetaev, system)
+    row["voronets"] = timed(budget, chaplygin_voronets, system)[0] if n <= symbolic_max else None
+    clear_cache()
+    row["codegen"], compiled = timed(budget, lambda: compile_model(system, "voronets", backend="numpy",
+                                                                   reduction="numeric"))
+    y = rng.uniform(-0.3, 0.3, len(compiled.layout.state))
+    values = {"m": 1.0, "I": 0.5, "L": 1.0}
+    p = np.array([values[name] for name in compiled.layout.parameters])
+    row["rhs_numpy_us"] = per_call(compiled.rhs, 0.0, y, p)
+    row["jit"], jitted = timed(budget, lambda: compile_model(system, "voronets", backend="numba",
+                                                             reduction="numeric"))
+    if jitted is not None:
+        extra, _ = timed(budget, jitted.rhs, 0.0, y, p)
+        row["jit"] += extra
+        row["rhs_numba_us"] = per_call(jitted.rhs, 0.0, y, p) if math.isfinite(extra) else None
+    clear_cache()
+    row["kane_derive"], derived = timed(budget, kane_derive, n)
+    row["kane_codegen"], row["rhs_kane_us"] = math.inf, None
+    if derived is not None:
+        row["kane_codegen"], funcs = timed(budget, kane_codegen, derived)
+        if funcs is not None:
+            fM, fF, nq, nu = funcs
+            # the same admissible state: chaplygin's full velocities as Kane's speeds
+            qd = compiled.observe(0.0, y, p)[-system.n:]
+            args = [*y[: system.n], *qd, values["m"], values["I"], values["L"]]
+
+            def kane_rhs() -> np.ndarray:
+                return np.linalg.solve(fM(*args), fF(*args)[:, 0])
+
+            row["rhs_kane_us"] = per_call(kane_rhs)
+            # Kane's u̇ are ordered independent (x, θ0) first, like chaplygin's state
+            udot = kane_rhs()[nq:nq + 2]
+            got = compiled.rhs(0.0, y, p)[system.n:]
+            row["max_difference_vs_kane"] = float(np.max(np.abs(udot - got)))
+    ours = row["build"] + row["chetaev"] + row["codegen"]
+    row["chaplygin_total"] = ours
+    row["kane_total"] = row["kane_derive"] + row["kane_codegen"]
+    row["ratio_total"] = row["kane_total"] / ours
+    return row
+
+
+def fmt(value) -> str:  # noqa: ANN001
+    if value is None:
+        return "-"
+    if isinstance(value, float) and math.isinf(value):
+        return ">budget"
+    return f"{value:.3g}" if isinstance(value, float) else str(value)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
+    ap.add_argument("--budget", type=float, default=300.0, help="seconds allowed per step")
+    ap.add_argument("--symbolic-max", type=int, default=2, help="largest N for symbolic Voronets")
+    ap.add_argument("--json", type=Path, help="also write the rows here")
+    args = ap.parse_args()
+    rng = np.random.default_rng(1)
+    cols = ["N", "build", "chetaev", "voronets", "codegen", "jit", "chaplygin_total", "kane_derive",
+            "kane_codegen", "kane_total", "ratio_total", "rhs_numpy_us", "rhs_numba_us", "rhs_kane_us",
+            "max_difference_vs_kane"]
+    print(" ".join(f"{c:>14}" for c in cols), flush=True)
+    rows = []
+    for n in args.sizes:
+        row = run(n, args.budget, args.symbolic_max, rng)
+        rows.append(row)
+        print(" ".join(f"{fmt(row.get(c)):>14}" for c in cols), flush=True)
+    finite = [(r["N"], r["chaplygin_total"]) for r in rows if r["N"] >= 4 and math.isfinite(r["chaplygin_total"])]
+    if len(finite) >= 2:
+        slope = np.polyfit(np.log([a for a, _ in finite]), np.log([b for _, b in finite]), 1)[0]
+        print(f"\nchaplygin build + Chetaev + numeric-Voronets codegen grows like N^{slope:.2f} (N >= 4)")
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=2))
+
+
+if __name__ == "__main__":
+    main()
