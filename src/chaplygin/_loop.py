@@ -287,6 +287,25 @@ def _k_eval(t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
     return 0
 
 
+def _k_stages(first, last, t, h, y, p, K, y_stage, wM, wb, wV, wO):  # pragma: no cover - compiled
+    """DOP853 stages ``first … last − 1`` of a step of size ``h`` into ``K``.
+
+    Returns ``(code, s)``: 0 or the failure code, and the last stage evaluated
+    (the failing one, whose state is left in ``y_stage``), so ``s − first + 1``
+    right-hand sides were evaluated.
+    """
+    for s in range(first, last):
+        for i in range(y.size):
+            acc = 0.0
+            for j in range(s):
+                acc += K[j, i] * _DOP_A[s, j]
+            y_stage[i] = y[i] + acc * h
+        code = _k_eval(t + _DOP_C[s] * h, y_stage, p, K[s], wM, wb, wV, wO)
+        if code != 0:
+            return code, s
+    return 0, last - 1
+
+
 def _k_observe(t, y, p, n_react, row, M, b, V, O):  # pragma: no cover - compiled
     """``row ← observe(t, y, p)`` (the generated ``observe``'s numbers), NaN where it fails."""
     if _k_fill(t, y, p, M, b, V, O) != 0:
@@ -327,7 +346,6 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
     ``filled`` rows of ``out`` were written, ``(t, y)`` is the last accepted
     point, ``(t_fail, y_fail)`` the point whose evaluation failed (status 2, 3).
     """
-    A = _DOP_A
     B = _DOP_B
     C = _DOP_C
     E3 = _DOP_E3
@@ -414,17 +432,10 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
                 t_new = t1
             h = t_new - t
             h_abs = abs(h)
-            # stages 1 … 11
-            for s in range(1, 12):
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += K[j, i] * A[s, j]
-                    y_stage[i] = y[i] + acc * h
-                code = _k_eval(t + C[s] * h, y_stage, p, K[s], wM, wb, wV, wO)
-                n_rhs += 1
-                if code != 0:
-                    return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy()
+            code, s = _k_stages(1, 12, t, h, y, p, K, y_stage, wM, wb, wV, wO)  # stages 1 … 11
+            n_rhs += s
+            if code != 0:
+                return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy()
             for i in range(n):
                 acc = 0.0
                 for j in range(12):
@@ -470,16 +481,10 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
         n_steps += 1
         if filled < n_out and direction * (t_out[filled] - t_new) <= 0.0:
             # dense output: three more stages, then the 7th-order interpolant
-            for s in range(13, 16):
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += K[j, i] * A[s, j]
-                    y_stage[i] = y[i] + acc * h
-                code = _k_eval(t + C[s] * h, y_stage, p, K[s], wM, wb, wV, wO)
-                n_rhs += 1
-                if code != 0:
-                    return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy()
+            code, s = _k_stages(13, 16, t, h, y, p, K, y_stage, wM, wb, wV, wO)
+            n_rhs += s - 12
+            if code != 0:
+                return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy()
             for i in range(n):
                 dy = y_new[i] - y[i]
                 F[0, i] = dy
@@ -523,7 +528,7 @@ def _k_batch(t0, t1, Y0, P, t_out, rtol, atol, max_step, max_steps, n_react, out
         _k_observe(t, y, P[i], n_react, obs[i], wM, wb, wV, wO)
 
 
-_SERIAL_KERNELS = (_k_solve, _k_fill, _k_eval, _k_observe, _k_observe_new, _k_rms, _k_dop853)
+_SERIAL_KERNELS = (_k_solve, _k_fill, _k_eval, _k_stages, _k_observe, _k_observe_new, _k_rms, _k_dop853)
 _NOGIL_KERNELS = (_k_batch,)
 
 

@@ -306,7 +306,8 @@ def derive(
 def _definition(spec: str) -> bytes | None:
     """What a derivation from ``spec`` depends on: a file's bytes, or an example's name."""
     if spec.startswith("example:"):  # examples change only with the library version
-        return spec.strip().lower().replace("_", "-").encode()
+        name = spec[len("example:"):]  # normalised as examples._normalise does, without SymPy
+        return f"example:{name.strip().lower().replace('_', '-').replace(' ', '-')}".encode()
     try:
         return Path(spec).read_bytes()
     except OSError:

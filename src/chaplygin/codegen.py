@@ -31,7 +31,6 @@ import sys
 import tempfile
 import threading
 from dataclasses import dataclass
-from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -196,18 +195,21 @@ def _plain(to_num: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
     return {k: sp.Symbol(f"{v.base}[{v.indices[0]}]") for k, v in to_num.items()} | {TIME: sp.Symbol("t")}
 
 
-def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
-    s = eqs.system
-    layout, to_num, velocities, k = _state_symbols(eqs)
+def _fill_lines(
+    s: System, M: sp.Matrix, F: sp.Matrix, velocities: list[sp.Expr], plain: dict[sp.Symbol, sp.Expr]
+) -> list[str]:
+    """``fill``'s lines for ``M``, ``F``, the full velocities, energy and constraint residuals."""
     full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
     energy = (s._T - s._U).xreplace(full_xd)
     residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
-    M, F = eqs._M, eqs._F
-    dim = M.shape[0]
-    plain = _plain(to_num)
     exprs = [(sp.S.Zero + e).xreplace(plain) for e in [*M, *F, *velocities, energy, *residual]]
-    body = _lines(exprs, _targets(dim, s.n, s.g), "c_", skip_zero=dim * dim)
-    return layout, _module(eqs, layout, body, dim, k, jit)
+    return _lines(exprs, _targets(M.shape[0], s.n, s.g), "c_", skip_zero=M.shape[0] ** 2)
+
+
+def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
+    layout, to_num, velocities, k = _state_symbols(eqs)
+    body = _fill_lines(eqs.system, eqs._M, eqs._F, velocities, _plain(to_num))
+    return layout, _module(eqs, layout, body, eqs._M.shape[0], k, jit)
 
 
 def _numeric_reduction_source(eqs: Equations, model: str, jit: bool) -> tuple[Layout, str]:
@@ -233,21 +235,15 @@ def _numeric_reduction_source(eqs: Equations, model: str, jit: bool) -> tuple[La
     b = (-(s._A.extract(list(range(g)), ind) * sp.Matrix([v.xd[i] for i in ind]) + s._A0)).xreplace(plain)
     stage1 = _lines([*a_dep, *b], [f"Ad[{i // g}, {i % g}]" for i in range(g * g)] + [f"b[{i}]" for i in range(g)], "a_")
     plain.update({v.xd[i]: sp.Symbol(f"d[{k}]") for k, i in enumerate(dep)})
-    perm = [*ind, *dep, *range(n, n + g)]
-    M = eqs._M.extract(list(range(n + g)), perm)
-    velocities = list(v.xd)
-    energy = s._T - s._U
-    residual = list(s._A * sp.Matrix(velocities) + s._A0)
-    exprs = [(sp.S.Zero + e).xreplace(plain) for e in [*M, *eqs._F, *velocities, energy, *residual]]
-    dim = n + g
+    M = eqs._M.extract(list(range(n + g)), [*ind, *dep, *range(n, n + g)])
     body = [
         f"    Ad = np.zeros(({g}, {g}))",
         f"    b = np.zeros({g})",
         *stage1,
         "    d = np.linalg.solve(Ad, b)",
-        *_lines(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim),
+        *_fill_lines(s, M, eqs._F, list(v.xd), plain),
     ]
-    return layout, _module(eqs, layout, body, dim, len(ind), jit)
+    return layout, _module(eqs, layout, body, n + g, len(ind), jit)
 
 
 def _module(eqs: Equations, layout: Layout, body: list[str], dim: int, k: int, jit: bool) -> str:
@@ -371,14 +367,18 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
         the same expressions as JAX functions (optional extra
         ``chaplygin[jax]``; see :mod:`chaplygin.jaxbackend`).
     """
-    if backend not in BACKENDS:
-        raise ChaplyginError(
-            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
-        )
+    _check_backend(backend)
     cache = eqs.__dict__.setdefault("_compiled", {})  # one compilation per equations and backend
     if backend not in cache:
         cache[backend] = _compile(eqs, backend)
     return cache[backend]
+
+
+def _check_backend(backend: str) -> None:
+    if backend not in BACKENDS:
+        raise ChaplyginError(
+            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
+        )
 
 
 #: ``reduction="auto"`` reduces numerically from this many coordinates on
@@ -421,10 +421,9 @@ def compile_model(
     if not numeric:
         kwargs = {} if constants is None else {"constants": constants}
         return compile_equations(system.equations(model, form, **kwargs), backend)
+    _check_backend(backend)
     if model == "chaplygin" and not system.is_chaplygin:
         system.equations(model, form)  # raises the error that explains why
-    if backend not in BACKENDS:
-        compile_equations(system.equations("chetaev"), backend)  # raises the error that lists them
     eqs = system.equations("chetaev")
     cache = eqs.__dict__.setdefault("_compiled", {})
     key = (backend, model)

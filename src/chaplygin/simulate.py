@@ -26,7 +26,7 @@ import numpy as np
 import sympy as sp
 
 from ._symbols import TIME
-from .codegen import CompiledModel, compile_equations, compile_model, parameter_vector
+from .codegen import CompiledModel, compile_model, parameter_vector
 from .errors import ChaplyginError
 from .symmetric import METHODS as SYMMETRIC_METHODS
 
