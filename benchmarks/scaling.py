@@ -10,7 +10,10 @@ chaplygin
               the symbolic elimination of the dependent velocities grows very fast)
     codegen   the numerically reduced Voronets model (``reduction="numeric"``):
               generated, cse'd and imported (numpy backend)
-    jit       numba compiling that module's ``rhs`` (first call)
+    jit       the same for the numba backend: generated, its ``fill`` built by the
+              C compiler when large (chaplygin._cfill), and numba compiling ``rhs``
+              (first call)
+    compiled  build + chetaev + jit: the system derived and compiled to native code
 KanesMethod (the same chain: frames, points, rigid bodies, nonholonomic
 constraints on the dependent speeds)
     derive    ``KanesMethod(...)`` + ``kanes_equations`` + ``mass_matrix_full``/``forcing_full``
@@ -23,15 +26,23 @@ seconds is stopped (SIGALRM) and reported as ``>budget``.
 
     .venv/bin/python benchmarks/scaling.py                 # N = 1 2 4 8 16 32
     .venv/bin/python benchmarks/scaling.py --sizes 1 2 4 --budget 60
+
+Every run starts with an empty code cache (a temporary ``CHAPLYGIN_CACHE``), so
+code generation, the C compiler and numba all start cold; ``--warm`` keeps the
+user's cache instead.
 """
 
 from __future__ import annotations
 
 import argparse
+import atexit
 import json
 import math
+import os
+import shutil
 import signal
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -175,6 +186,7 @@ def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> d
             udot = kane_rhs()[nq:nq + 2]
             got = compiled.rhs(0.0, y, p)[system.n:]
             row["max_difference_vs_kane"] = float(np.max(np.abs(udot - got)))
+    row["compiled"] = row["build"] + row["chetaev"] + row["jit"]
     ours = row["build"] + row["chetaev"] + row["codegen"]
     row["chaplygin_total"] = ours
     row["kane_total"] = row["kane_derive"] + row["kane_codegen"]
@@ -196,9 +208,13 @@ def main() -> None:
     ap.add_argument("--budget", type=float, default=300.0, help="seconds allowed per step")
     ap.add_argument("--symbolic-max", type=int, default=2, help="largest N for symbolic Voronets")
     ap.add_argument("--json", type=Path, help="also write the rows here")
+    ap.add_argument("--warm", action="store_true", help="use the user's code cache (default: a fresh one)")
     args = ap.parse_args()
+    if not args.warm:
+        os.environ["CHAPLYGIN_CACHE"] = tempfile.mkdtemp(prefix="chaplygin-scaling-")
+        atexit.register(shutil.rmtree, os.environ["CHAPLYGIN_CACHE"], ignore_errors=True)
     rng = np.random.default_rng(1)
-    cols = ["N", "build", "chetaev", "voronets", "codegen", "jit", "chaplygin_total", "kane_derive",
+    cols = ["N", "build", "chetaev", "voronets", "codegen", "jit", "compiled", "chaplygin_total", "kane_derive",
             "kane_codegen", "kane_total", "ratio_total", "rhs_numpy_us", "rhs_numba_us", "rhs_kane_us",
             "max_difference_vs_kane"]
     print(" ".join(f"{c:>14}" for c in cols), flush=True)

@@ -30,10 +30,10 @@ computed only for steps that contain an output time.
 
 The right-hand side inside the loop is the generated ``fill`` (the model's
 ``M``, ``F`` and velocities, common subexpressions eliminated) followed by an
-in-place Gaussian elimination with partial pivoting into preallocated work
-arrays: the same arithmetic as the generated ``rhs`` (which allocates five
-arrays and calls LAPACK's ``gesv``), 0.14 µs instead of 0.7 µs per
-evaluation for the rolling disk.  The tests check that both agree.
+in-place Gaussian elimination with partial pivoting (``_k_solve``, defined in
+every generated module) into preallocated work arrays: the same arithmetic as
+the generated ``rhs``, which allocates its arrays on every call.  The tests
+check that both agree.
 
 Failures come back as a status, never as an exception: a step size below the
 spacing of floating-point numbers, a non-finite derivative (a blow-up), an
@@ -211,41 +211,8 @@ _DOP_A = _matrix(_DOP_A_ROWS, 16)
 # These are plain Python functions whose source is compiled by numba inside each
 # model's generated module (see ``_kernel_source``): ``rhs`` and ``observe``
 # are that module's globals.  They are never called from here.
-rhs = observe = fill = None  # placeholders: the generated module defines them
+rhs = observe = fill = _k_solve = None  # placeholders: the generated module defines them
 DIM = N = N_OBSERVED = 0
-
-
-def _k_solve(M, b):  # pragma: no cover - compiled
-    """``b ← M⁻¹ b`` by Gaussian elimination with partial pivoting, in place; 5 if singular."""
-    n = M.shape[0]
-    for c in range(n):
-        piv = c
-        big = abs(M[c, c])
-        for r in range(c + 1, n):
-            if abs(M[r, c]) > big:
-                big = abs(M[r, c])
-                piv = r
-        if big == 0.0:
-            return 5
-        if piv != c:
-            for j in range(c, n):
-                tmp = M[c, j]
-                M[c, j] = M[piv, j]
-                M[piv, j] = tmp
-            tmp = b[c]
-            b[c] = b[piv]
-            b[piv] = tmp
-        for r in range(c + 1, n):
-            factor = M[r, c] / M[c, c]
-            for j in range(c + 1, n):
-                M[r, j] -= factor * M[c, j]
-            b[r] -= factor * b[c]
-    for c in range(n - 1, -1, -1):
-        acc = b[c]
-        for j in range(c + 1, n):
-            acc -= M[c, j] * b[j]
-        b[c] = acc / M[c, c]
-    return 0
 
 
 def _k_fill(t, y, p, M, b, V, O):  # pragma: no cover - compiled
@@ -266,10 +233,9 @@ def _k_eval(t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
 
     The generated ``fill`` writes ``M``, ``F`` (here ``b``), the velocities
     ``V`` and the observables ``O``; ``M·x = F`` is solved by Gaussian
-    elimination with partial pivoting in place (what LAPACK's ``gesv`` does,
-    without the five allocations and the LAPACK call of the generated
-    ``rhs``).  Codes: 2 a non-finite derivative, 3 ``fill`` raised (e.g. a
-    division by zero), 5 a singular mass matrix.
+    elimination with partial pivoting in place (the generated ``rhs``'s
+    arithmetic without its allocations).  Codes: 2 a non-finite derivative,
+    3 ``fill`` raised (e.g. a division by zero), 5 a singular mass matrix.
     """
     code = _k_fill(t, y, p, M, b, V, O)
     if code != 0:
@@ -528,7 +494,7 @@ def _k_batch(t0, t1, Y0, P, t_out, rtol, atol, max_step, max_steps, n_react, out
         _k_observe(t, y, P[i], n_react, obs[i], wM, wb, wV, wO)
 
 
-_SERIAL_KERNELS = (_k_solve, _k_fill, _k_eval, _k_stages, _k_observe, _k_observe_new, _k_rms, _k_dop853)
+_SERIAL_KERNELS = (_k_fill, _k_eval, _k_stages, _k_observe, _k_observe_new, _k_rms, _k_dop853)
 _NOGIL_KERNELS = (_k_batch,)
 
 
@@ -566,8 +532,8 @@ def loop_model(compiled: CompiledModel) -> CompiledModel:
 
     ``compiled`` must come from the ``numba`` backend.  Its ``rhs`` is the
     generated one (compiled in the new module); its ``observe`` gives the
-    generated ``observe``'s numbers through the loop's own kernels (which need
-    no LAPACK binding: 3 s less compilation per model).
+    generated ``observe``'s numbers through the loop's own kernels, which give
+    NaN multipliers at a singular mass matrix instead of raising.
     """
     if compiled.backend != "numba":
         raise ChaplyginError(
@@ -578,7 +544,7 @@ def loop_model(compiled: CompiledModel) -> CompiledModel:
     source = Path(compiled.module.__file__).read_text(encoding="utf-8")  # type: ignore[arg-type]
     module = _load(source + _kernel_source())
     model = CompiledModel(compiled.layout, module, "numba")
-    # the same numbers as the generated observe, without compiling its LAPACK call
+    # the generated observe's numbers, NaN (not an exception) where M is singular
     n_react = len(compiled.layout.reactions)
     kernel = module._k_observe_new
     model.observe = lambda t, y, p: kernel(float(t), y, p, n_react)  # type: ignore[method-assign]

@@ -17,7 +17,8 @@ The symbolic model stays free of numerics: this module only reads an
 writes one Python module (plain ``math`` code with common subexpressions
 eliminated) to the cache directory, and imports it.  The ``numpy`` backend
 runs that module as it is; the ``numba`` backend compiles the same functions
-with ``numba.njit``.  Generated modules are written atomically and keyed by a
+with ``numba.njit``, except that a large ``fill`` is printed as C and built by
+the system's C compiler (:mod:`chaplygin._cfill`), which numba then calls.  Generated modules are written atomically and keyed by a
 hash of their source, so they are never half-written and are shared between
 runs.
 """
@@ -26,10 +27,12 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import inspect
 import os
 import sys
 import tempfile
 import threading
+import warnings
 from dataclasses import dataclass
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Callable
@@ -38,6 +41,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from . import _cfill
 from ._fast import cse
 from .cache import cache_dir
 from ._symbols import TIME
@@ -51,7 +55,7 @@ __all__ = ["Layout", "CompiledModel", "compile_equations", "compile_model", "BAC
 
 BACKENDS = ("numpy", "numba", "jax")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
-CODE_FORMAT = 3
+CODE_FORMAT = 4
 
 
 def _docstring_safe(text: str) -> str:
@@ -161,32 +165,76 @@ class _Printer(PythonCodePrinter):
         return f"{expr.base}[{', '.join(self._print(i) for i in expr.indices)}]"
 
 
-def _lines(
-    exprs: list[sp.Expr], targets: list[str], prefix: str, skip_zero: int = 0
-) -> list[str]:
-    """``fill`` body lines: common subexpressions (``prefix0 = …``), then ``target = expr``.
+#: where ``fill`` stores one value: array name, flat (row-major) index, row width (0: 1-D)
+Target = tuple[str, int, int]
 
-    The first ``skip_zero`` targets (the mass matrix, zeroed before ``fill``) are
-    left out where their expression is 0.
+
+@dataclass(frozen=True)
+class _Block:
+    """Assignments ``target = expr``, whose common subexpressions are named ``prefix0, …``.
+
+    The first ``skip_zero`` targets (arrays zeroed before ``fill``) are left out
+    where their expression is 0.
+    """
+
+    exprs: list[sp.Expr]
+    targets: list[Target]
+    prefix: str
+    skip_zero: int = 0
+
+
+@dataclass(frozen=True)
+class _Fill:
+    """What ``fill(t, y, p, M, F, V, O)`` computes, in no particular language.
+
+    With ``solve = g > 0`` it first fills ``Ad`` (g × g) and ``b`` from
+    ``pre`` and solves ``Ad·d = b`` (the numerically reduced models), then
+    evaluates ``main``.  :func:`_python_body` and :mod:`chaplygin._cfill` print it.
+    """
+
+    main: _Block
+    solve: int = 0
+    pre: _Block | None = None
+
+    def blocks(self) -> list[_Block]:
+        return [self.pre, self.main] if self.pre is not None else [self.main]
+
+
+def _assignments(block: _Block) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[tuple[Target, sp.Expr]]]:
+    """The block's common subexpressions and its (target, expression) pairs still to store."""
+    replacements, reduced = cse([sp.S.Zero + e for e in block.exprs], block.prefix)
+    stores = [(target, e) for i, (target, e) in enumerate(zip(block.targets, reduced))
+              if i >= block.skip_zero or e != 0]
+    return replacements, stores
+
+
+def _python_body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]]) -> list[str]:
+    """``fill``'s body as Python lines (``math`` calls; run by numpy, compiled by numba).
+
+    ``assigned``: :func:`_assignments` of each of ``fill.blocks()``.
     """
     pr = _Printer({"fully_qualified_modules": True, "standard": "python3"})
-    replacements, reduced = cse([sp.S.Zero + e for e in exprs], prefix)
-    out = [f"    {sym} = {pr.doprint(e)}" for sym, e in replacements]
-    out += [
-        f"    {target} = {pr.doprint(e)}"
-        for i, (target, e) in enumerate(zip(targets, reduced))
-        if i >= skip_zero or e != 0
-    ]
-    return out
+    out: list[str] = []
+    if fill.solve:
+        out += [f"    Ad = np.zeros(({fill.solve}, {fill.solve}))", f"    b = np.zeros({fill.solve})"]
+    for block, (replacements, stores) in zip(fill.blocks(), assigned):
+        out += [f"    {sym} = {pr.doprint(e)}" for sym, e in replacements]
+        out += [
+            f"    {name}[{f'{i // w}, {i % w}' if w else i}] = {pr.doprint(e)}"
+            for (name, i, w), e in stores
+        ]
+        if block is fill.pre:
+            out.append("    d = np.linalg.solve(Ad, b)")
+    return out or ["    pass"]
 
 
-def _targets(dim: int, n: int, g: int) -> list[str]:
+def _targets(dim: int, n: int, g: int) -> list[Target]:
     """Where ``fill`` stores M (row-major), F, the velocities, energy and residuals."""
     return (
-        [f"M[{i // dim}, {i % dim}]" for i in range(dim * dim)]
-        + [f"F[{i}]" for i in range(dim)]
-        + [f"V[{i}]" for i in range(n)]
-        + [f"O[{i}]" for i in range(1 + g)]
+        [("M", i, dim) for i in range(dim * dim)]
+        + [("F", i, 0) for i in range(dim)]
+        + [("V", i, 0) for i in range(n)]
+        + [("O", i, 0) for i in range(1 + g)]
     )
 
 
@@ -195,24 +243,24 @@ def _plain(to_num: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
     return {k: sp.Symbol(f"{v.base}[{v.indices[0]}]") for k, v in to_num.items()} | {TIME: sp.Symbol("t")}
 
 
-def _fill_lines(
+def _main_block(
     s: System, M: sp.Matrix, F: sp.Matrix, velocities: list[sp.Expr], plain: dict[sp.Symbol, sp.Expr]
-) -> list[str]:
-    """``fill``'s lines for ``M``, ``F``, the full velocities, energy and constraint residuals."""
+) -> _Block:
+    """``M``, ``F``, the full velocities, energy and constraint residuals at ``plain``'s symbols."""
     full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
     energy = (s._T - s._U).xreplace(full_xd)
     residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
     exprs = [(sp.S.Zero + e).xreplace(plain) for e in [*M, *F, *velocities, energy, *residual]]
-    return _lines(exprs, _targets(M.shape[0], s.n, s.g), "c_", skip_zero=M.shape[0] ** 2)
+    return _Block(exprs, _targets(M.shape[0], s.n, s.g), "c_", skip_zero=M.shape[0] ** 2)
 
 
-def _source(eqs: Equations, jit: bool) -> tuple[Layout, str]:
+def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
     layout, to_num, velocities, k = _state_symbols(eqs)
-    body = _fill_lines(eqs.system, eqs._M, eqs._F, velocities, _plain(to_num))
-    return layout, _module(eqs, layout, body, eqs._M.shape[0], k, jit)
+    fill = _Fill(_main_block(eqs.system, eqs._M, eqs._F, velocities, _plain(to_num)))
+    return layout, _module(eqs, layout, fill, eqs._M.shape[0], k, backend)
 
 
-def _numeric_reduction_source(eqs: Equations, model: str, jit: bool) -> tuple[Layout, str]:
+def _numeric_reduction_source(eqs: Equations, model: str, backend: str) -> tuple[Layout, str]:
     """A reduced model (Chaplygin's or Voronets' equations) computed from the Chetaev model.
 
     The state is that of the reduced model (coordinates, independent
@@ -233,21 +281,96 @@ def _numeric_reduction_source(eqs: Equations, model: str, jit: bool) -> tuple[La
     plain = _plain(to_num)
     a_dep = s._A.extract(list(range(g)), dep).xreplace(plain)
     b = (-(s._A.extract(list(range(g)), ind) * sp.Matrix([v.xd[i] for i in ind]) + s._A0)).xreplace(plain)
-    stage1 = _lines([*a_dep, *b], [f"Ad[{i // g}, {i % g}]" for i in range(g * g)] + [f"b[{i}]" for i in range(g)], "a_")
+    pre = _Block([*a_dep, *b], [("Ad", i, g) for i in range(g * g)] + [("b", i, 0) for i in range(g)], "a_",
+                 skip_zero=g * g)
     plain.update({v.xd[i]: sp.Symbol(f"d[{k}]") for k, i in enumerate(dep)})
     M = eqs._M.extract(list(range(n + g)), [*ind, *dep, *range(n, n + g)])
-    body = [
-        f"    Ad = np.zeros(({g}, {g}))",
-        f"    b = np.zeros({g})",
-        *stage1,
-        "    d = np.linalg.solve(Ad, b)",
-        *_fill_lines(s, M, eqs._F, list(v.xd), plain),
-    ]
-    return layout, _module(eqs, layout, body, n + g, len(ind), jit)
+    fill = _Fill(_main_block(s, M, eqs._F, list(v.xd), plain), solve=g, pre=pre)
+    return layout, _module(eqs, layout, fill, n + g, len(ind), backend)
 
 
-def _module(eqs: Equations, layout: Layout, body: list[str], dim: int, k: int, jit: bool) -> str:
-    """The generated module: ``fill`` (``body``) and the functions built on it."""
+# ``_k_pivot`` and ``_k_solve`` are compiled inside every generated module (and used by the
+# integrators appended to it: chaplygin._loop, chaplygin.symmetric); never called from here.
+def _k_pivot(M, c):  # pragma: no cover - compiled
+    """The row ``r ≥ c`` of largest ``|M[r, c]|`` (partial pivoting), and that magnitude."""
+    piv = c
+    big = abs(M[c, c])
+    for r in range(c + 1, M.shape[0]):
+        if abs(M[r, c]) > big:
+            big = abs(M[r, c])
+            piv = r
+    return piv, big
+
+
+def _k_solve(M, b):  # pragma: no cover - compiled
+    """``b ← M⁻¹ b`` by Gaussian elimination with partial pivoting, in place; 5 if singular."""
+    n = M.shape[0]
+    for c in range(n):
+        piv, big = _k_pivot(M, c)
+        if big == 0.0:
+            return 5
+        if piv != c:
+            for j in range(c, n):
+                tmp = M[c, j]
+                M[c, j] = M[piv, j]
+                M[piv, j] = tmp
+            tmp = b[c]
+            b[c] = b[piv]
+            b[piv] = tmp
+        for r in range(c + 1, n):
+            factor = M[r, c] / M[c, c]
+            for j in range(c + 1, n):
+                M[r, j] -= factor * M[c, j]
+            b[r] -= factor * b[c]
+    for c in range(n - 1, -1, -1):
+        acc = b[c]
+        for j in range(c + 1, n):
+            acc -= M[c, j] * b[j]
+        b[c] = acc / M[c, c]
+    return 0
+
+
+def _fill_source(fill: _Fill, backend: str) -> str:
+    """``fill``'s definition: Python (numpy; numba for small models) or a call into generated C."""
+    assigned = [_assignments(block) for block in fill.blocks()]
+    if backend == "numba" and sum(len(r) + len(st) for r, st in assigned) >= C_FILL_FROM_LINES:
+        try:
+            return _cfill.numba_fill(*_cfill.build(fill, assigned))
+        except _cfill.Unavailable as exc:
+            warnings.warn(
+                f"chaplygin: numba compiles this model's large fill itself, which can take minutes, "
+                f"because generated C is not available: {exc}", RuntimeWarning, stacklevel=4,
+            )
+    deco = "@_jit\n" if backend == "numba" else ""
+    return f"{deco}def fill(t, y, p, M, F, V, O):\n" + "\n".join(_python_body(fill, assigned)) + "\n"
+
+
+def _solver_source(jit: bool) -> str:
+    """``_k_pivot``, ``_k_solve`` and, for numba, ``_solve``: ``M⁻¹F`` without numba's LAPACK binding.
+
+    numba compiles ``np.linalg.solve`` in about 4 s for every generated module;
+    Gaussian elimination with partial pivoting (what LAPACK's ``gesv`` does)
+    compiles in a fraction of that and is as fast at these sizes.
+    """
+    deco = "@_jit\n" if jit else ""
+    source = "\n\n".join(deco + inspect.getsource(fn) for fn in (_k_pivot, _k_solve))
+    if jit:
+        source += '''
+
+@_jit
+def _solve(M, F):
+    """M⁻¹F (M and F are overwritten); LinAlgError for a singular M, as numpy.linalg.solve."""
+    if _k_solve(M, F) != 0:
+        raise np.linalg.LinAlgError("Matrix is singular.")
+    return F
+'''
+    return source
+
+
+def _module(eqs: Equations, layout: Layout, fill: _Fill, dim: int, k: int, backend: str) -> str:
+    """The generated module: ``fill`` and the functions built on it."""
+    jit = backend == "numba"
+    solve = "_solve" if jit else "np.linalg.solve"
     s = eqs.system
     n_reactions = len(layout.reactions)
     n_observed = 1 + s.g + n_reactions + s.n
@@ -281,9 +404,9 @@ K = {k}
 N_OBSERVED = {n_observed}
 
 
-{deco}def fill(t, y, p, M, F, V, O):
-{chr(10).join(body) if body else "    pass"}
+{_fill_source(fill, backend)}
 
+{_solver_source(jit)}
 
 {deco}def evaluate(t, y, p):
     """Fresh arrays M, F, V, O filled at (t, y, p)."""
@@ -298,10 +421,12 @@ N_OBSERVED = {n_observed}
 {deco}def rhs(t, y, p):
     """dy/dt = [velocities of q, solve(M, F)[:K]]."""
     M, F, V, O = evaluate(t, y, p)
-    x = np.linalg.solve(M, F)
+    x = {solve}(M, F)
     dy = np.empty(N + K)
-    dy[:N] = V
-    dy[N:] = x[:K]
+    for i in range(N):  # loops, not slices: numba compiles them much faster
+        dy[i] = V[i]
+    for i in range(K):
+        dy[N + i] = x[i]
     return dy
 
 
@@ -309,9 +434,11 @@ N_OBSERVED = {n_observed}
     """[energy, residuals, computed multipliers, velocities]."""
     M, F, V, O = evaluate(t, y, p)
     if N_OBSERVED - 1 - {s.g} - N > 0:
-        x = np.linalg.solve(M, F)
-        O[1 + {s.g}:1 + {s.g} + {n_reactions}] = x[DIM - {n_reactions}:]
-    O[N_OBSERVED - N:] = V
+        x = {solve}(M, F)
+        for i in range({n_reactions}):
+            O[1 + {s.g} + i] = x[DIM - {n_reactions} + i]
+    for i in range(N):
+        O[N_OBSERVED - N + i] = V[i]
     return O
 '''
 
@@ -381,6 +508,10 @@ def _check_backend(backend: str) -> None:
         )
 
 
+#: the numba backend builds ``fill`` with a C compiler from this many generated lines on
+#: (numba needs ~20 ms a line, a C compiler ~1 ms; see :mod:`chaplygin._cfill`)
+C_FILL_FROM_LINES = 200
+
 #: ``reduction="auto"`` reduces numerically from this many coordinates on
 NUMERIC_REDUCTION_FROM = 9
 REDUCTIONS = ("auto", "symbolic", "numeric")
@@ -428,7 +559,7 @@ def compile_model(
     cache = eqs.__dict__.setdefault("_compiled", {})
     key = (backend, model)
     if key not in cache:
-        layout, source = _numeric_reduction_source(eqs, model, jit=backend == "numba")
+        layout, source = _numeric_reduction_source(eqs, model, backend)
         cache[key] = CompiledModel(layout, _import(source, backend), backend)
     return cache[key]
 
@@ -443,7 +574,7 @@ def _compile(eqs: Equations, backend: str) -> CompiledModel:
             import numba  # noqa: F401
         except ImportError as exc:  # pragma: no cover - numba is a dependency
             raise ChaplyginError("backend 'numba' needs numba: pip install numba") from exc
-    layout, source = _source(eqs, jit=backend == "numba")
+    layout, source = _source(eqs, backend)
     module = _import(source, backend)
     return CompiledModel(layout, module, backend)
 

@@ -455,16 +455,21 @@ def sleigh_chain(
     x, y = dynamicsymbols("x y")
     th = list(dynamicsymbols(f"theta0:{n + 1}"))
     m_, I_, L_ = _param(m, "m"), _param(I, "I"), _param(L, "L")
-    T, cons = sp.S.Zero, []
-    for i, ti in enumerate(th):
-        trailing = th[1:i + 1]                     # the headings θ_1 … θ_i behind the lead
-        speed2 = _d(x) ** 2 + _d(y) ** 2 + 2 * L_ * sum(
-            (_d(tj) * (_d(x) * sp.sin(tj) - _d(y) * sp.cos(tj)) for tj in trailing), sp.S.Zero
-        ) + L_**2 * sum((_d(tj) * _d(tk) * sp.cos(tj - tk) for tj in trailing for tk in trailing), sp.S.Zero)
-        T += m_ / 2 * speed2 + I_ / 2 * _d(ti) ** 2
-        cons.append(-sp.sin(ti) * _d(x) + sp.cos(ti) * _d(y)
-                    - L_ * sum((_d(tj) * sp.cos(tj - ti) for tj in trailing), sp.S.Zero))
-    return System([x, y, *th], sp.expand(T), cons, dependent=[y, *th[1:]], name=f"Chain of {n + 1} sleighs")
+    # T summed body by body (the docstring's form), written out term by term: body i
+    # contributes to θ_j's terms for every j ≤ i, so the coefficients count those bodies
+    dx, dy, dth = _d(x), _d(y), [_d(tj) for tj in th]
+    terms = [m_ * (n + 1) / 2 * (dx**2 + dy**2), I_ / 2 * sp.Add(*(w**2 for w in dth))]
+    for j in range(1, n + 1):
+        terms.append(m_ * L_ * (n + 1 - j) * dth[j] * (dx * sp.sin(th[j]) - dy * sp.cos(th[j])))
+        terms.append(m_ * L_**2 * (n + 1 - j) / 2 * dth[j] ** 2)
+        for k in range(j + 1, n + 1):
+            terms.append(m_ * L_**2 * (n + 1 - k) * dth[j] * dth[k] * sp.cos(th[j] - th[k]))
+    T = sp.expand(sp.Add(*terms))
+    cons = [
+        -sp.sin(ti) * dx + sp.cos(ti) * dy - L_ * sp.Add(*(dth[j] * sp.cos(th[j] - ti) for j in range(1, i + 1)))
+        for i, ti in enumerate(th)
+    ]
+    return System([x, y, *th], T, cons, dependent=[y, *th[1:]], name=f"Chain of {n + 1} sleighs")
 
 
 def _sleigh_chain_2() -> System:

@@ -89,7 +89,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from ._loop import _k_eval, _k_fill, _k_solve
+from ._loop import _k_eval, _k_fill
 from .codegen import CompiledModel, _import, compile_equations, compile_model, parameter_vector
 from .errors import ChaplyginError
 
@@ -164,7 +164,7 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 # ``_kernel_source``), where ``fill``, ``DIM``, ``N`` and ``N_OBSERVED`` are
 # globals; compiled there by numba for the numba backend, run as Python for the
 # numpy backend.  They are never called from here.
-fill = None  # placeholder: the generated module defines it
+fill = _k_pivot = None  # placeholders: the generated module defines them
 DIM = N = N_OBSERVED = 0
 _GL_EPS = EPS
 
@@ -173,12 +173,7 @@ def _gl_lu(G, piv):  # pragma: no cover - runs in the generated module
     """LU factorisation of ``G`` with partial pivoting, in place; 8 if singular."""
     n = G.shape[0]
     for c in range(n):
-        k = c
-        big = abs(G[c, c])
-        for r in range(c + 1, n):
-            if abs(G[r, c]) > big:
-                big = abs(G[r, c])
-                k = r
+        k, big = _k_pivot(G, c)  # defined in the generated module (chaplygin.codegen)
         piv[c] = k
         if big == 0.0:
             return 8
@@ -399,7 +394,7 @@ def extrapolation(c: np.ndarray) -> np.ndarray:
     return np.array([[basis(j + 1, 1.0 + c[i]) - basis(j + 1, 1.0) for j in range(s)] for i in range(s)])
 
 
-_KERNELS = (_k_solve, _k_fill, _k_eval, _gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
+_KERNELS = (_k_fill, _k_eval, _gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
 
 
 def _kernel_source(jit: bool) -> str:

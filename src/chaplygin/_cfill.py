@@ -1,0 +1,185 @@
+"""``fill`` as C, compiled by the system's C compiler, for the numba backend's large models.
+
+numba compiles straight-line code slowly: its type inference and lowering run
+in Python for every statement, and the generated ``fill`` of a chain of 17
+sleighs (2,400 lines) takes it about a minute, while a C compiler builds the
+same function in under two seconds.  So from :data:`chaplygin.codegen.C_FILL_FROM_LINES`
+lines on, the numba backend prints ``fill`` as C (SymPy's ``C99CodePrinter``,
+the same common subexpressions), builds a shared library in the code cache,
+and its generated module calls it through ``numba.types.ExternalFunction``:
+a call by symbol name, which numba caches like any other function (the module
+loads the library with ``llvmlite.binding.load_library_permanently`` before
+anything is compiled or loaded from numba's cache).  The rest of the module —
+``evaluate``, ``rhs``, ``observe`` and the compiled integrators appended to it
+— is unchanged.
+
+The compiler is ``$CHAPLYGIN_CC`` (a command, whose own flags come after
+:data:`FLAGS` and so override them, e.g. ``"gcc -O0"``; ``none`` switches this
+path off), else ``$CC``, else the first of ``cc``, ``gcc``, ``clang`` on
+``PATH`` (POSIX only).  Where there is none, or it fails, or the model uses a function
+that C's ``math.h`` does not have, :class:`Unavailable` says why and numba
+compiles the Python ``fill`` as before.  Libraries are keyed by a hash of their
+C source and the compiler command, built in a temporary directory and moved
+into place atomically.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shlex
+import shutil
+import subprocess
+import tempfile
+from typing import TYPE_CHECKING
+
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+from sympy.printing.codeprinter import PrintMethodNotImplementedError
+
+from .cache import cache_dir
+
+if TYPE_CHECKING:
+    from .codegen import Target, _Fill
+
+#: flags: position-independent shared library, optimised, IEEE semantics kept (no -ffast-math)
+FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fno-math-errno")
+
+_SOLVE = """
+/* x = A^-1 b by Gaussian elimination with partial pivoting (A and b are overwritten);
+   a singular A gives NaN, which the integrators report as a non-finite derivative. */
+static void chaplygin_solve(int n, double *A, double *b, double *x)
+{
+    for (int c = 0; c < n; ++c) {
+        int piv = c;
+        for (int r = c + 1; r < n; ++r)
+            if (fabs(A[r * n + c]) > fabs(A[piv * n + c])) piv = r;
+        if (A[piv * n + c] == 0.0) {
+            for (int i = 0; i < n; ++i) x[i] = NAN;
+            return;
+        }
+        if (piv != c) {
+            for (int j = 0; j < n; ++j) {
+                double tmp = A[c * n + j]; A[c * n + j] = A[piv * n + j]; A[piv * n + j] = tmp;
+            }
+            double tmp = b[c]; b[c] = b[piv]; b[piv] = tmp;
+        }
+        for (int r = c + 1; r < n; ++r) {
+            double f = A[r * n + c] / A[c * n + c];
+            for (int j = c; j < n; ++j) A[r * n + j] -= f * A[c * n + j];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int c = n - 1; c >= 0; --c) {
+        double acc = b[c];
+        for (int j = c + 1; j < n; ++j) acc -= A[c * n + j] * x[j];
+        x[c] = acc / A[c * n + c];
+    }
+}
+"""
+
+
+class Unavailable(Exception):
+    """The C path cannot be used here; the message says why."""
+
+
+def compiler() -> list[str]:
+    """The C compiler command, or raise :class:`Unavailable`."""
+    if os.name != "posix":
+        raise Unavailable("generated C is only built on POSIX systems")
+    chosen = os.environ.get("CHAPLYGIN_CC")
+    if chosen is not None:
+        if chosen.strip().lower() in ("", "none", "0", "off"):
+            raise Unavailable(f"CHAPLYGIN_CC={chosen!r} switches it off")
+        return shlex.split(chosen)
+    if os.environ.get("CC"):
+        return shlex.split(os.environ["CC"])
+    for name in ("cc", "gcc", "clang"):
+        found = shutil.which(name)
+        if found:
+            return [found]
+    raise Unavailable("no C compiler (cc, gcc or clang) on PATH; set CHAPLYGIN_CC")
+
+
+def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]], symbol: str) -> str:
+    """The C translation unit defining ``void symbol(t, y, p, M, F, V, O)``.
+
+    ``assigned`` is :func:`chaplygin.codegen._assignments` of each of
+    ``fill.blocks()``.  Raises :class:`Unavailable` for a function C lacks.
+    """
+    pr = C99CodePrinter({"strict": True})
+    body = ["    (void)t;"]
+    if fill.solve:
+        g = fill.solve
+        body += [f"    double Ad[{g * g}] = {{0.0}};", f"    double b[{g}] = {{0.0}};", f"    double d[{g}];"]
+    try:
+        for block, (replacements, stores) in zip(fill.blocks(), assigned):
+            body += [f"    const double {sym} = {pr.doprint(e)};" for sym, e in replacements]
+            body += [f"    {name}[{i}] = {pr.doprint(e)};" for (name, i, _), e in stores]
+            if block is fill.pre:
+                body.append(f"    chaplygin_solve({fill.solve}, Ad, b, d);")
+    except PrintMethodNotImplementedError as exc:
+        raise Unavailable(f"C has no translation of a function in this model ({exc})") from None
+    signature = (
+        f"void {symbol}(double t, const double *y, const double *p, "
+        "double *M, double *F, double *V, double *O)"
+    )
+    return "\n".join([
+        "/* Generated by chaplygin: fill(t, y, p, M, F, V, O) of one model (see chaplygin.codegen). */",
+        "#include <math.h>",
+        _SOLVE if fill.solve else "",
+        f"{signature}\n{{",
+        *body,
+        "}",
+        "",
+    ])
+
+
+def build(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]]) -> tuple[str, str]:
+    """Compile ``fill`` into the code cache; ``(symbol, library path)``.
+
+    Raises :class:`Unavailable` when there is no compiler or it fails.
+    """
+    cmd = compiler()
+    template = source(fill, assigned, "@SYMBOL@")
+    digest = hashlib.sha256((template + "\0" + " ".join(cmd)).encode()).hexdigest()[:24]
+    symbol = f"chaplygin_fill_{digest}"
+    directory = cache_dir() / "codegen"
+    directory.mkdir(parents=True, exist_ok=True)
+    library = directory / f"libchaplygin_fill_{digest}.so"
+    if library.exists():
+        return symbol, str(library)
+    with tempfile.TemporaryDirectory(dir=directory) as tmp:
+        c_file = os.path.join(tmp, "fill.c")
+        with open(c_file, "w", encoding="utf-8") as fh:
+            fh.write(template.replace("@SYMBOL@", symbol))
+        out = os.path.join(tmp, "fill.so")
+        try:
+            run = subprocess.run([cmd[0], *FLAGS, *cmd[1:], c_file, "-o", out, "-lm"], capture_output=True, text=True,
+                                 timeout=600, check=False)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise Unavailable(f"the C compiler {cmd[0]!r} could not run: {exc}") from None
+        if run.returncode != 0 or not os.path.exists(out):
+            first = " / ".join((run.stderr or run.stdout).strip().splitlines()[:3]) or "(no output)"
+            raise Unavailable(f"the C compiler {cmd[0]!r} failed (exit {run.returncode}): {first}")
+        os.replace(out, library)
+    return symbol, str(library)
+
+
+def numba_fill(symbol: str, library: str) -> str:
+    """Module source defining a jitted ``fill`` that calls ``symbol`` in ``library``."""
+    return f'''from llvmlite import binding as _llvm
+from numba import types as _nbt
+
+_llvm.load_library_permanently({library!r})
+_PTR = _nbt.CPointer(_nbt.float64)
+_c_fill = _nbt.ExternalFunction({symbol!r}, _nbt.void(_nbt.float64, _PTR, _PTR, _PTR, _PTR, _PTR, _PTR))
+
+
+@_jit
+def fill(t, y, p, M, F, V, O):
+    """M, F, V, O at (t, y, p), computed by the compiled C function {symbol}."""
+    yc = np.ascontiguousarray(y)
+    pc = np.ascontiguousarray(p)
+    _c_fill(float(t), yc.ctypes, pc.ctypes, M.ctypes, F.ctypes, V.ctypes, O.ctypes)
+'''
