@@ -225,6 +225,26 @@ def test_blow_up_is_a_status() -> None:
     assert 0 < len(tr.t) < 101 and np.all(np.isfinite(tr["x"]))
 
 
+def test_a_raising_right_hand_side_is_reported_like_the_dop853_loop() -> None:
+    """``fill`` raising (a division by zero in numba) is status 3 with the exception's text, in
+    the same words for the compiled DOP853 loop and the symmetric methods."""
+    import sympy as sp
+    from sympy.physics.mechanics import dynamicsymbols
+
+    from chaplygin import System
+
+    t = dynamicsymbols._t
+    x, z = dynamicsymbols("x z")
+    c = sp.Symbol("c")
+    s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=-x**2 / c)
+    start, params = {"x": 1.0, "z": 0.0, "x'": 1.0}, {"c": 0.0}
+    loop = s.simulate("chaplygin", 1.0, start, params, backend="numba", samples=11)
+    gauss = s.simulate("chaplygin", 1.0, start, params, backend="numba", method="gauss4", step=0.1, samples=11)
+    for tr in (loop, gauss):
+        assert tr.status == "failed"
+        assert tr.message == "the right-hand side failed at t = 0: division by zero", tr.message
+
+
 def test_bad_input(disk, oscillator) -> None:
     def run(model: str = "chetaev", **kw):
         return disk.simulate(model, 1.0, DISK.initial, DISK.parameters, **kw)

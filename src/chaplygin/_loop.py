@@ -73,14 +73,14 @@ __all__ = ["LoopResult", "integrate_dop853", "loop_model", "ensemble_dop853", "S
 
 EPS = float(np.finfo(float).eps)
 
-#: kernel status codes → meaning
+#: kernel status codes → meaning (the ensembles' per-member messages)
 STATUS = {
     0: "success",
-    1: "step size underflow",
-    2: "non-finite derivative",
-    3: "the right-hand side raised",
+    1: "step size underflow (a blow-up, or a non-finite derivative: a singular mass matrix?)",
+    2: "non-finite derivative (a blow-up)",
+    3: "the right-hand side raised an error",
     4: "too many steps",
-    5: "singular mass matrix",
+    5: "the mass matrix is singular",
     6: "the solver failed",  # jax backend: another diffrax failure
 }
 

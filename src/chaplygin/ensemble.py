@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._loop import STATUS
 from .codegen import CompiledModel, Layout, compile_model
 from .errors import ChaplyginError
 from .simulate import _initial_multipliers, _parameters, _vakonomic_setup, initial_state
@@ -35,15 +36,6 @@ if TYPE_CHECKING:
 __all__ = ["Ensemble", "simulate_ensemble", "ENSEMBLE_BACKENDS"]
 
 ENSEMBLE_BACKENDS = ("numba", "jax")
-_CODES = {
-    0: "success",
-    1: "step size underflow (a blow-up, or a non-finite derivative: a singular mass matrix?)",
-    2: "non-finite derivative (a blow-up)",
-    3: "the right-hand side raised an error",
-    4: "too many steps",
-    5: "the mass matrix is singular",
-    6: "the solver failed",
-}
 
 
 @dataclass
@@ -110,7 +102,7 @@ class Ensemble:
     def messages(self) -> list[str]:
         """Why each member stopped (``""`` for the successful ones)."""
         return [
-            "" if c == 0 else f"stopped at t = {t:.6g}: {_CODES.get(int(c), 'failed')}"
+            "" if c == 0 else f"stopped at t = {t:.6g}: {STATUS.get(int(c), 'failed')}"
             for c, t in zip(self.code, self.t)
         ]
 

@@ -89,7 +89,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from ._loop import _k_eval, _k_fill
+from ._loop import EPS, _k_eval, _k_fill, _message
+from ._loop import STATUS as _LOOP_STATUS
 from .codegen import CompiledModel, _import, compile_equations, compile_model, parameter_vector
 from .errors import ChaplyginError
 
@@ -111,14 +112,10 @@ MAX_ITERATIONS = 50
 #: a run may take at most this many steps
 MAX_STEPS = 10**10
 
-EPS = float(np.finfo(float).eps)
-
-#: kernel status codes → meaning
+#: kernel status codes → meaning (0, 2, 3, 5 come from the right-hand-side kernels shared with
+#: chaplygin._loop, so they mean what they mean there)
 STATUS = {
-    0: "success",
-    2: "non-finite derivative",
-    3: "the right-hand side raised",
-    5: "singular mass matrix",
+    **{code: _LOOP_STATUS[code] for code in (0, 2, 3, 5)},
     7: "the Newton iteration did not converge",
     8: "singular Newton matrix",
 }
@@ -517,9 +514,7 @@ def integrate_symmetric(
                    f"{stats[1] / max(n_steps, 1):.2f} Newton iterations per step")
     else:
         status = "failed"
-        message = _failure(code, method, t_fail, h, int(max_iterations))
-        if code == 3:  # once more in plain Python, for the exception's message
-            message += _reason(module, t_fail, y_fail, p)
+        message = _failure(code, method, t_fail, h, int(max_iterations), module, y_fail, p)
     return SymmetricResult(times, out[:filled], status, message, int(stats[0]), n_steps, h,
                            int(stats[1]), int(stats[3]), int(code))
 
@@ -544,32 +539,20 @@ def _tolerant(compiled: CompiledModel) -> CompiledModel:
     return model
 
 
-def _reason(module: Any, t: float, y: np.ndarray, p: np.ndarray) -> str:
-    """Why the generated ``fill`` raised at ``(t, y)``, run as plain Python."""
-    M, F = np.zeros((module.DIM, module.DIM)), np.zeros(module.DIM)
-    V, O = np.zeros(module.N), np.zeros(module.N_OBSERVED)
-    fill = getattr(module.fill, "py_func", module.fill)
-    try:
-        fill(t, y, p, M, F, V, O)
-    except Exception as exc:  # noqa: BLE001 - reported, not handled
-        return f" ({exc or type(exc).__name__})"
-    return ""
+def _failure(code: int, method: str, t: float, h: float, max_iterations: int, module: Any,
+             y: np.ndarray, p: np.ndarray) -> str:
+    """The message of a failed run (kernel status ``code``, see :data:`STATUS`) at ``(t, y)``.
 
-
-def _failure(code: int, method: str, t: float, h: float, max_iterations: int) -> str:
-    """The message of a failed run (kernel status ``code``, see :data:`STATUS`)."""
+    Codes 2, 3 and 5 come from the right-hand-side kernels shared with
+    :mod:`chaplygin._loop`, and are worded by its ``_message``.
+    """
     if code == 7:
         return (f"the Newton iteration for the {method} stages did not converge at t = {t:.6g} "
                 f"in {max_iterations} iterations (h = {h:.3g}); try a smaller step")
     if code == 8:
         return (f"the Newton matrix of the {method} stages is singular at t = {t:.6g} "
                 f"(h = {h:.3g}); try a smaller step")
-    if code == 2:
-        return f"the solution blew up (non-finite derivative) at t = {t:.6g}"
-    if code == 3:
-        return f"the right-hand side failed at t = {t:.6g}: it raised an error"
-    return (f"the right-hand side failed at t = {t:.6g}: the mass matrix is singular "
-            f"(M·x = F has no unique solution)")
+    return _message(module, code, t, t, y, p, 0)
 
 
 def simulate_symmetric(
