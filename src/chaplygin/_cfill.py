@@ -4,7 +4,7 @@ numba compiles straight-line code slowly: its type inference and lowering run
 in Python for every statement, and the generated ``fill`` of a chain of 17
 sleighs (2,400 lines) takes it about a minute, while a C compiler builds the
 same function in under two seconds.  So from :data:`chaplygin.codegen.C_FILL_FROM_LINES`
-lines on, the numba backend prints ``fill`` as C (SymPy's ``C99CodePrinter``,
+lines on, the numba backend prints ``fill`` as C (:mod:`chaplygin._printing`,
 the same common subexpressions), builds a shared library in the code cache,
 and its generated module calls it through ``numba.types.ExternalFunction``:
 a call by symbol name, which numba caches like any other function (the module
@@ -31,12 +31,11 @@ import shlex
 import shutil
 import subprocess
 import tempfile
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-import sympy as sp
-from sympy.printing.c import C99CodePrinter
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
+from ._printing import code
 from .cache import cache_dir
 
 if TYPE_CHECKING:
@@ -101,21 +100,20 @@ def compiler() -> list[str]:
     raise Unavailable("no C compiler (cc, gcc or clang) on PATH; set CHAPLYGIN_CC")
 
 
-def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]], symbol: str) -> str:
+def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]], symbol: str) -> str:
     """The C translation unit defining ``void symbol(t, y, p, M, F, V, O)``.
 
     ``assigned`` is :func:`chaplygin.codegen._assignments` of each of
     ``fill.blocks()``.  Raises :class:`Unavailable` for a function C lacks.
     """
-    pr = C99CodePrinter({"strict": True})
     body = ["    (void)t;"]
     if fill.solve:
         g = fill.solve
         body += [f"    double Ad[{g * g}] = {{0.0}};", f"    double b[{g}] = {{0.0}};", f"    double d[{g}];"]
     try:
         for block, (replacements, stores) in zip(fill.blocks(), assigned):
-            body += [f"    const double {sym} = {pr.doprint(e)};" for sym, e in replacements]
-            body += [f"    {name}[{i}] = {pr.doprint(e)};" for (name, i, _), e in stores]
+            body += [f"    const double {sym} = {code(e, 'c')};" for sym, e in replacements]
+            body += [f"    {name}[{i}] = {code(e, 'c')};" for (name, i, _), e in stores]
             if block is fill.pre:
                 body.append(f"    chaplygin_solve({fill.solve}, Ad, b, d);")
     except PrintMethodNotImplementedError as exc:
@@ -135,7 +133,7 @@ def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]
     ])
 
 
-def build(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]]) -> tuple[str, str]:
+def build(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> tuple[str, str]:
     """Compile ``fill`` into the code cache; ``(symbol, library path)``.
 
     Raises :class:`Unavailable` when there is no compiler or it fails.

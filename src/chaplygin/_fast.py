@@ -18,6 +18,8 @@ import sympy as sp
 
 try:  # the import line names the converter; no user text ever reaches it
     from symengine import Lambdify as _se_lambdify
+    from symengine import DenseMatrix as _se_matrix
+    from symengine import Symbol as _se_symbol
     from symengine import cse as _se_cse
     from symengine import sympify as _to_symengine
 
@@ -25,7 +27,7 @@ try:  # the import line names the converter; no user text ever reaches it
 except ImportError:  # pragma: no cover - symengine is a dependency
     HAVE_SYMENGINE = False
 
-__all__ = ["jacobian", "gradient", "total_derivative", "cse", "evaluator", "HAVE_SYMENGINE"]
+__all__ = ["jacobian", "gradient", "total_derivative", "native", "cse", "evaluator", "HAVE_SYMENGINE"]
 
 
 def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
@@ -90,25 +92,35 @@ def total_derivative(
     return _back([result], restore)[0]
 
 
-def cse(
-    exprs: Sequence[sp.Expr], prefix: str = "c_"
-) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]:
+def native(exprs: Sequence[Any]) -> list[Any] | None:
+    """``exprs`` (SymPy, SymEngine or numbers) as SymEngine expressions; None if SymEngine cannot."""
+    sympy = [e for e in exprs if isinstance(e, sp.Basic)]
+    converted = _convert(sympy) if sympy else []
+    if converted is None:
+        return None
+    it = iter(converted)
+    return [next(it) if isinstance(e, sp.Basic) else _to_symengine(e) for e in exprs]
+
+
+def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]], list[Any]]:
     """Common subexpressions of ``exprs``: ``(replacements, reduced)`` as :func:`sympy.cse` returns.
 
-    The new symbols are ``prefix0, prefix1, …`` in order of definition.  SymEngine's
-    elimination is used when it can represent the expressions; SymPy's (with
-    its cheap "basic" optimisations) otherwise.
+    The new symbols are ``prefix0, prefix1, …`` in order of definition.  With
+    SymEngine (expressions it can represent, SymPy's or its own) the results
+    are SymEngine expressions, printed by :mod:`chaplygin._printing` without
+    converting them back; otherwise SymPy's elimination (with its cheap
+    "basic" optimisations) gives SymPy expressions.
     """
-    exprs = list(exprs)
-    clash = any(re.fullmatch(r"x\d+", s.name) for e in exprs for s in e.free_symbols)
-    fast = None if clash else _convert(exprs)  # SymEngine names its symbols x0, x1, …
-    if fast is None:
-        return sp.cse(exprs, symbols=sp.numbered_symbols(prefix), optimizations="basic")
+    fast = native(exprs)
+    # SymEngine names its symbols x0, x1, …: a clash with the input's names takes SymPy's cse
+    if fast is None or any(re.fullmatch(r"x\d+", str(s)) for e in fast for s in e.free_symbols):
+        return sp.cse([sp.sympify(e) for e in exprs], symbols=sp.numbered_symbols(prefix),
+                      optimizations="basic")
     pairs, reduced = _se_cse(fast)
-    rename = {sp.Symbol(str(s)): sp.Symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}
-    restore = {**_restore_map(exprs), **rename}
-    values = _back([v for _, v in pairs] + list(reduced), restore)
-    return list(zip(rename.values(), values[: len(pairs)])), values[len(pairs) :]
+    rename = {s: _se_symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}
+    # one substitution of the whole list (a matrix): per expression, the map is converted each time
+    done = list(_se_matrix([v for _, v in pairs] + list(reduced)).xreplace(rename)) if rename else list(reduced)
+    return list(zip(rename.values(), done[: len(pairs)])), done[len(pairs) :]
 
 
 def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None:
@@ -118,7 +130,7 @@ def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None
     when SymEngine cannot represent the expressions.  Singular points give
     ``inf``/``nan``.
     """
-    fast = _convert(list(args) + list(exprs))
+    fast = native(list(args) + list(exprs))
     if fast is None:
         return None
     try:

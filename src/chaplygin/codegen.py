@@ -13,9 +13,11 @@ Every generated function takes ``(t, y, p)``:
   vakonomic family.
 
 The symbolic model stays free of numerics: this module only reads an
-:class:`~chaplygin.Equations` object's mass matrix, forcing and kinematics,
-writes one Python module (plain ``math`` code with common subexpressions
-eliminated) to the cache directory, and imports it.  The ``numpy`` backend
+:class:`~chaplygin.Equations` object's mass matrix, forcing and kinematics
+(or, for the numerically reduced models, the Chetaev matrices derived in
+SymEngine by :mod:`chaplygin._native`), writes one Python module (plain
+``math`` code with common subexpressions eliminated, printed by
+:mod:`chaplygin._printing`) to the cache directory, and imports it.  The ``numpy`` backend
 runs that module as it is; the ``numba`` backend compiles the same functions
 with ``numba.njit``, except that a large ``fill`` is printed as C and built by
 the system's C compiler (:mod:`chaplygin._cfill`), which numba then calls.  Generated modules are written atomically and keyed by a
@@ -39,10 +41,11 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 import sympy as sp
-from sympy.printing.pycode import PythonCodePrinter
 
 from . import _cfill
-from ._fast import cse
+from ._fast import cse, native
+from ._native import chetaev_matrices
+from ._printing import code
 from .cache import cache_dir
 from ._symbols import TIME
 from .errors import ChaplyginError
@@ -55,7 +58,7 @@ __all__ = ["Layout", "CompiledModel", "compile_equations", "compile_model", "BAC
 
 BACKENDS = ("numpy", "numba", "jax")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
-CODE_FORMAT = 4
+CODE_FORMAT = 5
 
 
 def _docstring_safe(text: str) -> str:
@@ -160,11 +163,6 @@ def _state_symbols(eqs: Equations) -> tuple[Layout, dict[sp.Symbol, sp.Expr], li
     return layout, to_num, velocities, k
 
 
-class _Printer(PythonCodePrinter):
-    def _print_Indexed(self, expr: sp.Indexed) -> str:
-        return f"{expr.base}[{', '.join(self._print(i) for i in expr.indices)}]"
-
-
 #: where ``fill`` stores one value: array name, flat (row-major) index, row width (0: 1-D)
 Target = tuple[str, int, int]
 
@@ -177,7 +175,7 @@ class _Block:
     where their expression is 0.
     """
 
-    exprs: list[sp.Expr]
+    exprs: list[Any]  # SymEngine or SymPy
     targets: list[Target]
     prefix: str
     skip_zero: int = 0
@@ -200,27 +198,26 @@ class _Fill:
         return [self.pre, self.main] if self.pre is not None else [self.main]
 
 
-def _assignments(block: _Block) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[tuple[Target, sp.Expr]]]:
+def _assignments(block: _Block) -> tuple[list[tuple[Any, Any]], list[tuple[Target, Any]]]:
     """The block's common subexpressions and its (target, expression) pairs still to store."""
-    replacements, reduced = cse([sp.S.Zero + e for e in block.exprs], block.prefix)
+    replacements, reduced = cse(block.exprs, block.prefix)
     stores = [(target, e) for i, (target, e) in enumerate(zip(block.targets, reduced))
               if i >= block.skip_zero or e != 0]
     return replacements, stores
 
 
-def _python_body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, sp.Expr]]]]) -> list[str]:
+def _python_body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> list[str]:
     """``fill``'s body as Python lines (``math`` calls; run by numpy, compiled by numba).
 
     ``assigned``: :func:`_assignments` of each of ``fill.blocks()``.
     """
-    pr = _Printer({"fully_qualified_modules": True, "standard": "python3"})
     out: list[str] = []
     if fill.solve:
         out += [f"    Ad = np.zeros(({fill.solve}, {fill.solve}))", f"    b = np.zeros({fill.solve})"]
     for block, (replacements, stores) in zip(fill.blocks(), assigned):
-        out += [f"    {sym} = {pr.doprint(e)}" for sym, e in replacements]
+        out += [f"    {sym} = {code(e, 'python')}" for sym, e in replacements]
         out += [
-            f"    {name}[{f'{i // w}, {i % w}' if w else i}] = {pr.doprint(e)}"
+            f"    {name}[{f'{i // w}, {i % w}' if w else i}] = {code(e, 'python')}"
             for (name, i, w), e in stores
         ]
         if block is fill.pre:
@@ -243,24 +240,50 @@ def _plain(to_num: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
     return {k: sp.Symbol(f"{v.base}[{v.indices[0]}]") for k, v in to_num.items()} | {TIME: sp.Symbol("t")}
 
 
+def _common(items: list[Any]) -> list[Any]:
+    """``items`` (SymPy or SymEngine) all as SymEngine expressions, or all as SymPy's if SymEngine cannot."""
+    fast = native(items)
+    return fast if fast is not None else [sp.sympify(e) for e in items]
+
+
+def _at(exprs: list[Any], plain: dict[sp.Symbol, sp.Expr]) -> list[Any]:
+    """``exprs`` with ``plain``'s symbols substituted (see :func:`_common`)."""
+    items = _common([*exprs, *plain, *plain.values()])
+    k, m = len(exprs), len(plain)
+    rule = dict(zip(items[k : k + m], items[k + m :]))
+    return [e.xreplace(rule) for e in items[:k]]
+
+
+def _kinematics(s: System) -> tuple[Any, list[list[Any]], list[Any], list[Any]]:
+    """``T − U``, the rows of ``A``, ``A_0`` and ``q̇`` (SymEngine's where it has them)."""
+    nat = s._native
+    if nat is not None:
+        return nat.T - nat.U, nat.A, nat.A0, nat.xd
+    return s._T - s._U, s._A.tolist(), list(s._A0), list(s._vars.xd)
+
+
 def _main_block(
-    s: System, M: sp.Matrix, F: sp.Matrix, velocities: list[sp.Expr], plain: dict[sp.Symbol, sp.Expr]
+    s: System, M: list[Any], F: list[Any], velocities: list[Any], plain: dict[sp.Symbol, sp.Expr]
 ) -> _Block:
-    """``M``, ``F``, the full velocities, energy and constraint residuals at ``plain``'s symbols."""
-    full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
-    energy = (s._T - s._U).xreplace(full_xd)
-    residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
-    exprs = [(sp.S.Zero + e).xreplace(plain) for e in [*M, *F, *velocities, energy, *residual]]
-    return _Block(exprs, _targets(M.shape[0], s.n, s.g), "c_", skip_zero=M.shape[0] ** 2)
+    """``M`` (flat, row-major), ``F``, the full velocities, energy and constraint residuals at ``plain``'s symbols."""
+    energy, A, A0, xd = _kinematics(s)
+    dim, n, g = len(F), s.n, s.g
+    items = _common([*M, *F, *velocities, energy, *(a for row in A for a in row), *A0, *xd])
+    cut = np.cumsum([0, dim * dim, dim, n, 1, g * n, g])
+    M, F, velocities, (energy,), A, A0, xd = (items[i:j] for i, j in zip(cut, [*cut[1:], None]))
+    energy = energy.xreplace(dict(zip(xd, velocities)))
+    residual = [sum((A[b * n + j] * velocities[j] for j in range(n)), A0[b]) for b in range(g)]
+    exprs = _at([*M, *F, *velocities, energy, *residual], plain)
+    return _Block(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim)
 
 
 def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
     layout, to_num, velocities, k = _state_symbols(eqs)
-    fill = _Fill(_main_block(eqs.system, eqs._M, eqs._F, velocities, _plain(to_num)))
-    return layout, _module(eqs, layout, fill, eqs._M.shape[0], k, backend)
+    fill = _Fill(_main_block(eqs.system, list(eqs._M), list(eqs._F), velocities, _plain(to_num)))
+    return layout, _module(eqs.system, layout, fill, eqs._M.shape[0], k, backend)
 
 
-def _numeric_reduction_source(eqs: Equations, model: str, backend: str) -> tuple[Layout, str]:
+def _numeric_reduction_source(s: System, model: str, backend: str) -> tuple[Layout, str]:
     """A reduced model (Chaplygin's or Voronets' equations) computed from the Chetaev model.
 
     The state is that of the reduced model (coordinates, independent
@@ -268,25 +291,33 @@ def _numeric_reduction_source(eqs: Equations, model: str, backend: str) -> tuple
     numerically, then fills the multiplier system (6) with its unknowns ordered
     ``[q̈_σ, q̈_dep, λ]``, whose leading ε entries are the reduced model's
     accelerations at that (admissible) state.  No symbolic ``B`` is needed, so
-    systems far too large for a symbolic elimination compile in seconds.
+    systems far too large for a symbolic elimination compile in seconds.  The
+    Chetaev matrices are derived in SymEngine (:mod:`chaplygin._native`) where
+    it can represent the system, else taken from :meth:`System.equations`.
     """
-    s = eqs.system
     v, n, g, ind, dep = s._vars, s.n, s.g, list(s._ind), list(s._dep)
-    layout, to_num, _, _ = _state_symbols(eqs)
-    layout = Layout(model, "numeric", layout.coordinates, tuple(layout.coordinates[i] + "'" for i in ind),
-                    (), layout.parameters)
-    to_num = {key: val for key, val in to_num.items() if key not in v.xd}
-    y = sp.IndexedBase("y")
+    names = [q.func.__name__ for q in s.coordinates]
+    layout = Layout(model, "numeric", tuple(names), tuple(names[i] + "'" for i in ind), (),
+                    tuple(par.name for par in s.parameters))
+    y, p = sp.IndexedBase("y"), sp.IndexedBase("p")
+    to_num: dict[sp.Symbol, sp.Expr] = {x: y[i] for i, x in enumerate(v.x)}
     to_num.update({v.xd[i]: y[n + k] for k, i in enumerate(ind)})
+    to_num.update({par: p[j] for j, par in enumerate(s.parameters)})
     plain = _plain(to_num)
-    a_dep = s._A.extract(list(range(g)), dep).xreplace(plain)
-    b = (-(s._A.extract(list(range(g)), ind) * sp.Matrix([v.xd[i] for i in ind]) + s._A0)).xreplace(plain)
-    pre = _Block([*a_dep, *b], [("Ad", i, g) for i in range(g * g)] + [("b", i, 0) for i in range(g)], "a_",
-                 skip_zero=g * g)
+    if s._native is not None:
+        rows, F = chetaev_matrices(s._native)
+    else:
+        eqs = s.equations("chetaev")
+        rows, F = eqs._M.tolist(), list(eqs._F)
+    _, A, A0, xd = _kinematics(s)
+    a_dep = [A[b][j] for b in range(g) for j in dep]
+    rhs = [-(sum((A[b][i] * xd[i] for i in ind), 0) + A0[b]) for b in range(g)]
+    pre = _Block(_at([*a_dep, *rhs], plain),
+                 [("Ad", i, g) for i in range(g * g)] + [("b", i, 0) for i in range(g)], "a_", skip_zero=g * g)
     plain.update({v.xd[i]: sp.Symbol(f"d[{k}]") for k, i in enumerate(dep)})
-    M = eqs._M.extract(list(range(n + g)), [*ind, *dep, *range(n, n + g)])
-    fill = _Fill(_main_block(s, M, eqs._F, list(v.xd), plain), solve=g, pre=pre)
-    return layout, _module(eqs, layout, fill, n + g, len(ind), backend)
+    M = [row[j] for row in rows for j in [*ind, *dep, *range(n, n + g)]]
+    fill = _Fill(_main_block(s, M, F, list(xd), plain), solve=g, pre=pre)
+    return layout, _module(s, layout, fill, n + g, len(ind), backend)
 
 
 # ``_k_pivot`` and ``_k_solve`` are compiled inside every generated module (and used by the
@@ -367,11 +398,10 @@ def _solve(M, F):
     return source
 
 
-def _module(eqs: Equations, layout: Layout, fill: _Fill, dim: int, k: int, backend: str) -> str:
+def _module(s: System, layout: Layout, fill: _Fill, dim: int, k: int, backend: str) -> str:
     """The generated module: ``fill`` and the functions built on it."""
     jit = backend == "numba"
     solve = "_solve" if jit else "np.linalg.solve"
-    s = eqs.system
     n_reactions = len(layout.reactions)
     n_observed = 1 + s.g + n_reactions + s.n
     deco = "@_jit\n" if jit else ""
@@ -555,11 +585,10 @@ def compile_model(
     _check_backend(backend)
     if model == "chaplygin" and not system.is_chaplygin:
         system.equations(model, form)  # raises the error that explains why
-    eqs = system.equations("chetaev")
-    cache = eqs.__dict__.setdefault("_compiled", {})
+    cache = system.__dict__.setdefault("_compiled_numeric", {})
     key = (backend, model)
     if key not in cache:
-        layout, source = _numeric_reduction_source(eqs, model, backend)
+        layout, source = _numeric_reduction_source(system, model, backend)
         cache[key] = CompiledModel(layout, _import(source, backend), backend)
     return cache[key]
 

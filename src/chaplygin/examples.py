@@ -458,15 +458,19 @@ def sleigh_chain(
     # T summed body by body (the docstring's form), written out term by term: body i
     # contributes to θ_j's terms for every j ≤ i, so the coefficients count those bodies
     dx, dy, dth = _d(x), _d(y), [_d(tj) for tj in th]
-    terms = [m_ * (n + 1) / 2 * (dx**2 + dy**2), I_ / 2 * sp.Add(*(w**2 for w in dth))]
+    # (already expanded: SymPy's expand of the sum costs more than building it; each
+    # cos(θ_j − θ_k) is built once, as SymPy's evaluation of it is the costly part)
+    cos = {(j, k): sp.cos(th[j] - th[k]) for k in range(1, n + 1) for j in range(1, k + 1)}
+    terms = [m_ * (n + 1) / 2 * dx**2, m_ * (n + 1) / 2 * dy**2, *(I_ / 2 * w**2 for w in dth)]
     for j in range(1, n + 1):
-        terms.append(m_ * L_ * (n + 1 - j) * dth[j] * (dx * sp.sin(th[j]) - dy * sp.cos(th[j])))
+        terms.append(m_ * L_ * (n + 1 - j) * dth[j] * dx * sp.sin(th[j]))
+        terms.append(-m_ * L_ * (n + 1 - j) * dth[j] * dy * sp.cos(th[j]))
         terms.append(m_ * L_**2 * (n + 1 - j) / 2 * dth[j] ** 2)
         for k in range(j + 1, n + 1):
-            terms.append(m_ * L_**2 * (n + 1 - k) * dth[j] * dth[k] * sp.cos(th[j] - th[k]))
-    T = sp.expand(sp.Add(*terms))
+            terms.append(m_ * L_**2 * (n + 1 - k) * dth[j] * dth[k] * cos[j, k])
+    T = sp.Add(*terms)
     cons = [
-        -sp.sin(ti) * dx + sp.cos(ti) * dy - L_ * sp.Add(*(dth[j] * sp.cos(th[j] - ti) for j in range(1, i + 1)))
+        -sp.sin(ti) * dx + sp.cos(ti) * dy - L_ * sp.Add(*(dth[j] * cos[j, i] for j in range(1, i + 1)))
         for i, ti in enumerate(th)
     ]
     return System([x, y, *th], T, cons, dependent=[y, *th[1:]], name=f"Chain of {n + 1} sleighs")

@@ -20,11 +20,14 @@ import numpy as np
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
+from ._fast import _back, _restore_map, native
+from ._native import is_quadratic, linear_split
 from ._symbols import TIME, Vars, simplify_small, functions_of_time, linear_coefficients, other_undefined
 from .errors import SystemDefinitionError
 
 if TYPE_CHECKING:
     from .equations import Equations
+    from ._native import Native
     from .integrability import IntegrabilityReport
     from .simulate import Trajectory
 
@@ -121,11 +124,11 @@ class System:
         self.n = len(self.coordinates)
         self._vars = Vars(self.coordinates)
         self._to_sym = self._vars.to_symbols()
-        self._to_fun = self._vars.to_functions()
+        self._to_fun = {value: key for key, value in self._to_sym.items()}
         v = self._vars
 
         self.kinetic_energy = _as_expr(kinetic_energy, "kinetic_energy")
-        self._T = self._convert(self.kinetic_energy, "kinetic_energy")
+        self._convert(self.kinetic_energy, "kinetic_energy", replace=False)  # _T when first needed
         self._check_kinetic_energy()
 
         if potential_energy is not None and force_function is not None:
@@ -162,7 +165,7 @@ class System:
         self.velocities = tuple(q.diff(TIME) for q in self.coordinates)
 
         symbols: set[sp.Symbol] = set()
-        for expr in (self._T, self._U, *self._Qnp, self._A, self._A0):
+        for expr in (self.kinetic_energy, self._U, *self._Qnp, *self._constraint_parts()):
             symbols |= expr.free_symbols
         symbols -= {TIME, *v.x, *v.xd, *v.xdd}
         self.parameters: tuple[sp.Symbol, ...] = tuple(sorted(symbols, key=lambda s: s.name))
@@ -206,8 +209,8 @@ class System:
             f"{', '.join(q.func.__name__ for q in self.coordinates)}."
         )
 
-    def _convert(self, expr: sp.Expr, what: str, *, allow_velocities: bool = True) -> sp.Expr:
-        """Check functions/derivatives in ``expr`` and replace them by plain symbols."""
+    def _convert(self, expr: sp.Expr, what: str, *, allow_velocities: bool = True, replace: bool = True) -> sp.Expr:
+        """Check functions/derivatives in ``expr`` and replace them by plain symbols (unless not ``replace``)."""
         coords = set(self.coordinates)
         unknown = functions_of_time(expr) - coords
         if unknown:
@@ -231,6 +234,8 @@ class System:
                     f"{what} contains {order} {_describe(d)}; only first time derivatives of "
                     "the coordinates (velocities) may appear."
                 )
+        if not replace:
+            return expr
         out = expr.xreplace(self._to_sym)
         if not allow_velocities and out.has(*self._vars.xd):
             raise SystemDefinitionError(f"{what} must not depend on the velocities.")
@@ -238,14 +243,18 @@ class System:
 
     def _check_kinetic_energy(self) -> None:
         xd = self._vars.xd
-        poly = sp.Poly(self._T, *xd) if self._T.is_polynomial(*xd) else None
-        if poly is None or poly.total_degree() > 2:
+        T = self._native_T
+        quadratic = None if T is None else is_quadratic(T, self._native_xd)  # (degree <= 2, degree == 2)
+        if quadratic is None:  # not shown by SymEngine: SymPy's Poly decides
+            poly = sp.Poly(self._T, *xd) if self._T.is_polynomial(*xd) else None
+            quadratic = (False, True) if poly is None else (poly.total_degree() <= 2, poly.total_degree() >= 2)
+        if not quadratic[0]:
             raise SystemDefinitionError(
                 "kinetic_energy is not quadratic in the velocities: T must be a polynomial of "
                 f"degree at most 2 in the velocities of {', '.join(q.func.__name__ for q in self.coordinates)}; "
                 f"got T = {_describe(self.kinetic_energy)}."
             )
-        if poly.total_degree() < 2:
+        if not quadratic[1]:
             raise SystemDefinitionError(
                 "kinetic_energy has no term quadratic in the velocities; "
                 f"got T = {_describe(self.kinetic_energy)}."
@@ -325,9 +334,10 @@ class System:
         self._ind = tuple(i for i in range(self.n) if i not in dep)
         self._check_counts()
         rows, consts = [], []
+        fast = self._internal_native(exprs)  # SymEngine where it can, SymPy (A built here) where not
         for k, expr in enumerate(exprs):
-            e = self._convert(expr, f"constraints[{k}]")
-            split = linear_coefficients(e, list(v.xd))
+            e = self._convert(expr, f"constraints[{k}]", replace=fast is None)
+            split = linear_coefficients(e, list(v.xd)) if fast is None else linear_split(fast[k], self._native_xd)
             if split is None:
                 raise SystemDefinitionError(
                     f"constraints[{k}] is not linear in the velocities: {_describe(expr)}. "
@@ -341,13 +351,48 @@ class System:
             rows.append(split[0])
             consts.append(split[1])
         g = len(exprs)
-        self._A = sp.Matrix(g, self.n, [c for r in rows for c in r])
-        self._A0 = sp.Matrix(g, 1, consts)
+        if fast is None:
+            self._A = sp.Matrix(g, self.n, [c for r in rows for c in r])
+            self._A0 = sp.Matrix(g, 1, consts)
+        else:
+            self._native_A = (rows, consts)
+            self._restore = _restore_map(exprs)
         if g:
             self._check_dependent_block()  # B and B_0 are solved for when first needed
         else:
             self._B = sp.zeros(0, self.n)
             self._B0 = sp.zeros(0, 1)
+
+    @cached_property
+    def _A(self) -> sp.Matrix:
+        """``A`` of the constraints ``A q̇ + A_0 = 0`` (eq. (1)), from SymEngine's (form A) when first needed."""
+        self._split_native_A()
+        return self.__dict__["_A"]
+
+    @cached_property
+    def _A0(self) -> sp.Matrix:
+        """``A_0`` of the constraints (see :attr:`_A`)."""
+        self._split_native_A()
+        return self.__dict__["_A0"]
+
+    def _split_native_A(self) -> None:
+        rows, consts = self._native_A
+        flat = [sp.factor_terms(e) for e in _back([*(c for r in rows for c in r), *consts], self._restore)]
+        self.__dict__["_A"] = sp.Matrix(self.g, self.n, flat[: self.g * self.n])
+        self.__dict__["_A0"] = sp.Matrix(self.g, 1, flat[self.g * self.n :])
+
+    def _pending_A(self) -> tuple[list[list[Any]], list[Any]] | None:
+        """SymEngine's ``(rows of A, A_0)`` while SymPy's are not built (form A), else None."""
+        return None if "_A" in self.__dict__ else self.__dict__.get("_native_A")
+
+    def _constraint_matrix(self) -> Any:
+        """``A`` for numerical checks: SymEngine's while there is no SymPy one, else :attr:`_A`."""
+        pending = self._pending_A()
+        if pending is None:
+            return self._A
+        from symengine import DenseMatrix
+
+        return DenseMatrix(pending[0])
 
     @cached_property
     def _B(self) -> sp.Matrix:
@@ -389,7 +434,7 @@ class System:
                 "constraints than coordinates (at least one independent velocity)."
             )
 
-    def _numeric_samples(self, *matrices: sp.Matrix) -> list[list[np.ndarray]]:
+    def _numeric_samples(self, *matrices: Any) -> list[list[np.ndarray]]:
         """The ``matrices`` (free of velocities) at the same random configurations.
 
         Plain substitution and ``evalf``: for the few samples a check needs this is
@@ -399,8 +444,10 @@ class System:
         from ._sampling import COORDINATE_RANGE, PARAMETER_RANGE
 
         rng = np.random.default_rng(20000843)
-        free = set().union(*(m.free_symbols for m in matrices))
-        params = sorted(free - {TIME, *self._vars.x}, key=str)
+        # SymPy or SymEngine matrices: SymEngine's symbols come back without assumptions, so a
+        # parameter is its name (the internal symbols are Dummies, which keep their identity)
+        found = {sp.sympify(s) for m in matrices for s in m.free_symbols} - {TIME, *self._vars.x}
+        params = sorted({s.name: s for s in found}.values(), key=str)
         args = [TIME, *self._vars.x, *params]
         fast = evaluator(args, [e for m in matrices for e in m])
         out = []
@@ -414,8 +461,10 @@ class System:
                 out.append([flat[a:b].reshape(m.shape) for m, a, b in zip(matrices, sizes, sizes[1:])])
                 continue
             floats = {k: sp.Float(v) for k, v in values.items()}
+            floats.update({s: floats[next(p for p in params if p.name == s.name)] for s in found})
             sample = []
             for m in matrices:
+                m = m if isinstance(m, sp.MatrixBase) else sp.Matrix(m.tolist())
                 try:
                     sample.append(np.array(m.xreplace(floats).evalf().tolist(), dtype=complex).reshape(m.shape))
                 except TypeError:  # zoo or nan: a singular point
@@ -434,7 +483,7 @@ class System:
 
     def _check_dependent_block(self) -> None:
         g = len(self._dep)
-        samples = [a for (a,) in self._numeric_samples(self._A)]
+        samples = [a for (a,) in self._numeric_samples(self._constraint_matrix())]
         if not any(self._full_rank(a) for a in samples):
             raise SystemDefinitionError(
                 "constraints: the constraints are not independent (the constraint matrix A has "
@@ -455,8 +504,11 @@ class System:
         )
 
     def _check_reduced_mass_matrix(self) -> None:
+        from symengine import DenseMatrix
+
+        mass = self._M if self._native is None else DenseMatrix(self._native.H)
         samples = [
-            c.T @ m @ c for m, a in self._numeric_samples(self._M, self._A)
+            c.T @ m @ c for m, a in self._numeric_samples(mass, self._constraint_matrix())
             if (c := self._numeric_C(a)) is not None
         ]
         if not any(self._full_rank(m) for m in samples):
@@ -484,6 +536,48 @@ class System:
         from ._fast import gradient, jacobian
 
         return jacobian(gradient(self._T, self._vars.xd), self._vars.xd)
+
+    @cached_property
+    def _T(self) -> sp.Expr:
+        """The kinetic energy in internal symbols."""
+        return self.kinetic_energy.xreplace(self._to_sym)
+
+    def _internal_native(self, exprs: Sequence[sp.Expr]) -> list[Any] | None:
+        """User expressions in internal symbols, in SymEngine (converted as they are and substituted
+        there: SymPy's substitution costs more); None if SymEngine cannot represent them."""
+        fast = native([*exprs, *self._to_sym, *self._to_sym.values()])
+        if fast is None:
+            return None
+        k, m = len(exprs), len(self._to_sym)
+        rule = dict(zip(fast[k : k + m], fast[k + m :]))
+        return [e.subs(rule) for e in fast[:k]]
+
+    @cached_property
+    def _native_T(self) -> Any:
+        """The kinetic energy in internal symbols, in SymEngine; None if it cannot be represented."""
+        fast = self._internal_native([self.kinetic_energy])
+        return None if fast is None else fast[0]
+
+    @cached_property
+    def _native_xd(self) -> list[Any]:
+        """The internal velocity symbols, in SymEngine."""
+        return native(self._vars.xd)
+
+    def _constraint_parts(self) -> list[Any]:
+        """``A`` and ``A_0`` or, before SymEngine's are converted, the symbols in them (for :attr:`parameters`)."""
+        pending = self._pending_A()
+        if pending is None:
+            return [self._A, self._A0]
+        rows, consts = pending
+        found = {sp.sympify(x) for e in [*(c for r in rows for c in r), *consts] for x in e.free_symbols}
+        return [self._restore.get(x, x) for x in found]
+
+    @cached_property
+    def _native(self) -> Native | None:
+        """The system as SymEngine expressions (:mod:`chaplygin._native`); None if it cannot be."""
+        from ._native import load
+
+        return load(self)
 
     @cached_property
     def _C(self) -> sp.Matrix:

@@ -1,0 +1,130 @@
+"""The Chetaev model's ``M·x = F`` derived in SymEngine, for generated code.
+
+:func:`chetaev_equations` derives the equations the user reads in SymPy; code
+generation needs only the numbers, and deriving them in SymEngine end to end
+(no conversion back, no SymPy assumption queries) is what makes a chain of
+nine sleighs derive and generate in a tenth of a second.  The system enters
+as SymEngine expressions once (:class:`Native`, cached on the system) and
+:func:`chetaev_matrices` returns exactly the matrices of
+:func:`chaplygin.multipliers.multiplier_equations` for the Chetaev model,
+unknowns ``[q̈_1 … q̈_n, λ_1 … λ_g]`` (eq. (6)/(35))::
+
+    [ H   −Aᵀ ] [q̈]   [ Q − Σ_j ∂p/∂q_j q̇_j − ∂p/∂t + ∂T/∂q ]
+    [ A    0  ] [λ ] = [ −Ȧ q̇ − Ȧ_0                          ]
+
+with ``p = ∂T/∂q̇`` and ``H = ∂p/∂q̇``.  Systems SymEngine cannot represent
+give ``None`` and the SymPy derivation is used.  ``tests/test_native.py``
+checks the matrices against the SymPy ones on random systems.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
+
+import symengine as se
+
+from ._fast import native
+from ._symbols import TIME
+
+if TYPE_CHECKING:
+    from .system import System
+
+__all__ = ["Native", "load", "chetaev_matrices", "is_quadratic", "linear_split"]
+
+
+@dataclass(frozen=True)
+class Native:
+    """A system's data as SymEngine expressions (internal symbols).
+
+    ``A`` is g × n (rows of the constraint matrix), ``Q`` the total
+    generalized forces ``∂U/∂q_s + Q_s^{np}``.
+    """
+
+    t: Any
+    x: list[Any]
+    xd: list[Any]
+    T: Any
+    U: Any
+    Q: list[Any]
+    A: list[list[Any]]
+    A0: list[Any]
+
+    @cached_property
+    def p(self) -> list[Any]:
+        """The momenta ``∂T/∂q̇_s``."""
+        return [self.T.diff(xd) for xd in self.xd]
+
+    @cached_property
+    def H(self) -> list[list[Any]]:
+        """The mass matrix ``∂²T/∂q̇_s∂q̇_j`` (rows)."""
+        return [[ps.diff(xd) for xd in self.xd] for ps in self.p]
+
+
+def load(system: System) -> Native | None:
+    """The system as SymEngine expressions, or None where SymEngine cannot represent it."""
+    v, n, g = system._vars, system.n, system.g
+    split = system.__dict__.get("_native_A")  # form A, read in SymEngine
+    A, A0 = split if split is not None else (system._A.tolist(), list(system._A0))
+    flat = [TIME, *v.x, *v.xd, system._native_T, system._U, *system._Qnp, *(a for row in A for a in row), *A0]
+    fast = None if flat[1 + 2 * n] is None else native(flat)
+    if fast is None:
+        return None
+    t, x, xd = fast[0], fast[1 : 1 + n], fast[1 + n : 1 + 2 * n]
+    T, U, rest = fast[1 + 2 * n], fast[2 + 2 * n], fast[3 + 2 * n :]
+    Q = [U.diff(xs) + q for xs, q in zip(x, rest[:n])]
+    rows = [rest[n + b * n : n + (b + 1) * n] for b in range(g)]
+    return Native(t, x, xd, T, U, Q, rows, rest[n + g * n :])
+
+
+def _total_derivative(e: Any, nat: Native) -> Any:
+    """``∂e/∂t + Σ_j ∂e/∂q_j q̇_j`` (``e`` free of accelerations)."""
+    return e.diff(nat.t) + sum((e.diff(x) * xd for x, xd in zip(nat.x, nat.xd)), se.Integer(0))
+
+
+def chetaev_matrices(nat: Native) -> tuple[list[list[Any]], list[Any]]:
+    """``(M, F)`` of the Chetaev model, eq. (6): M as rows, unknowns ``[q̈, λ]``."""
+    n, g = len(nat.x), len(nat.A)
+    M = [nat.H[s] + [-nat.A[b][s] for b in range(g)] for s in range(n)]
+    M += [list(nat.A[b]) + [se.Integer(0)] * g for b in range(g)]
+    F = [nat.Q[s] - _total_derivative(nat.p[s], nat) + nat.T.diff(nat.x[s]) for s in range(n)]
+    phi = [sum((a * xd for a, xd in zip(nat.A[b], nat.xd)), nat.A0[b]) for b in range(g)]
+    F += [-_total_derivative(e, nat) for e in phi]
+    return M, F
+
+
+def is_quadratic(T: Any, xd: list[Any]) -> tuple[bool, bool] | None:
+    """``(True, has a quadratic term)`` where ``T`` is shown a polynomial of degree ≤ 2 in ``xd``.
+
+    It is one when its Hessian in ``xd`` is free of them and its second-order
+    Taylor polynomial about ``xd = 0`` expands to ``T`` itself.  None where this
+    does not show it (SymPy's ``Poly`` then decides, and explains a refusal).
+    """
+    zero = {v: se.Integer(0) for v in xd}
+    p = [T.diff(v) for v in xd]
+    H = [[pi.diff(v) for v in xd] for pi in p]
+    speeds = set(xd)
+    if any(h.free_symbols & speeds for row in H for h in row):
+        return None
+    taylor = T.xreplace(zero) + sum((pi.xreplace(zero) * v for pi, v in zip(p, xd)), se.Integer(0))
+    taylor += sum((H[i][j] * xd[i] * xd[j] for i in range(len(xd)) for j in range(len(xd))), se.Integer(0)) / 2
+    if se.expand(T - taylor) != 0:
+        return None
+    return True, any(h != 0 for row in H for h in row)
+
+
+def linear_split(e: Any, xd: list[Any]) -> tuple[list[Any], Any] | None:
+    """``e = Σ c_i q̇_i + c_0`` with the ``c`` free of ``xd`` (SymEngine), or None if ``e`` is not affine.
+
+    The SymEngine counterpart of :func:`chaplygin._symbols.linear_coefficients`
+    (which also factors the coefficients; :attr:`System._A` does that on conversion).
+    """
+    speeds = set(xd)
+    coeffs = [e.diff(v) for v in xd]
+    if any(c.free_symbols & speeds for c in coeffs):
+        e = se.expand(e)
+        coeffs = [e.diff(v) for v in xd]
+        if any(c.free_symbols & speeds for c in coeffs):
+            return None
+    return coeffs, e.xreplace({v: se.Integer(0) for v in xd})

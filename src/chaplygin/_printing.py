@@ -1,0 +1,150 @@
+"""Python and C source for SymEngine expressions: the printers of generated code.
+
+Generated code is printed straight from the SymEngine expressions that
+SymEngine's ``cse`` returns, without converting them back to SymPy (at a
+thousand lines that conversion and SymPy's printers cost more than deriving
+the equations).  The output follows SymPy's ``PythonCodePrinter`` and
+``C99CodePrinter``: ``math.``-qualified functions in Python, ``math.h`` in C,
+negative powers as divisions, rationals as floating-point quotients, floats
+with every digit (``repr``).  Operands are parenthesised by precedence.
+Anything else (a function neither language has here, ``oo``, ``I``) and
+every SymPy expression (SymPy's cse, where SymEngine cannot represent a model)
+is printed by SymPy's printers.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import symengine as se
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+from sympy.printing.pycode import PythonCodePrinter
+
+__all__ = ["NotPrintable", "code"]
+
+
+class NotPrintable(Exception):
+    """This printer has no translation of a node; print the expression with SymPy."""
+
+
+_ONE_ARG = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh",
+            "asinh", "acosh", "atanh", "exp", "log", "floor")
+#: SymEngine function name → (Python, C)
+_FUNCTIONS: dict[str, tuple[str, str]] = {
+    **{name: (f"math.{name}", name) for name in _ONE_ARG},
+    "ceiling": ("math.ceil", "ceil"),
+    "Abs": ("abs", "fabs"),
+    "atan2": ("math.atan2", "atan2"),
+    "Max": ("max", "fmax"),
+    "Min": ("min", "fmin"),
+}
+_CONSTANTS = {"Pi": math.pi, "Exp1": math.e}
+
+# precedence: atoms and calls bind tightest, then powers, products, unary minus, sums
+_ADD, _NEG, _MUL, _POW, _ATOM = 1, 2, 3, 4, 5
+_REAL = (se.Integer, se.Rational, se.RealDouble)
+
+
+def code(expr: Any, language: str) -> str:
+    """``expr`` (SymEngine or SymPy) as a ``"python"`` or ``"c"`` expression.
+
+    Raises
+    ------
+    sympy.printing.codeprinter.PrintMethodNotImplementedError
+        For a function C has no translation of (``language="c"``).
+    """
+    if not isinstance(expr, sp.Basic):
+        try:
+            return _print(expr, language == "c")[0]
+        except NotPrintable:
+            expr = expr._sympy_()
+    if language == "c":
+        return C99CodePrinter({"strict": True}).doprint(expr)
+    return PythonCodePrinter({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
+
+
+def _negative(e: Any) -> bool:
+    """A real number below 0, or a product whose numerical coefficient is."""
+    if isinstance(e, se.Mul):
+        e = e.args[0]
+    return isinstance(e, _REAL) and float(e) < 0
+
+
+def _print(e: Any, c: bool) -> tuple[str, int]:
+    """(source, precedence) of ``e``; ``c``: C, else Python."""
+    if isinstance(e, se.Dummy):  # never in generated code: every symbol is renamed first
+        raise NotPrintable(f"Dummy {e}")
+    if isinstance(e, se.Symbol):
+        return e.name, _ATOM
+    if isinstance(e, _REAL) and _negative(e):
+        return f"-{_print(-e, c)[0]}", _NEG
+    if isinstance(e, se.Integer):
+        return str(int(e)), _ATOM
+    if isinstance(e, se.Rational):
+        p, q = int(e.p), int(e.q)
+        return (f"({p}.0/{q}.0)" if c else f"({p}/{q})"), _ATOM
+    if isinstance(e, se.RealDouble):
+        value = float(e)
+        if not math.isfinite(value):
+            raise NotPrintable(str(e))
+        return repr(value), _ATOM
+    name = type(e).__name__
+    if name in _CONSTANTS:
+        return repr(_CONSTANTS[name]), _ATOM
+    if isinstance(e, se.Add):
+        return _add(e, c), _ADD
+    if isinstance(e, se.Mul):
+        return _mul(e, c)
+    if isinstance(e, se.Pow):
+        return _pow(e, c)
+    if name in _FUNCTIONS:
+        args = ", ".join(_print(a, c)[0] for a in e.args)
+        return f"{_FUNCTIONS[name][c]}({args})", _ATOM
+    raise NotPrintable(name)
+
+
+def _wrap(part: tuple[str, int], above: int) -> str:
+    """The source of ``part``, in parentheses unless it binds tighter than ``above``."""
+    text, prec = part
+    return text if prec > above else f"({text})"
+
+
+def _add(e: Any, c: bool) -> str:
+    out = ""
+    for term in e.args:
+        if out and _negative(term):
+            out += " - " + _wrap(_print(-term, c), _NEG)
+        else:
+            out += (" + " if out else "") + _wrap(_print(term, c), _ADD)
+    return out
+
+
+def _mul(e: Any, c: bool) -> tuple[str, int]:
+    if _negative(e):
+        return "-" + _wrap(_print(-e, c), _NEG), _NEG
+    num, den = [], []
+    for f in e.args:
+        if isinstance(f, se.Pow) and _negative(f.args[1]):
+            den.append(f.args[0] ** -f.args[1])
+        else:
+            num.append(f)
+    top = "*".join(_wrap(_print(f, c), _MUL) for f in num) or ("1.0" if c else "1")
+    if not den:
+        return top, _MUL
+    bottom = "*".join(_wrap(_print(f, c), _MUL) for f in den)
+    return f"{top}/{bottom if len(den) == 1 and not isinstance(den[0], se.Mul) else f'({bottom})'}", _MUL
+
+
+def _pow(e: Any, c: bool) -> tuple[str, int]:
+    base, exp = e.args
+    if type(base).__name__ == "Exp1":
+        return f"{_FUNCTIONS['exp'][c]}({_print(exp, c)[0]})", _ATOM
+    if _negative(exp):
+        return f"{'1.0' if c else '1'}/{_wrap(_print(base ** -exp, c), _MUL)}", _MUL
+    if exp == se.S.Half:
+        return f"{'sqrt' if c else 'math.sqrt'}({_print(base, c)[0]})", _ATOM
+    if c:
+        return f"pow({_print(base, c)[0]}, {_print(exp, c)[0]})", _ATOM
+    return f"{_wrap(_print(base, c), _POW)}**{_wrap(_print(exp, c), _POW)}", _POW

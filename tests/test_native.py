@@ -1,0 +1,186 @@
+"""The SymEngine path: Chetaev matrices, constraint splitting, the T check and the code printers.
+
+Each is checked against an independent computation: the SymPy derivation of
+the same system evaluated by ``randomsystems``' own ``xreplace`` + ``evalf``
+oracle, SymPy's ``linear_coefficients``/``Poly``, and SymEngine's numerical
+evaluation of the expressions the printers print.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import symengine as se
+import sympy as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from sympy.physics.mechanics import dynamicsymbols
+from sympy.printing.codeprinter import PrintMethodNotImplementedError
+
+from chaplygin import System, examples
+from chaplygin._native import chetaev_matrices, is_quadratic, linear_split
+from chaplygin._printing import code
+from chaplygin._symbols import linear_coefficients
+from randomsystems import Spec, matrix, random_state, systems
+
+t = dynamicsymbols._t
+
+
+def _numbers(system: System, values: dict) -> dict:
+    """``values`` (user symbols) for SymEngine's internal symbols; parameters by name."""
+    nat = system._native
+    out = {nat.t: float(values[t])}
+    for q, x, xd in zip(system.coordinates, nat.x, nat.xd):
+        out[x] = float(values[q])
+        out[xd] = float(values[q.diff(t)])
+    out.update({se.Symbol(p.name): float(values[p]) for p in system.parameters})
+    return out
+
+
+def _evaluate(exprs: list, numbers: dict) -> np.ndarray:
+    return np.array([float(se.sympify(e).subs(numbers)) for e in exprs])
+
+
+@given(spec=systems(), seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=15, deadline=None)
+def test_chetaev_matrices_equal_the_sympy_derivation(spec: Spec, seed: int) -> None:
+    """Form A and B, affine, time-dependent, with forces: (M, F) of eq. (6) agree at random states."""
+    system = spec.system
+    assert system._native is not None
+    M, F = chetaev_matrices(system._native)
+    eqs = system.equations("chetaev")
+    values = random_state(system, np.random.default_rng(seed))
+    numbers = _numbers(system, values)
+    dim = system.n + system.g
+    np.testing.assert_allclose(_evaluate([e for row in M for e in row], numbers).reshape(dim, dim),
+                               matrix(eqs.mass_matrix, values), rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(_evaluate(F, numbers), matrix(eqs.forcing, values)[:, 0], rtol=1e-10, atol=1e-10)
+
+
+@given(spec=systems())
+@settings(max_examples=15, deadline=None)
+def test_constraints_read_in_symengine_equal_sympys_split(spec: Spec) -> None:
+    """A and A_0 (converted lazily from SymEngine in form A) equal SymPy's split of the same constraints."""
+    system = spec.system
+    phi = system._A * sp.Matrix(system._vars.xd) + system._A0
+    for b in range(system.g):
+        coeffs, rest = linear_coefficients(sp.expand(phi[b]), list(system._vars.xd))
+        assert all(sp.expand(c - a) == 0 for c, a in zip(coeffs, system._A.row(b)))
+        assert sp.expand(rest - system._A0[b]) == 0
+    if system.constraint_form == "A":
+        assert "_native_A" in system.__dict__
+
+
+def test_a_form_a_chain_keeps_its_symbols_assumptions() -> None:
+    chain = examples.sleigh_chain(3)
+    assert "_A" not in chain.__dict__  # A is converted to SymPy only when SymPy needs it
+    assert [p.name for p in chain.parameters] == ["I", "L", "m"]
+    assert all(p.is_positive for p in chain.parameters)
+    assert all(p.is_positive for p in chain._A.free_symbols & set(chain.parameters))
+    assert chain._A.free_symbols & set(chain.parameters) == {chain.parameter("L")}
+
+
+def test_linear_split_refuses_what_is_not_affine() -> None:
+    x, v, w = se.symbols("x v w")
+    coeffs, rest = linear_split(se.sin(x) * v + (v + 1) * (w - 2) - v * w, [v, w])
+    assert se.expand(coeffs[0] - (se.sin(x) - 2)) == 0 and coeffs[1] == 1 and rest == -2
+    assert linear_split(v * w + x, [v, w]) is None
+    assert linear_split(se.cos(v), [v, w]) is None
+
+
+def test_is_quadratic_against_poly() -> None:
+    x, v, w, m = se.symbols("x v w m")
+    assert is_quadratic(m * v**2 / 2 + se.sin(x) * v * w + x * w, [v, w]) == (True, True)
+    assert is_quadratic((v + se.cos(x) * w) ** 2 / (1 + x**2), [v, w]) == (True, True)
+    assert is_quadratic(x * v + 3, [v, w]) == (True, False)
+    assert is_quadratic(se.Integer(0), [v, w]) == (True, False)
+    # not shown: SymPy's Poly decides (and refuses these, see test_validation)
+    assert is_quadratic(v**3 + w**2, [v, w]) is None
+    assert is_quadratic(se.sqrt(1 + v**2), [v, w]) is None
+
+
+# ------------------------------------------------------------------ printers
+X, Y, Z = se.symbols("x y z")
+POINT = {X: 1.7, Y: 1.3, Z: 0.4}
+CASES = [
+    se.sin(X) ** 2 * Y / 3, -X * Y / (Z + 1), X**-2, -(X**2), (X + Y) ** -3, se.sqrt(X) / Y, 1 / se.sqrt(X * Y),
+    (X - Y) ** se.Rational(1, 3), -se.Rational(3, 7) * X + Y - Z, se.exp(X * Y) - se.pi * X,
+    se.atan2(X, Y) * se.Abs(Z), X**Y, -(X + Y) * (Z - X), se.RealDouble(-0.1) * X + se.RealDouble(1 / 3),
+    se.Max(X, Y) - se.Min(X, Z), se.E ** (-X), 2 / (X * Y), -2 / (X * Y**2), X * Y**-1 * Z**-2,
+    se.cosh(X) / se.tanh(Y), se.Integer(-3), (X**2) ** Y, X ** (Y**2), -(X**-1), se.Rational(-1, 2) * X**2,
+    -((X * Y) ** Z), 1 / (X + Y) - 1 / (X - Y), se.floor(3 * X), se.RealDouble(0.1) * se.RealDouble(3.0) ** X,
+]
+
+
+def _operands() -> st.SearchStrategy:
+    leaves = st.sampled_from([X, Y, Z, se.Integer(2), se.Integer(-3), se.Rational(2, 7), se.RealDouble(0.3)])
+
+    def grow(children: st.SearchStrategy) -> st.SearchStrategy:
+        pairs = st.tuples(children, children)
+        return st.one_of(
+            pairs.map(lambda ab: ab[0] + ab[1]), pairs.map(lambda ab: ab[0] - ab[1]),
+            pairs.map(lambda ab: ab[0] * ab[1]), pairs.map(lambda ab: ab[0] / (ab[1] ** 2 + 1)),
+            st.tuples(children, st.integers(-3, 3)).map(lambda ab: (ab[0] ** 2 + 1) ** ab[1]),
+            children.map(se.sin), children.map(se.cos), children.map(lambda a: se.sqrt(a**2 + 1)),
+            children.map(lambda a: -a), children.map(lambda a: se.exp(a / (a**2 + 1))),
+        )
+
+    return st.recursive(leaves, grow, max_leaves=12)
+
+
+def _python(expr: se.Basic) -> float:
+    return eval(code(expr, "python"), {"math": math, "x": POINT[X], "y": POINT[Y], "z": POINT[Z]})  # noqa: S307
+
+
+def _close(got: float, expected: float) -> bool:
+    return abs(got - expected) <= 1e-12 * max(1.0, abs(expected))
+
+
+@pytest.mark.parametrize("expr", CASES, ids=str)
+def test_python_printer(expr: se.Basic) -> None:
+    assert _close(_python(expr), float(expr.subs(POINT)))
+
+
+@given(expr=_operands())
+@settings(max_examples=200, deadline=None)
+def test_python_printer_on_random_expressions(expr: se.Basic) -> None:
+    assert _close(_python(expr), float(expr.subs(POINT)))
+
+
+def test_printer_falls_back_to_sympy() -> None:
+    """A function these printers do not know is printed by SymPy's printers (as before them)."""
+    x = sp.Symbol("x")
+    assert code(se.sympify(sp.erf(x)), "python") == "math.erf(x)"
+    assert code(se.sympify(sp.erf(x)), "c") == "erf(x)"
+    with pytest.raises(PrintMethodNotImplementedError, match="besselj"):
+        code(se.sympify(sp.besselj(0, x)), "c")
+
+
+_CC = shutil.which("cc") or shutil.which("gcc")
+
+
+@pytest.mark.skipif(_CC is None, reason="no C compiler")
+@given(extra=st.lists(_operands(), min_size=20, max_size=20))
+@settings(max_examples=5, deadline=None)
+def test_c_printer(extra: list) -> None:
+    import ctypes
+    import tempfile
+    from pathlib import Path
+
+    exprs = CASES + extra
+    lines = ["#include <math.h>"]
+    lines += [f"double f{k}(double x, double y, double z) {{ return {code(e, 'c')}; }}" for k, e in enumerate(exprs)]
+    with tempfile.TemporaryDirectory() as tmp:
+        source, library = Path(tmp) / "f.c", Path(tmp) / "f.so"
+        source.write_text("\n".join(lines))
+        subprocess.run([_CC, "-std=c99", "-O2", "-fPIC", "-shared", str(source), "-o", str(library), "-lm"],
+                       check=True)
+        lib = ctypes.CDLL(str(library))
+        for k, e in enumerate(exprs):
+            f = getattr(lib, f"f{k}")
+            f.restype, f.argtypes = ctypes.c_double, [ctypes.c_double] * 3
+            assert _close(f(POINT[X], POINT[Y], POINT[Z]), float(e.subs(POINT))), (e, code(e, "c"))
