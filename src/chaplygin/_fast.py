@@ -56,12 +56,29 @@ def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp
     return [e.xreplace(restore) for e in out] if restore else out
 
 
+def _real(exprs: Sequence[sp.Expr]) -> tuple[dict[sp.Symbol, sp.Symbol], dict[sp.Symbol, sp.Symbol]]:
+    """Real stand-ins for the symbols of ``exprs`` without assumptions (the internal ones, ``t``), and back.
+
+    SymPy differentiates ``Abs``, ``sign``, ``re`` and ``im`` of real arguments in closed form
+    (``d|x|/dx = sign(x)``); of a symbol it knows nothing about it leaves unevaluated
+    derivatives of ``re`` and ``im`` that nothing can evaluate or print.
+    """
+    plain = {s for e in exprs for s in e.free_symbols if isinstance(s, sp.Symbol) and s.is_real is None}
+    real = {s: sp.Dummy(s.name, real=True) for s in plain}
+    return real, {v: k for k, v in real.items()}
+
+
+def _sympy_jacobian(exprs: list[sp.Expr], variables: list[sp.Symbol]) -> sp.Matrix:
+    real, back = _real(exprs + variables)
+    return sp.Matrix(exprs).xreplace(real).jacobian([real.get(v, v) for v in variables]).xreplace(back)
+
+
 def jacobian(exprs: Sequence[sp.Expr], variables: Sequence[sp.Symbol]) -> sp.Matrix:
     """``∂ exprs_i / ∂ variables_j`` as a SymPy matrix."""
     exprs, variables = list(exprs), list(variables)
     fast = _convert(exprs + variables)
     if fast is None:
-        return sp.Matrix(exprs).jacobian(variables)
+        return _sympy_jacobian(exprs, variables)
     fe, fv = fast[: len(exprs)], fast[len(exprs) :]
     flat = _back([e.diff(x) for e in fe for x in fv], _restore_map(exprs))
     return sp.Matrix(len(exprs), len(variables), flat)
@@ -79,10 +96,8 @@ def total_derivative(
     pairs = [(x, xd) for x, xd in pairs if xd != 0]
     fast = _convert([expr, time, *(x for x, _ in pairs), *(xd for _, xd in pairs)])
     if fast is None:
-        out = sp.diff(expr, time)
-        for x, xd in pairs:
-            out += sp.diff(expr, x) * xd
-        return out
+        grad = _sympy_jacobian([expr], [time, *(x for x, _ in pairs)])
+        return grad[0] + sp.Add(*(g * xd for g, (_, xd) in zip(list(grad)[1:], pairs)))
     k = len(pairs)
     f, ft, fx, fxd = fast[0], fast[1], fast[2 : 2 + k], fast[2 + k :]
     result = f.diff(ft)

@@ -601,7 +601,9 @@ class System:
     @cached_property
     def _Q(self) -> list[sp.Expr]:
         """Total generalized forces ``Q_s = ∂U/∂q_s + Q_s^{np}``."""
-        return [sp.diff(self._U, x) + q for x, q in zip(self._vars.x, self._Qnp)]
+        from ._fast import gradient
+
+        return [du + q for du, q in zip(gradient(self._U, self._vars.x), self._Qnp)]
 
     def to_user(self, expr: Any) -> Any:
         """Convert an internal expression (plain symbols) to dynamicsymbols."""
