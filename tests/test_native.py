@@ -133,7 +133,7 @@ def _operands() -> st.SearchStrategy:
 
 
 def _python(expr: se.Basic) -> float:
-    return eval(code(expr, "python"), {"math": math, "x": POINT[X], "y": POINT[Y], "z": POINT[Z]})  # noqa: S307
+    return eval(code(expr, "python"), {"math": math, "x": POINT[X], "y": POINT[Y], "z": POINT[Z]})
 
 
 def _close(got: float, expected: float) -> bool:

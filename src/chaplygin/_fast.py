@@ -17,8 +17,8 @@ from typing import Any
 import sympy as sp
 
 try:  # the import line names the converter; no user text ever reaches it
-    from symengine import Lambdify as _se_lambdify
     from symengine import DenseMatrix as _se_matrix
+    from symengine import Lambdify as _se_lambdify
     from symengine import Symbol as _se_symbol
     from symengine import cse as _se_cse
     from symengine import sympify as _to_symengine
@@ -27,7 +27,7 @@ try:  # the import line names the converter; no user text ever reaches it
 except ImportError:  # pragma: no cover - symengine is a dependency
     HAVE_SYMENGINE = False
 
-__all__ = ["jacobian", "gradient", "total_derivative", "native", "cse", "evaluator", "HAVE_SYMENGINE"]
+__all__ = ["HAVE_SYMENGINE", "cse", "evaluator", "gradient", "jacobian", "native", "total_derivative"]
 
 
 def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:

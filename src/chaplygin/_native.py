@@ -31,7 +31,7 @@ from ._symbols import TIME
 if TYPE_CHECKING:
     from .system import System
 
-__all__ = ["Native", "load", "chetaev_matrices", "is_quadratic", "linear_split"]
+__all__ = ["Native", "chetaev_matrices", "is_quadratic", "linear_split", "load"]
 
 
 @dataclass(frozen=True)
