@@ -2,8 +2,8 @@
 
 :func:`chetaev_equations` derives the equations the user reads in SymPy; code
 generation needs only the numbers, and deriving them in SymEngine end to end
-(no conversion back, no SymPy assumption queries) is what makes a chain of
-nine sleighs derive and generate in a tenth of a second.  The system enters
+(no conversion back, no SymPy assumption queries) derives and generates a
+chain of nine sleighs in about 0.06 s, where the SymPy route took 0.5 s.  The system enters
 as SymEngine expressions once (:class:`Native`, cached on the system) and
 :func:`chetaev_matrices` returns exactly the matrices of
 :func:`chaplygin.multipliers.multiplier_equations` for the Chetaev model,
