@@ -27,7 +27,7 @@ try:  # the import line names the converter; no user text ever reaches it
 except ImportError:  # pragma: no cover - symengine is a dependency
     HAVE_SYMENGINE = False
 
-__all__ = ["HAVE_SYMENGINE", "cse", "evaluator", "gradient", "jacobian", "native", "total_derivative"]
+__all__ = ["HAVE_SYMENGINE", "cse", "evaluator", "gradient", "jacobian", "native", "to_sympy", "total_derivative"]
 
 
 def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
@@ -107,8 +107,15 @@ def total_derivative(
     return _back([result], restore)[0]
 
 
+def to_sympy(value: Any) -> sp.Basic:
+    """A SymPy or SymEngine expression or a number as SymPy's (strict: text is refused, never parsed)."""
+    return sp.sympify(value, strict=True)
+
+
 def native(exprs: Sequence[Any]) -> list[Any] | None:
-    """``exprs`` (SymPy, SymEngine or numbers) as SymEngine expressions; None if SymEngine cannot."""
+    """``exprs`` (SymPy, SymEngine or numbers, never text) as SymEngine expressions; None if SymEngine cannot."""
+    if any(isinstance(e, str) for e in exprs):
+        raise TypeError("native() converts expressions, not text")
     sympy = [e for e in exprs if isinstance(e, sp.Basic)]
     converted = _convert(sympy) if sympy else []
     if converted is None:
@@ -129,7 +136,7 @@ def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]]
     fast = native(exprs)
     # SymEngine names its symbols x0, x1, …: a clash with the input's names takes SymPy's cse
     if fast is None or any(re.fullmatch(r"x\d+", str(s)) for e in fast for s in e.free_symbols):
-        return sp.cse([sp.sympify(e) for e in exprs], symbols=sp.numbered_symbols(prefix),
+        return sp.cse([to_sympy(e) for e in exprs], symbols=sp.numbered_symbols(prefix),
                       optimizations="basic")
     pairs, reduced = _se_cse(fast)
     rename = {s: _se_symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}

@@ -43,7 +43,7 @@ import numpy as np
 import sympy as sp
 
 from . import _cfill
-from ._fast import cse, native
+from ._fast import cse, native, to_sympy
 from ._native import chetaev_matrices
 from ._printing import code
 from .cache import cache_dir
@@ -243,7 +243,7 @@ def _plain(to_num: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
 def _common(items: list[Any]) -> list[Any]:
     """``items`` (SymPy or SymEngine) all as SymEngine expressions, or all as SymPy's if SymEngine cannot."""
     fast = native(items)
-    return fast if fast is not None else [sp.sympify(e) for e in items]
+    return fast if fast is not None else [to_sympy(e) for e in items]
 
 
 def _at(exprs: list[Any], plain: dict[sp.Symbol, sp.Expr]) -> list[Any]:

@@ -20,7 +20,7 @@ import numpy as np
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
-from ._fast import _back, _restore_map, native
+from ._fast import _back, _restore_map, native, to_sympy
 from ._native import is_quadratic, linear_split
 from ._symbols import TIME, Vars, simplify_small, functions_of_time, linear_coefficients, other_undefined
 from .errors import SystemDefinitionError
@@ -446,7 +446,7 @@ class System:
         rng = np.random.default_rng(20000843)
         # SymPy or SymEngine matrices: SymEngine's symbols come back without assumptions, so a
         # parameter is its name (the internal symbols are Dummies, which keep their identity)
-        found = {sp.sympify(s) for m in matrices for s in m.free_symbols} - {TIME, *self._vars.x}
+        found = {to_sympy(s) for m in matrices for s in m.free_symbols} - {TIME, *self._vars.x}
         params = sorted({s.name: s for s in found}.values(), key=str)
         args = [TIME, *self._vars.x, *params]
         fast = evaluator(args, [e for m in matrices for e in m])
@@ -569,7 +569,7 @@ class System:
         if pending is None:
             return [self._A, self._A0]
         rows, consts = pending
-        found = {sp.sympify(x) for e in [*(c for r in rows for c in r), *consts] for x in e.free_symbols}
+        found = {to_sympy(x) for e in [*(c for r in rows for c in r), *consts] for x in e.free_symbols}
         return [self._restore.get(x, x) for x in found]
 
     @cached_property
