@@ -20,7 +20,6 @@ checks the matrices against the SymPy ones on random systems.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import symengine as se
@@ -31,7 +30,7 @@ from ._symbols import TIME
 if TYPE_CHECKING:
     from .system import System
 
-__all__ = ["Native", "chetaev_matrices", "is_quadratic", "linear_split", "load"]
+__all__ = ["Native", "chetaev_matrices", "is_quadratic", "linear_split", "load", "momenta"]
 
 
 @dataclass(frozen=True)
@@ -50,32 +49,35 @@ class Native:
     Q: list[Any]
     A: list[list[Any]]
     A0: list[Any]
+    p: list[Any]
+    H: list[list[Any]]
 
-    @cached_property
-    def p(self) -> list[Any]:
-        """The momenta ``∂T/∂q̇_s``."""
-        return [self.T.diff(xd) for xd in self.xd]
 
-    @cached_property
-    def H(self) -> list[list[Any]]:
-        """The mass matrix ``∂²T/∂q̇_s∂q̇_j`` (rows)."""
-        return [[ps.diff(xd) for xd in self.xd] for ps in self.p]
+def momenta(T: Any, xd: list[Any]) -> tuple[list[Any], list[list[Any]]]:
+    """The momenta ``p_s = ∂T/∂q̇_s`` and the mass matrix ``H_sj = ∂p_s/∂q̇_j`` (rows)."""
+    p = [T.diff(v) for v in xd]
+    return p, [[ps.diff(v) for v in xd] for ps in p]
 
 
 def load(system: System) -> Native | None:
-    """The system as SymEngine expressions, or None where SymEngine cannot represent it."""
+    """The system as SymEngine expressions, or None where SymEngine cannot represent it.
+
+    T, the velocities and the momenta are the system's own (:attr:`System._native_T`,
+    computed once for the check of T); the rest is converted here.
+    """
+    if system._native_T is None:
+        return None
     v, n, g = system._vars, system.n, system.g
     split = system.__dict__.get("_native_A")  # form A, read in SymEngine
     A, A0 = split if split is not None else (system._A.tolist(), list(system._A0))
-    flat = [TIME, *v.x, *v.xd, system._native_T, system._U, *system._Qnp, *(a for row in A for a in row), *A0]
-    fast = None if flat[1 + 2 * n] is None else native(flat)
+    fast = native([TIME, *v.x, system._U, *system._Qnp, *(a for row in A for a in row), *A0])
     if fast is None:
         return None
-    t, x, xd = fast[0], fast[1 : 1 + n], fast[1 + n : 1 + 2 * n]
-    T, U, rest = fast[1 + 2 * n], fast[2 + 2 * n], fast[3 + 2 * n :]
+    t, x, U, rest = fast[0], fast[1 : 1 + n], fast[1 + n], fast[2 + n :]
     Q = [U.diff(xs) + q for xs, q in zip(x, rest[:n])]
     rows = [rest[n + b * n : n + (b + 1) * n] for b in range(g)]
-    return Native(t, x, xd, T, U, Q, rows, rest[n + g * n :])
+    return Native(t, x, system._native_xd, system._native_T, U, Q, rows, rest[n + g * n :],
+                  *system._native_momenta)
 
 
 def _total_derivative(e: Any, nat: Native) -> Any:
@@ -94,16 +96,15 @@ def chetaev_matrices(nat: Native) -> tuple[list[list[Any]], list[Any]]:
     return M, F
 
 
-def is_quadratic(T: Any, xd: list[Any]) -> tuple[bool, bool] | None:
+def is_quadratic(T: Any, xd: list[Any], p: list[Any], H: list[list[Any]]) -> tuple[bool, bool] | None:
     """``(True, has a quadratic term)`` where ``T`` is shown a polynomial of degree ≤ 2 in ``xd``.
 
-    It is one when its Hessian in ``xd`` is free of them and its second-order
-    Taylor polynomial about ``xd = 0`` expands to ``T`` itself.  None where this
-    does not show it (SymPy's ``Poly`` then decides, and explains a refusal).
+    ``p`` and ``H`` are :func:`momenta` of ``T``.  It is one when its Hessian
+    ``H`` is free of ``xd`` and its second-order Taylor polynomial about
+    ``xd = 0`` expands to ``T`` itself.  None where this does not show it
+    (SymPy's ``Poly`` then decides, and explains a refusal).
     """
     zero = {v: se.Integer(0) for v in xd}
-    p = [T.diff(v) for v in xd]
-    H = [[pi.diff(v) for v in xd] for pi in p]
     speeds = set(xd)
     if any(h.free_symbols & speeds for row in H for h in row):
         return None

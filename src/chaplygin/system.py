@@ -18,10 +18,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
+from symengine import DenseMatrix
 from sympy.core.function import AppliedUndef
 
-from ._fast import _back, _restore_map, native, to_sympy
-from ._native import is_quadratic, linear_split
+from ._fast import _back, _restore_map, evaluator, gradient, jacobian, native, to_sympy
+from ._native import is_quadratic, linear_split, momenta
 from ._symbols import TIME, Vars, simplify_small, functions_of_time, linear_coefficients, other_undefined
 from .errors import SystemDefinitionError
 
@@ -244,7 +245,7 @@ class System:
     def _check_kinetic_energy(self) -> None:
         xd = self._vars.xd
         T = self._native_T
-        quadratic = None if T is None else is_quadratic(T, self._native_xd)  # (degree <= 2, degree == 2)
+        quadratic = None if T is None else is_quadratic(T, self._native_xd, *self._native_momenta)
         if quadratic is None:  # not shown by SymEngine: SymPy's Poly decides
             poly = sp.Poly(self._T, *xd) if self._T.is_polynomial(*xd) else None
             quadratic = (False, True) if poly is None else (poly.total_degree() <= 2, poly.total_degree() >= 2)
@@ -390,8 +391,6 @@ class System:
         pending = self._pending_A()
         if pending is None:
             return self._A
-        from symengine import DenseMatrix
-
         return DenseMatrix(pending[0])
 
     @cached_property
@@ -440,7 +439,6 @@ class System:
         Plain substitution and ``evalf``: for the few samples a check needs this is
         much cheaper than compiling the expressions.
         """
-        from ._fast import evaluator
         from ._sampling import COORDINATE_RANGE, PARAMETER_RANGE
 
         rng = np.random.default_rng(20000843)
@@ -461,7 +459,8 @@ class System:
                 out.append([flat[a:b].reshape(m.shape) for m, a, b in zip(matrices, sizes, sizes[1:])])
                 continue
             floats = {k: sp.Float(v) for k, v in values.items()}
-            floats.update({s: floats[next(p for p in params if p.name == s.name)] for s in found})
+            by_name = {p.name: floats[p] for p in params}
+            floats.update({s: by_name[s.name] for s in found})
             sample = []
             for m in matrices:
                 m = m if isinstance(m, sp.MatrixBase) else sp.Matrix(m.tolist())
@@ -504,8 +503,6 @@ class System:
         )
 
     def _check_reduced_mass_matrix(self) -> None:
-        from symengine import DenseMatrix
-
         mass = self._M if self._native is None else DenseMatrix(self._native.H)
         samples = [
             c.T @ m @ c for m, a in self._numeric_samples(mass, self._constraint_matrix())
@@ -533,8 +530,6 @@ class System:
     @cached_property
     def _M(self) -> sp.Matrix:
         """Mass matrix ``∂²T/∂q̇_i∂q̇_j`` in internal symbols."""
-        from ._fast import gradient, jacobian
-
         return jacobian(gradient(self._T, self._vars.xd), self._vars.xd)
 
     @cached_property
@@ -557,6 +552,11 @@ class System:
         """The kinetic energy in internal symbols, in SymEngine; None if it cannot be represented."""
         fast = self._internal_native([self.kinetic_energy])
         return None if fast is None else fast[0]
+
+    @cached_property
+    def _native_momenta(self) -> tuple[list[Any], list[list[Any]]]:
+        """SymEngine's ``∂T/∂q̇`` and mass matrix (rows), for the check of T and :attr:`_native`."""
+        return momenta(self._native_T, self._native_xd)
 
     @cached_property
     def _native_xd(self) -> list[Any]:
@@ -601,8 +601,6 @@ class System:
     @cached_property
     def _Q(self) -> list[sp.Expr]:
         """Total generalized forces ``Q_s = ∂U/∂q_s + Q_s^{np}``."""
-        from ._fast import gradient
-
         return [du + q for du, q in zip(gradient(self._U, self._vars.x), self._Qnp)]
 
     def to_user(self, expr: Any) -> Any:
