@@ -70,7 +70,7 @@ def test_all_models_coincide_where_condition_28_holds(spec: Spec) -> None:
 
 @given(spec=systems(chaplygin=True, affine=False, forces=False, gyroscopic=False), seed=st.integers(0, 2**32 - 1))
 def test_vakonomic_motion_conserves_energy(spec: Spec, seed: int) -> None:
-    """Jacobi integral of L_v = T + U + μ·φ: T − U is conserved for any μ (theory §3)."""
+    """Jacobi integral of L_v = T + U + μ·φ: T − U is conserved for any μ (docs/theory.md, Energy)."""
     s = spec.system
     if not s.is_scleronomic:
         return

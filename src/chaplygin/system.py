@@ -1,6 +1,6 @@
 """The mechanical system: coordinates, kinetic energy, forces and linear velocity constraints.
 
-Notation follows the seed paper (Liang & Chen 2000) and ``shared/theory.md``:
+Notation follows the seed paper (Liang & Chen 2000) and ``docs/theory.md``:
 ``n`` coordinates, ``g`` constraints, ``ε = n − g`` independent coordinates
 ``q_σ`` and dependent ones ``q_{ε+β}``.  Constraints are accepted in
 
