@@ -10,7 +10,9 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
-from ._symbols import TIME, simplify_small
+from ._fast import gradient
+from ._rational import normal_all, simplified
+from ._symbols import TIME
 from .errors import ModelError
 
 if TYPE_CHECKING:
@@ -43,22 +45,19 @@ _TITLES = {
 }
 
 
-_TIDY_MAX_OPS = 400  # expanding and cancelling larger expressions costs more than it saves
+def readable(residuals: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol]) -> list[sp.Expr]:
+    """Each residual as ``Σ c_j x_j + c_0`` in the unknowns, every ``c`` in normal form (for display).
 
-
-def tidy(expr: sp.Expr) -> sp.Expr:
-    """Predictable tidying of a derived expression (no full ``simplify``); big ones stay as they are."""
-    if sp.count_ops(expr) > _TIDY_MAX_OPS:
-        return expr
-    return simplify_small(sp.cancel(sp.expand(expr)))
-
-
-def readable(expr: sp.Expr, unknowns: Sequence[sp.Symbol]) -> sp.Expr:
-    """Collect ``expr`` in the unknowns and simplify each coefficient (for display)."""
-    parts = sp.collect(sp.expand(expr), list(unknowns), evaluate=False)
-    out = sp.S.Zero
-    for key, coeff in parts.items():
-        out += simplify_small(coeff) * key
+    The residuals are affine in the unknowns; a residual that is not (a velocity
+    constraint of a multiplier model has no unknowns) is shown as a whole.
+    """
+    rows = [(gradient(r, list(unknowns)), r.xreplace({x: 0 for x in unknowns})) for r in residuals]
+    parts = normal_all([c for grad, rest in rows for c in (*grad, rest)])
+    out, k = [], 0
+    for grad, _ in rows:
+        coeffs, rest = parts[k : k + len(grad)], parts[k + len(grad)]
+        k += len(grad) + 1
+        out.append(sp.Add(*(c * x for c, x in zip(coeffs, unknowns)), rest))
     return out
 
 
@@ -131,8 +130,8 @@ class Equations:
     def equations(self) -> list[sp.Eq]:
         """The equations of motion, each as ``sympy.Eq(expression, 0)``."""
         return [
-            sp.Eq(self._user(readable(r, self._unknowns)), 0, evaluate=False)
-            for r in self._residuals
+            sp.Eq(self._user(r), 0, evaluate=False)
+            for r in readable(self._residuals, self._unknowns)
         ]
 
     @property
@@ -161,9 +160,29 @@ class Equations:
     def accelerations(self) -> dict[sp.Expr, sp.Expr]:
         """The solved unknowns: ``{q.diff(t, 2): expression, λ(t): expression}``.
 
-        Computed on first access (a symbolic solve of a small system).
+        Computed on first access, exactly and without general simplification:
+        the small linear system is solved fraction-free and each solution is one
+        cancelled fraction, with ``sin² + cos² = 1`` applied
+        (:mod:`chaplygin._rational`).  Where that normal form would be very large
+        the solution is left nested, as ``KanesMethod.rhs()`` gives it.  See
+        :meth:`solve` for heavier simplification.
         """
-        return {self._user(k): self._user(v) for k, v in self._accelerations.items()}
+        return self.solve()
+
+    def solve(self, *, simplify: bool = False) -> dict[sp.Expr, sp.Expr]:
+        """The solved unknowns, as :attr:`accelerations`.
+
+        Parameters
+        ----------
+        simplify : bool
+            Also pass each solution through ``sympy.simplify``, keeping the
+            result where it is shorter.  Slow (seconds to minutes on larger
+            systems); the default normal form is exact already.
+        """
+        out = {self._user(k): self._user(v) for k, v in self._accelerations.items()}
+        if simplify:
+            out = {k: simplified(v) for k, v in out.items()}
+        return out
 
     # -------------------------------------------------------------- constraint forces
     def constraint_forces(self) -> dict[sp.Expr, sp.Expr]:

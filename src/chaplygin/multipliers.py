@@ -13,10 +13,13 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import sympy as sp
+from sympy.polys.matrices import DomainMatrix
 
 from ._fast import gradient, jacobian
+from ._rational import Algebra, TooLarge, normal_all
 from ._symbols import total_derivative
-from .equations import Equations, tidy
+from .equations import Equations
+from .errors import ModelError
 
 if TYPE_CHECKING:
     from .system import System
@@ -79,44 +82,103 @@ def multiplier_equations(
         F[n:, 0] = -_differentiated_constraints(system)
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
-        return _solve_by_reduction(system, dyn, list(unknowns))
+        try:
+            return _solve_by_reduction(system, model, dyn, list(unknowns))
+        except TooLarge:
+            return _solve_nested(system, dyn, list(unknowns))
 
     return Equations(system, model, "classic", residuals, xs, M, F, solve, reactions=reactions, **extra)  # type: ignore[arg-type]
 
 
 def _solve_by_reduction(
-    system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol]
+    system: System, model: str, dynamic: sp.Matrix, unknowns: list[sp.Symbol]
 ) -> dict[sp.Symbol, sp.Expr]:
     """Solve ``M·x = F`` exactly, without inverting the (n+g) matrix.
 
     The differentiated constraints give the dependent accelerations,
-    ``q̈ = C q̈_σ + c``; projecting the dynamic equations on the constraint
+    ``q̈_dep = B q̈_σ + c``; projecting the dynamic equations on the constraint
     distribution (``Cᵀ Aᵀ = 0`` removes the multiplier terms) leaves the reduced
     ε × ε system; the multiplier unknowns follow from the rows of the dependent
-    coordinates.  This is the solution at every state, admissible or not.
+    coordinates.  This is the solution at every state, admissible or not.  All
+    of it is exact arithmetic in one field of rational functions
+    (:mod:`chaplygin._rational`).
     """
     v = system._vars
-    ind, dep, g = system._ind, system._dep, system.g
+    n, g = system.n, system.g
+    ind, dep = list(system._ind), list(system._dep)
+    mass = jacobian(dynamic, list(v.xdd))
+    react = jacobian(dynamic, unknowns).extract(dep, list(range(g)))
+    force = -dynamic.xreplace({x: 0 for x in [*v.xdd, *unknowns]})
+    drift = -_differentiated_constraints(system) if g else sp.zeros(0, 1)
+    a_dep = system._A.extract(list(range(g)), dep)
+    alg = Algebra([*mass, *react, *force, *a_dep, *system._B, *drift])
+    # every quantity is a polynomial matrix over one denominator: X = Xn / dx
+    Mn, dm = alg.matrix(mass)
+    fn, df = alg.matrix(force)
+    Bn, db = alg.matrix(system._B)
+    An, da = alg.matrix(a_dep)
+    Dn, dd = alg.matrix(drift)
+    Rn, dr = alg.matrix(react)
+    ring, dom = alg.ring, Mn.domain
+    try:
+        # A_dep q̈_dep + A_ind q̈_ind = drift  ⇒  q̈_dep = B q̈_ind + c,  c = cn / dc
+        cn, dc = alg.solve_den(An, Dn)
+        cn, dc = cn * da, dc * dd
+        # q̈ = C q̈_ind + shift, with C = Cn / db = [I; B] and shift = Sn / dc = [0; c]
+        rows_C = [[db if i == j else ring.zero for j in ind] for i in range(n)]
+        rows_S = [[ring.zero] for _ in range(n)]
+        for b, i in enumerate(dep):
+            rows_C[i] = [Bn[b, k].element for k in range(len(ind))]
+            rows_S[i] = [cn[b, 0].element]
+        Cn = DomainMatrix(rows_C, (n, len(ind)), dom)
+        Sn = DomainMatrix(rows_S, (n, 1), dom)
+        # Cᵀ(M q̈ − f) = 0:  (Cnᵀ Mn Cn) q̈_ind = Cnᵀ (fn·dm·dc − df·Mn·Sn) · db / (df·dc)
+        rn = fn * (dm * dc) - Mn * Sn * df
+        yn, yd = alg.solve_den(Cn.transpose() * Mn * Cn, Cn.transpose() * rn)
+        # q̈ = (Cn yn + Sn·yd·df) / (yd·df·dc)
+        an, ad = Cn * yn + Sn * (yd * df), yd * df * dc
+        acc = alg.fractions(an, ad)
+        mult: list = []
+        if g:
+            # R λ = f_dep − M_dep q̈:  Rn λ = dr (fn_dep·dm·ad − df·Mn_dep·an) / (df·dm·ad)
+            rest = fn.extract(dep, [0]) * (dm * ad) - Mn.extract(dep, list(range(n))) * an * df
+            ln, ld = alg.solve_den(Rn, rest)
+            mult = alg.fractions(ln * dr, ld * df * dm * ad)
+    except ZeroDivisionError:
+        raise ModelError(
+            f"the {model} equations do not determine the accelerations: the mass matrix is singular."
+        ) from None
+    return dict(zip([*v.xdd, *unknowns], map(alg.to_expr, [*acc, *mult])))
+
+
+def _solve_nested(
+    system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol]
+) -> dict[sp.Symbol, sp.Expr]:
+    """The reduction of :func:`_solve_by_reduction` by LU on SymPy expressions, unexpanded.
+
+    For systems whose expanded normal forms are too large to read or to cancel
+    (:class:`~chaplygin._rational.TooLarge`): the result is nested, like
+    ``KanesMethod.rhs()``.
+    """
+    v = system._vars
+    ind, dep, g = list(system._ind), list(system._dep), system.g
     ind_xdd = [v.xdd[i] for i in ind]
     acc_dep: dict[sp.Symbol, sp.Expr] = {}
     if g:
-        a_dep = system._A.extract(list(range(g)), list(dep))
-        a_ind = system._A.extract(list(range(g)), list(ind))
-        rhs = -(a_ind * sp.Matrix(ind_xdd) + _differentiated_constraints(system))
-        acc_dep = dict(zip((v.xdd[i] for i in dep), a_dep.LUsolve(rhs)))
-    base = dynamic.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep)
-    projected = system._C.T * base
+        a_dep = system._A.extract(list(range(g)), dep)
+        c = a_dep.LUsolve(-_differentiated_constraints(system))
+        acc_dep = {
+            v.xdd[i]: sum((system._B[b, k] * a for k, a in enumerate(ind_xdd)), c[b])
+            for b, i in enumerate(dep)
+        }
+    projected = system._C.T * dynamic.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep)
     Mr = jacobian(projected, ind_xdd)
-    Fr = -projected.xreplace({a: 0 for a in ind_xdd})
-    sol = Mr.applyfunc(tidy).LUsolve(Fr.applyfunc(tidy)).applyfunc(tidy)
-    out: dict[sp.Symbol, sp.Expr] = dict(zip(ind_xdd, sol))
-    for a, expr in acc_dep.items():
-        out[a] = tidy(expr.xreplace(out))
+    out: dict[sp.Symbol, sp.Expr] = dict(zip(ind_xdd, Mr.LUsolve(-projected.xreplace({a: 0 for a in ind_xdd}))))
+    out.update({a: e.xreplace(out) for a, e in acc_dep.items()})
     if g:
         rows = sp.Matrix([dynamic[i] for i in dep])
-        J = jacobian(rows, unknowns)
-        rest = rows.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep).xreplace(out)
-        out.update(zip(unknowns, J.LUsolve(-rest).applyfunc(tidy)))
+        rest = rows.xreplace({u: 0 for u in unknowns}).xreplace(out)
+        out.update(zip(unknowns, jacobian(rows, unknowns).LUsolve(-rest)))
     return {a: out[a] for a in [*v.xdd, *unknowns]}
 
 
@@ -144,5 +206,5 @@ def virtual_work(equations: Equations, *, chetaev_condition: bool = True) -> sp.
             for b, i in enumerate(s._dep)
         }
         work = sp.expand(work.xreplace(cond).xreplace(s._velocity_substitution))
-        work = sp.Add(*[tidy(work.coeff(d)) * d for d in ind])
+        work = sp.Add(*[c * d for c, d in zip(normal_all([work.coeff(d) for d in ind]), ind)])
     return equations._user(work)

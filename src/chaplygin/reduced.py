@@ -28,8 +28,9 @@ from typing import TYPE_CHECKING
 import sympy as sp
 
 from ._fast import gradient, jacobian
+from ._rational import solve_linear
 from ._symbols import TIME, total_derivative
-from .equations import Equations, tidy
+from .equations import Equations
 from .errors import ModelError
 
 if TYPE_CHECKING:
@@ -167,7 +168,6 @@ def reduced_system(
     F = -res.xreplace({a: 0 for a in r.ind_xdd})
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
-        sol = M.applyfunc(tidy).LUsolve(F.applyfunc(tidy))
-        return {a: tidy(e) for a, e in zip(r.ind_xdd, sol)}
+        return dict(zip(r.ind_xdd, solve_linear(M, F, f"the {model} equations")))
 
     return Equations(system, model, form, residuals, r.ind_xdd, M, F, solve, **extra)  # type: ignore[arg-type]

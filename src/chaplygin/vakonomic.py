@@ -33,8 +33,9 @@ from typing import TYPE_CHECKING, Any
 import sympy as sp
 
 from ._fast import gradient
+from ._rational import solve_linear
 from ._symbols import total_derivative
-from .equations import Equations, tidy
+from .equations import Equations
 from .errors import ModelError
 from .multipliers import lagrange_operator, multiplier_equations, multiplier_symbols
 from .reduced import (
@@ -147,7 +148,7 @@ def integrated_multipliers(system: System, constants: Any = None) -> dict[sp.Exp
     v, g = system._vars, system.g
     p = [sp.diff(system._T, v.xd[i]).xreplace(system._velocity_substitution) for i in system._dep]
     a_dep = system._A.extract(list(range(g)), list(system._dep))
-    mu = a_dep.T.LUsolve(sp.Matrix(c) - sp.Matrix(p)).applyfunc(tidy)
+    mu = solve_linear(a_dep.T, sp.Matrix(c) - sp.Matrix(p), "the integrated multipliers (18b)")
     names = system.equations("vakonomic").multipliers
     return {name: system.to_user(e) for name, e in zip(names, mu)}
 
