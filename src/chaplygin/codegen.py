@@ -28,6 +28,7 @@ runs.
 from __future__ import annotations
 
 import hashlib
+import heapq
 import importlib.util
 import inspect
 import os
@@ -198,9 +199,52 @@ class _Fill:
         return [self.pre, self.main] if self.pre is not None else [self.main]
 
 
+def _canonical(replacements: list[tuple[Any, Any]], reduced: list[Any],
+               prefix: str) -> tuple[list[tuple[Any, Any]], list[Any]]:
+    """``cse``'s result renamed and ordered in a way that does not depend on the process.
+
+    SymEngine's ``cse`` finds the same subexpressions in every process but
+    numbers them in an order that varies from run to run (it follows memory
+    addresses), so the generated source — and every cache keyed by its hash,
+    numba's included — changed with each process.  Here each subexpression is
+    named once all those it uses are named, the smallest printed form first.
+    """
+    names = [s for s, _ in replacements]
+    index = {s: k for k, s in enumerate(names)}
+    deps = [[index[x] for x in e.free_symbols if x in index] for _, e in replacements]
+    users: list[list[int]] = [[] for _ in names]
+    for k, used in enumerate(deps):
+        for j in used:
+            users[j].append(k)
+    waiting = [len(used) for used in deps]
+    rename: dict[Any, Any] = {}
+    renamed: dict[int, Any] = {}
+    ready: list[tuple[str, int]] = []
+
+    def push(k: int) -> None:
+        e = replacements[k][1]
+        renamed[k] = e.xreplace({names[j]: rename[names[j]] for j in deps[k]}) if deps[k] else e
+        heapq.heappush(ready, (str(renamed[k]), k))
+
+    for k in range(len(names)):
+        if not waiting[k]:
+            push(k)
+    order: list[int] = []
+    while ready:
+        _, k = heapq.heappop(ready)
+        rename[names[k]] = type(names[k])(f"{prefix}{len(order)}")
+        order.append(k)
+        for u in users[k]:
+            waiting[u] -= 1
+            if not waiting[u]:
+                push(u)
+    out = [e.xreplace({s: rename[s] for s in e.free_symbols if s in rename}) for e in reduced]
+    return [(rename[names[k]], renamed[k]) for k in order], out
+
+
 def _assignments(block: _Block) -> tuple[list[tuple[Any, Any]], list[tuple[Target, Any]]]:
     """The block's common subexpressions and its (target, expression) pairs still to store."""
-    replacements, reduced = cse(block.exprs, block.prefix)
+    replacements, reduced = _canonical(*cse(block.exprs, block.prefix), block.prefix)
     stores = [(target, e) for i, (target, e) in enumerate(zip(block.targets, reduced))
               if i >= block.skip_zero or e != 0]
     return replacements, stores
