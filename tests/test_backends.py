@@ -1,6 +1,6 @@
 """Backends and integrators: the compiled DOP853 loop, the jax backend, ensembles.
 
-The compiled loop (``backend="numba"``) is a port of SciPy's DOP853, so it must
+The compiled loop (``backend="numba"``, and its C port, ``backend="c"``) is a port of SciPy's DOP853, so it must
 reproduce SciPy's runs (``backend="numpy"`` drives SciPy's stepper) to well
 within the tolerance; failures must come back as a status with the trajectory
 so far.  JAX tests are skipped when the optional extra is not installed.
@@ -14,11 +14,18 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin import ChaplyginError, System, examples
+from chaplygin._ckernel import Unavailable, compiler
 from chaplygin._loop import integrate_dop853, loop_model
 from chaplygin._symbols import TIME
 from chaplygin.codegen import compile_equations
 from chaplygin.ensemble import simulate_ensemble
 from chaplygin.simulate import simulate
+
+try:
+    compiler()
+    LOOPS = ["numba", "c"]
+except Unavailable:  # pragma: no cover - every CI machine has a C compiler
+    LOOPS = ["numba"]
 
 DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
 DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
@@ -57,13 +64,14 @@ def _max_difference(a, b) -> float:
 
 
 # ------------------------------------------------------------------ compiled DOP853
+@pytest.mark.parametrize("loop", LOOPS)
 @pytest.mark.parametrize("which", ["disk", "sphere"])
-def test_numba_loop_reproduces_scipy_dop853(which, disk, sphere):
+def test_compiled_loop_reproduces_scipy_dop853(which, loop, disk, sphere):
     system, start, params = (disk, DISK_0, DISK_P) if which == "disk" else (sphere, SPHERE_0, SPHERE_P)
     scipy_run = simulate(system, "chaplygin", 10.0, start, params, backend="numpy", samples=101)
-    loop_run = simulate(system, "chaplygin", 10.0, start, params, backend="numba", samples=101)
+    loop_run = simulate(system, "chaplygin", 10.0, start, params, backend=loop, samples=101)
     assert scipy_run.success and loop_run.success, loop_run.message
-    assert loop_run.backend == "numba"
+    assert loop_run.backend == loop
     assert _max_difference(scipy_run, loop_run) < 1e-8
     # the same steps as SciPy's: the same number of right-hand-side evaluations, give or take
     assert abs(loop_run.rhs_evaluations - scipy_run.rhs_evaluations) <= 0.01 * scipy_run.rhs_evaluations
@@ -104,13 +112,36 @@ def test_loop_observe_equals_generated_observe():
         np.testing.assert_allclose(model.observe(0.0, y, p), ref.observe(0.0, y, p), rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.skipif("c" not in LOOPS, reason="no C compiler")
+def test_c_loop_is_the_numba_loop(disk):
+    """The C port takes the numba loop's steps: the same evaluations, the same numbers to round-off."""
+    runs = [simulate(disk, "chaplygin", 5.0, DISK_0, DISK_P, backend=b, samples=51) for b in ("numba", "c")]
+    assert runs[0].rhs_evaluations == runs[1].rhs_evaluations
+    assert _max_difference(*runs) < 1e-12
+
+
+@pytest.mark.skipif("c" not in LOOPS, reason="no C compiler")
+def test_c_observe_and_rhs_equal_generated_code():
+    """The C kernel's rhs and observe (energy, residuals, reactions λ, velocities) are the generated module's."""
+    system = examples.vertical_rolling_disk()
+    eqs = system.equations("chetaev")
+    model, ref = compile_equations(eqs, "c"), compile_equations(eqs, "numpy")
+    assert model.layout == ref.layout and model.layout.reactions
+    rng = np.random.default_rng(4)
+    p = np.array([1.3, 0.4, 0.7, 0.5])
+    for _ in range(4):
+        y = rng.uniform(-1, 1, len(model.layout.state))
+        np.testing.assert_allclose(model.observe(0.0, y, p), ref.observe(0.0, y, p), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(model.rhs(0.0, y, p), ref.rhs(0.0, y, p), rtol=1e-12, atol=1e-12)
+
+
 def test_numba_loop_other_methods_fall_back_to_scipy(disk):
     run = simulate(disk, "chaplygin", 1.0, DISK_0, DISK_P, backend="numba", method="RK45", samples=11)
     ref = simulate(disk, "chaplygin", 1.0, DISK_0, DISK_P, backend="numpy", method="RK45", samples=11)
     assert run.success and _max_difference(run, ref) < 1e-12
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("backend", ["numpy", *LOOPS])
 def test_blow_up_is_a_status_with_partial_trajectory(failing, backend):
     run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 100.0, "k": 1.0}, backend=backend, samples=21)
     assert run.status == "failed" and not run.success
@@ -121,7 +152,7 @@ def test_blow_up_is_a_status_with_partial_trajectory(failing, backend):
     np.testing.assert_allclose(run["x"][before], -np.log1p(-run.t[before]), rtol=1e-7, atol=1e-9)
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("backend", ["numpy", *LOOPS])
 def test_singular_mass_matrix_is_a_status_with_partial_trajectory(failing, backend):
     run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend=backend, samples=21)
     assert run.status == "failed"

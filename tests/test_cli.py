@@ -287,6 +287,7 @@ def test_a_failed_run_exits_1(tmp_path: Path, monkeypatch) -> None:
                           status="failed", message="the solution blew up at t = 0.5")
 
     monkeypatch.setattr(chaplygin.System, "simulate", failing)
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path / "cache"))  # no run plan answers without System
     out = tmp_path / "run.csv"
     result = run("simulate", "example:knife-edge", "--model", "chaplygin", "--t-end", "1", "--out", str(out))
     assert result.exit_code == 1 and "blew up" in result.stderr and out.exists()

@@ -18,31 +18,27 @@ The compiler is ``$CHAPLYGIN_CC`` (a command, whose own flags come after
 path off), else ``$CC``, else the first of ``cc``, ``gcc``, ``clang`` on
 ``PATH`` (POSIX only).  Where there is none, or it fails, or the model uses a function
 that C's ``math.h`` does not have, :class:`Unavailable` says why and numba
-compiles the Python ``fill`` as before.  Libraries are keyed by a hash of their
-C source and the compiler command, built in a temporary directory and moved
-into place atomically.
+compiles the Python ``fill`` as before.  Libraries are kept in the kernel cache
+of :mod:`chaplygin._ckernel`: keyed by a hash of their C source and the
+compiler command, built in a temporary directory, moved into place atomically
+and verified (SHA-256 of their bytes) when loaded.  The ``c`` backend uses the
+same libraries through :mod:`ctypes`.
 """
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shlex
-import shutil
-import subprocess
-import tempfile
 from typing import TYPE_CHECKING, Any
 
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
+from . import _ckernel
+from ._ckernel import FLAGS, Unavailable, compiler
 from ._printing import code
-from .cache import cache_dir
 
 if TYPE_CHECKING:
     from .codegen import Target, _Fill
 
-#: flags: position-independent shared library, optimised, IEEE semantics kept (no -ffast-math)
-FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fno-math-errno")
+__all__ = ["FLAGS", "Unavailable", "build", "compiler", "numba_fill", "source"]
 
 _SOLVE = """
 /* x = A^-1 b by Gaussian elimination with partial pivoting (A and b are overwritten);
@@ -76,28 +72,6 @@ static void chaplygin_solve(int n, double *A, double *b, double *x)
     }
 }
 """
-
-
-class Unavailable(Exception):
-    """The C path cannot be used here; the message says why."""
-
-
-def compiler() -> list[str]:
-    """The C compiler command, or raise :class:`Unavailable`."""
-    if os.name != "posix":
-        raise Unavailable("generated C is only built on POSIX systems")
-    chosen = os.environ.get("CHAPLYGIN_CC")
-    if chosen is not None:
-        if chosen.strip().lower() in ("", "none", "0", "off"):
-            raise Unavailable(f"CHAPLYGIN_CC={chosen!r} switches it off")
-        return shlex.split(chosen)
-    if os.environ.get("CC"):
-        return shlex.split(os.environ["CC"])
-    for name in ("cc", "gcc", "clang"):
-        found = shutil.which(name)
-        if found:
-            return [found]
-    raise Unavailable("no C compiler (cc, gcc or clang) on PATH; set CHAPLYGIN_CC")
 
 
 def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]], symbol: str) -> str:
@@ -134,34 +108,12 @@ def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]], s
 
 
 def build(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> tuple[str, str]:
-    """Compile ``fill`` into the code cache; ``(symbol, library path)``.
+    """Compile ``fill`` into the kernel cache (:func:`chaplygin._ckernel.library`); ``(symbol, library path)``.
 
     Raises :class:`Unavailable` when there is no compiler or it fails.
     """
-    cmd = compiler()
-    template = source(fill, assigned, "@SYMBOL@")
-    digest = hashlib.sha256((template + "\0" + " ".join(cmd)).encode()).hexdigest()[:24]
-    symbol = f"chaplygin_fill_{digest}"
-    directory = cache_dir() / "codegen"
-    directory.mkdir(parents=True, exist_ok=True)
-    library = directory / f"libchaplygin_fill_{digest}.so"
-    if library.exists():
-        return symbol, str(library)
-    with tempfile.TemporaryDirectory(dir=directory) as tmp:
-        c_file = os.path.join(tmp, "fill.c")
-        with open(c_file, "w", encoding="utf-8") as fh:
-            fh.write(template.replace("@SYMBOL@", symbol))
-        out = os.path.join(tmp, "fill.so")
-        try:
-            run = subprocess.run([cmd[0], *FLAGS, *cmd[1:], c_file, "-o", out, "-lm"], capture_output=True, text=True,
-                                 timeout=600, check=False)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise Unavailable(f"the C compiler {cmd[0]!r} could not run: {exc}") from None
-        if run.returncode != 0 or not os.path.exists(out):
-            first = " / ".join((run.stderr or run.stdout).strip().splitlines()[:3]) or "(no output)"
-            raise Unavailable(f"the C compiler {cmd[0]!r} failed (exit {run.returncode}): {first}")
-        os.replace(out, library)
-    return symbol, str(library)
+    digest, library = _ckernel.library(source(fill, assigned, "chaplygin_fill_@DIGEST@"), "fill")
+    return f"chaplygin_fill_{digest}", str(library)
 
 
 def numba_fill(symbol: str, library: str) -> str:

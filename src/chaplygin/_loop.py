@@ -62,12 +62,14 @@ import os
 import warnings
 from pathlib import Path
 from types import ModuleType
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from .codegen import CompiledModel, _import
 from .errors import ChaplyginError
+
+if TYPE_CHECKING:  # codegen (and SymPy) only where a model is compiled: the C loop reads the tableau here
+    from .codegen import CompiledModel
 
 __all__ = ["LoopResult", "integrate_dop853", "loop_model", "ensemble_dop853", "STATUS", "default_threads"]
 
@@ -524,6 +526,8 @@ def _kernel_source() -> str:
 # ------------------------------------------------------------------ loading
 def _load(source: str) -> ModuleType:
     """Write ``source`` to the code cache and import it (see :func:`chaplygin.codegen._import`)."""
+    from .codegen import _import
+
     return _import(source, "dop853")
 
 
@@ -542,6 +546,8 @@ def loop_model(compiled: CompiledModel) -> CompiledModel:
     if hasattr(compiled.module, "_k_dop853"):
         return compiled
     source = Path(compiled.module.__file__).read_text(encoding="utf-8")  # type: ignore[arg-type]
+    from .codegen import CompiledModel
+
     module = _load(source + _kernel_source())
     model = CompiledModel(compiled.layout, module, "numba")
     # the generated observe's numbers, NaN (not an exception) where M is singular
@@ -615,12 +621,13 @@ def integrate_dop853(
     first_step: float | None = None,
     max_steps: int = 0,
 ) -> LoopResult:
-    """Integrate a numba model with the compiled DOP853 loop, sampled at ``times``.
+    """Integrate a numba or C model with the compiled DOP853 loop, sampled at ``times``.
 
     Parameters
     ----------
     model : CompiledModel
-        From the ``numba`` backend (or :func:`loop_model`).
+        From the ``numba`` backend (or :func:`loop_model`), or the ``c``
+        backend (the same loop in C, :mod:`chaplygin._ckernel`).
     t_span : (t0, t1)
     y0, p : ndarray
         State and parameters in layout order.
@@ -639,7 +646,8 @@ def integrate_dop853(
         failure), ``"success"`` or ``"failed"``, why, and the number of
         right-hand-side evaluations.
     """
-    model = loop_model(model)
+    if model.backend != "c":
+        model = loop_model(model)
     t0, t1 = float(t_span[0]), float(t_span[1])
     y0 = np.ascontiguousarray(y0, dtype=float)
     p = np.ascontiguousarray(p, dtype=float)
@@ -651,10 +659,16 @@ def integrate_dop853(
     if not max_step > 0:
         raise ChaplyginError("max_step must be positive.")
     out = np.empty((times.size, y0.size))
-    filled, code, t, _y, n_rhs, n_steps, t_fail, y_fail = model.module._k_dop853(
-        t0, t1, y0, p, times, rtol, atol_v, float(max_step),
-        float(first_step or 0.0), int(max_steps), out,
-    )
+    if model.backend == "c":  # the same loop in C (chaplygin._ckernel)
+        res = model.module.integrate(t0, t1, y0, p, times, rtol, atol_v, float(max_step),
+                                     float(first_step or 0.0), int(max_steps))
+        out, filled, code, t, n_rhs, n_steps, t_fail, y_fail = (
+            res.out, res.filled, res.code, res.t, res.n_rhs, res.n_steps, res.t_fail, res.y_fail)
+    else:
+        filled, code, t, _y, n_rhs, n_steps, t_fail, y_fail = model.module._k_dop853(
+            t0, t1, y0, p, times, rtol, atol_v, float(max_step),
+            float(first_step or 0.0), int(max_steps), out,
+        )
     message = _message(model.module, code, t, t_fail, y_fail, p, max_steps)
     status = "success" if code == 0 else "failed"
     if code == 0:

@@ -111,13 +111,23 @@ def _wrap(part: tuple[str, int], above: int) -> str:
     return text if prec > above else f"({text})"
 
 
+def _ordered(args: Any, c: bool) -> list[tuple[Any, tuple[str, int]]]:
+    """``args`` of a sum or product with their printed forms, in the order of those texts.
+
+    SymEngine's order of the terms of a sum or the factors of a product follows
+    memory addresses and so changes between processes; printed in this order
+    the generated source (and every cache keyed by it) does not.
+    """
+    return sorted(((a, _print(a, c)) for a in args), key=lambda item: item[1][0])
+
+
 def _add(e: Any, c: bool) -> str:
     out = ""
-    for term in e.args:
+    for term, printed in _ordered(e.args, c):
         if out and _negative(term):
             out += " - " + _wrap(_print(-term, c), _NEG)
         else:
-            out += (" + " if out else "") + _wrap(_print(term, c), _ADD)
+            out += (" + " if out else "") + _wrap(printed, _ADD)
     return out
 
 
@@ -130,10 +140,10 @@ def _mul(e: Any, c: bool) -> tuple[str, int]:
             den.append(f.args[0] ** -f.args[1])
         else:
             num.append(f)
-    top = "*".join(_wrap(_print(f, c), _MUL) for f in num) or ("1.0" if c else "1")
+    top = "*".join(_wrap(p, _MUL) for _, p in _ordered(num, c)) or ("1.0" if c else "1")
     if not den:
         return top, _MUL
-    bottom = "*".join(_wrap(_print(f, c), _MUL) for f in den)
+    bottom = "*".join(_wrap(p, _MUL) for _, p in _ordered(den, c))
     return f"{top}/{bottom if len(den) == 1 and not isinstance(den[0], se.Mul) else f'({bottom})'}", _MUL
 
 

@@ -77,9 +77,15 @@ class CheckFormat(str, Enum):
 
 
 class Backend(str, Enum):
+    auto = "auto"
     numpy = "numpy"
     numba = "numba"
+    c = "c"
     jax = "jax"
+
+
+BACKEND_HELP = ("Generated-code backend; auto (default): c (generated C, built once and cached) where a C "
+                "compiler is found, else numpy. The summary line says which ran.")
 
 
 class FigureFormat(str, Enum):
@@ -458,8 +464,8 @@ def _constants(text: Optional[str]) -> Any:
                                  param_hint="--constants") from None
 
 
-def _summary_line(label: str, tr: Any) -> str:
-    return (f"{label} [{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
+def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
+    return (f"{label} [{'auto: ' if auto else ''}{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
             f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; energy drift {tr.energy_drift():.3g}, "
             f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}")
 
@@ -472,7 +478,7 @@ def simulate(
     out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz."),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
-    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
     constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
     param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
     initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
@@ -496,25 +502,33 @@ def simulate(
     _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
     with _failures():
         _refuse_existing([out], force)
-        loaded = _load(file)
-        params, start = _numbers(loaded, param, initial)
-        system = loaded.system
+        from . import _quick
+
         label = model.value if form is Form.classic else f"{model.value}/{form.value}"
+        definition = _definition(file)
+        # a run plan in the cache answers without SymPy (chaplygin._quick); else the full path
+        tr = _quick.run(definition, model.value, form.value, t_end, samples, backend.value, method, c, step,
+                        _overrides(param, "--param"), _overrides(initial, "--initial"))
         with _Steps(3, f"simulating {label}") as steps:
-            steps.step(f"deriving {label}")
-            if model is not Model.vakonomic_family:  # (the family is derived with its constants)
-                system.equations(model.value, form.value)
-            steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
-            options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value,
-                                       "method": method}
-            if c is not None:
-                options["constants"] = c
-            if step is not None:
-                options["step"] = step
-            tr = system.simulate(model.value, t_end, start, params, **options)
+            if tr is None:
+                loaded = _load(file)
+                params, start = _numbers(loaded, param, initial)
+                system = loaded.system
+                steps.step(f"deriving {label}")
+                if model is not Model.vakonomic_family:  # (the family is derived with its constants)
+                    system.equations(model.value, form.value)
+                steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
+                options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value,
+                                           "method": method}
+                if c is not None:
+                    options["constants"] = c
+                if step is not None:
+                    options["step"] = step
+                tr = system.simulate(model.value, t_end, start, params, **options)
+                _quick.remember(definition, model.value, form.value, loaded, tr)
             steps.step(f"writing {out}")
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
-        _emit(f"{_summary_line(label, tr)} -> {out}")
+        _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
         if not tr.success:
             raise ChaplyginError(f"the run failed: {tr.message}; {out} holds the trajectory up to then.")
 
@@ -578,7 +592,7 @@ def compare(
     out: Path = typer.Option(..., "--out", "-o", help="Output directory (created if missing)."),
     models: Optional[str] = typer.Option(None, "--models", help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
-    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
     figure_format: FigureFormat = typer.Option(FigureFormat.svg, "--figure-format", help="Format of the figures."),
     param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
     initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),

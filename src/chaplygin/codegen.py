@@ -28,6 +28,7 @@ runs.
 from __future__ import annotations
 
 import hashlib
+import heapq
 import importlib.util
 import inspect
 import os
@@ -43,6 +44,7 @@ import numpy as np
 import sympy as sp
 
 from . import _cfill
+from ._ckernel import CompiledModel, Layout
 from ._fast import cse, native, to_sympy
 from ._native import chetaev_matrices
 from ._printing import code
@@ -56,7 +58,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Layout", "CompiledModel", "compile_equations", "compile_model", "BACKENDS", "REDUCTIONS", "cache_dir"]
 
-BACKENDS = ("numpy", "numba", "jax")
+BACKENDS = ("numpy", "numba", "jax", "c")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
 CODE_FORMAT = 5
 
@@ -71,59 +73,6 @@ def _version() -> str:
 
     return __version__
 _MULTIPLIER_MODELS = ("chetaev", "vakonomic")
-
-
-@dataclass(frozen=True)
-class Layout:
-    """The fixed order of the state ``y`` and the parameters ``p`` of generated functions."""
-
-    model: str
-    form: str
-    coordinates: tuple[str, ...]
-    velocities: tuple[str, ...]
-    multipliers: tuple[str, ...]
-    parameters: tuple[str, ...]
-    #: names of the multipliers computed (not integrated), e.g. Chetaev's λ
-    reactions: tuple[str, ...] = ()
-
-    @property
-    def state(self) -> tuple[str, ...]:
-        """Names of the entries of ``y``."""
-        return self.coordinates + self.velocities + self.multipliers
-
-    def describe(self) -> str:
-        return (
-            f"f(t, y, p) for the {self.model}/{self.form} equations\n"
-            f"  y = [{', '.join(self.state)}]\n"
-            f"  p = [{', '.join(self.parameters)}]"
-        )
-
-
-class CompiledModel:
-    """Numerical functions of one model, all with signature ``(t, y, p)``.
-
-    Attributes
-    ----------
-    layout : Layout
-        The order of ``y`` and ``p`` (also in each function's docstring).
-    rhs : callable
-        ``dy/dt``.
-    observe : callable
-        ``[energy, constraint residuals (g), computed multipliers, full velocities (n)]``.
-    module : module
-        The generated module (its ``__file__`` is the source).
-    """
-
-    def __init__(self, layout: Layout, module: ModuleType, backend: str) -> None:
-        self.layout = layout
-        self.module = module
-        self.backend = backend
-        self.rhs: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = module.rhs
-        self.observe: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = module.observe
-        self.n_observed = int(module.N_OBSERVED)
-
-    def __repr__(self) -> str:
-        return f"<CompiledModel {self.backend}: {self.layout.describe()}>"
 
 
 def _state_symbols(eqs: Equations) -> tuple[Layout, dict[sp.Symbol, sp.Expr], list[sp.Expr], int]:
@@ -198,9 +147,52 @@ class _Fill:
         return [self.pre, self.main] if self.pre is not None else [self.main]
 
 
+def _canonical(replacements: list[tuple[Any, Any]], reduced: list[Any],
+               prefix: str) -> tuple[list[tuple[Any, Any]], list[Any]]:
+    """``cse``'s result renamed and ordered in a way that does not depend on the process.
+
+    SymEngine's ``cse`` finds the same subexpressions in every process but
+    numbers them in an order that varies from run to run (it follows memory
+    addresses), so the generated source — and every cache keyed by its hash,
+    numba's included — changed with each process.  Here each subexpression is
+    named once all those it uses are named, the smallest printed form first.
+    """
+    names = [s for s, _ in replacements]
+    index = {s: k for k, s in enumerate(names)}
+    deps = [[index[x] for x in e.free_symbols if x in index] for _, e in replacements]
+    users: list[list[int]] = [[] for _ in names]
+    for k, used in enumerate(deps):
+        for j in used:
+            users[j].append(k)
+    waiting = [len(used) for used in deps]
+    rename: dict[Any, Any] = {}
+    renamed: dict[int, Any] = {}
+    ready: list[tuple[str, int]] = []
+
+    def push(k: int) -> None:
+        e = replacements[k][1]
+        renamed[k] = e.xreplace({names[j]: rename[names[j]] for j in deps[k]}) if deps[k] else e
+        heapq.heappush(ready, (str(renamed[k]), k))
+
+    for k in range(len(names)):
+        if not waiting[k]:
+            push(k)
+    order: list[int] = []
+    while ready:
+        _, k = heapq.heappop(ready)
+        rename[names[k]] = type(names[k])(f"{prefix}{len(order)}")
+        order.append(k)
+        for u in users[k]:
+            waiting[u] -= 1
+            if not waiting[u]:
+                push(u)
+    out = [e.xreplace({s: rename[s] for s in e.free_symbols if s in rename}) for e in reduced]
+    return [(rename[names[k]], renamed[k]) for k in order], out
+
+
 def _assignments(block: _Block) -> tuple[list[tuple[Any, Any]], list[tuple[Target, Any]]]:
     """The block's common subexpressions and its (target, expression) pairs still to store."""
-    replacements, reduced = cse(block.exprs, block.prefix)
+    replacements, reduced = _canonical(*cse(block.exprs, block.prefix), block.prefix)
     stores = [(target, e) for i, (target, e) in enumerate(zip(block.targets, reduced))
               if i >= block.skip_zero or e != 0]
     return replacements, stores
@@ -277,13 +269,30 @@ def _main_block(
     return _Block(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim)
 
 
+@dataclass(frozen=True)
+class _Parts:
+    """What a model's generated code is made of: its layout, ``fill``, ``M``'s size, ``K``."""
+
+    system: System
+    layout: Layout
+    fill: _Fill
+    dim: int
+    k: int
+
+
 def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
+    """The layout and the generated Python module of ``eqs`` (numpy or numba)."""
+    parts = _parts(eqs)
+    return parts.layout, _module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend)
+
+
+def _parts(eqs: Equations) -> _Parts:
     layout, to_num, velocities, k = _state_symbols(eqs)
     fill = _Fill(_main_block(eqs.system, list(eqs._M), list(eqs._F), velocities, _plain(to_num)))
-    return layout, _module(eqs.system, layout, fill, eqs._M.shape[0], k, backend)
+    return _Parts(eqs.system, layout, fill, eqs._M.shape[0], k)
 
 
-def _numeric_reduction_source(s: System, model: str, backend: str) -> tuple[Layout, str]:
+def _numeric_reduction_parts(s: System, model: str) -> _Parts:
     """A reduced model (Chaplygin's or Voronets' equations) computed from the Chetaev model.
 
     The state is that of the reduced model (coordinates, independent
@@ -317,7 +326,7 @@ def _numeric_reduction_source(s: System, model: str, backend: str) -> tuple[Layo
     plain.update({v.xd[i]: sp.Symbol(f"d[{k}]") for k, i in enumerate(dep)})
     M = [row[j] for row in rows for j in [*ind, *dep, *range(n, n + g)]]
     fill = _Fill(_main_block(s, M, F, list(xd), plain), solve=g, pre=pre)
-    return layout, _module(s, layout, fill, n + g, len(ind), backend)
+    return _Parts(s, layout, fill, n + g, len(ind))
 
 
 # ``_k_pivot`` and ``_k_solve`` are compiled inside every generated module (and used by the
@@ -473,6 +482,10 @@ N_OBSERVED = {n_observed}
 '''
 
 
+class BackendUnavailable(ChaplyginError):
+    """The backend asked for cannot run here (no C compiler, or a function C lacks)."""
+
+
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
 
@@ -517,10 +530,13 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
     ----------
     eqs : Equations
         Any model's equations (reduced or with multipliers).
-    backend : {"numpy", "numba", "jax"}
+    backend : {"numpy", "numba", "jax", "c"}
         ``"numpy"``: plain Python/NumPy, no compile step.  ``"numba"``: the
         same code compiled with ``numba.njit`` (microseconds per call; the
-        first call compiles, later runs load from numba's cache).  ``"jax"``:
+        first call compiles, later runs load from numba's cache).  ``"c"``:
+        ``fill`` as C built by the system's C compiler, with a DOP853 loop in C
+        (:mod:`chaplygin._ckernel`; raises :class:`ChaplyginError` without a
+        compiler).  ``"jax"``:
         the same expressions as JAX functions (optional extra
         ``chaplygin[jax]``; see :mod:`chaplygin.jaxbackend`).
     """
@@ -588,8 +604,7 @@ def compile_model(
     cache = system.__dict__.setdefault("_compiled_numeric", {})
     key = (backend, model)
     if key not in cache:
-        layout, source = _numeric_reduction_source(system, model, backend)
-        cache[key] = CompiledModel(layout, _import(source, backend), backend)
+        cache[key] = _load_model(_numeric_reduction_parts(system, model), backend)
     return cache[key]
 
 
@@ -603,9 +618,25 @@ def _compile(eqs: Equations, backend: str) -> CompiledModel:
             import numba  # noqa: F401
         except ImportError as exc:  # pragma: no cover - numba is a dependency
             raise ChaplyginError("backend 'numba' needs numba: pip install numba") from exc
-    layout, source = _source(eqs, backend)
-    module = _import(source, backend)
-    return CompiledModel(layout, module, backend)
+    return _load_model(_parts(eqs), backend)
+
+
+def _load_model(parts: _Parts, backend: str) -> CompiledModel:
+    """The generated module (numpy, numba) or C kernel (c) of ``parts``, loaded."""
+    if backend == "c":
+        from ._ckernel import CKernel
+
+        s, layout = parts.system, parts.layout
+        try:
+            kernel = CKernel(
+                _cfill.source(parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"),
+                parts.dim, s.n, parts.k, 1 + s.g + len(layout.reactions) + s.n, len(layout.reactions),
+            )
+        except _cfill.Unavailable as exc:
+            raise BackendUnavailable(f"backend 'c' cannot be used: {exc}") from None
+        return CompiledModel(layout, kernel, "c")  # type: ignore[arg-type]
+    module = _import(_module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend), backend)
+    return CompiledModel(parts.layout, module, backend)
 
 
 def parameter_vector(layout: Layout, values: dict[str, float]) -> np.ndarray:

@@ -5,8 +5,10 @@ all coordinates and the independent velocities; the dependent coordinates
 follow through the constraints.  The multiplier models integrate all
 coordinates and velocities (and μ for the vakonomic model) with the
 constraints imposed at acceleration level; their constraint residual shows the
-drift.  Integration: with ``backend="numba"`` and DOP853, a compiled port of
-SciPy's DOP853 that runs entirely inside numba (:mod:`chaplygin._loop`); with
+drift.  Integration: with ``backend="c"`` (what ``"auto"``, the default, picks
+for DOP853 where a C compiler is found; see :func:`choose_backend`) or
+``backend="numba"`` and DOP853, a compiled port of SciPy's DOP853 that runs
+entirely in C (:mod:`chaplygin._ckernel`) or inside numba (:mod:`chaplygin._loop`); with
 ``backend="jax"``, diffrax; otherwise SciPy's stepper classes (``DOP853`` by
 default) driven step by step.  Every path ends a failed run (step-size
 underflow, a singular mass matrix, a blow-up) with a status, a message and the
@@ -23,19 +25,47 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import sympy as sp
 
-from ._symbols import TIME
-from .codegen import CompiledModel, compile_model, parameter_vector
 from .errors import ChaplyginError
-from .symmetric import METHODS as SYMMETRIC_METHODS
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
+    # warm run of the command line (chaplygin._quick) needs none of them
+    from ._ckernel import CompiledModel
     from .system import System
 
-__all__ = ["Trajectory", "simulate", "METHODS"]
+__all__ = ["Trajectory", "simulate", "METHODS", "BACKENDS", "choose_backend"]
 
+#: chaplygin.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
+SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
 METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA", *SYMMETRIC_METHODS)
+#: what ``backend=`` accepts: "auto" chooses one of the others (:func:`choose_backend`)
+BACKENDS = ("auto", "numpy", "numba", "c", "jax")
+
+
+def choose_backend(backend: str, method: str = "DOP853") -> str:
+    """The backend that ``backend="auto"`` runs ``method`` with; any other value as it is.
+
+    ``"auto"`` is ``"c"`` (the generated ``fill`` and the DOP853 loop in C,
+    :mod:`chaplygin._ckernel`) for ``DOP853`` where a C compiler is found: it
+    costs a fraction of a second to build once per model, nothing later (the
+    kernel cache), and integrates at compiled speed, so it pays for itself on
+    any run.  Otherwise ``"numpy"`` (no build step; SciPy's steppers).  numba is
+    never chosen: its first compile of a model takes seconds, and importing it
+    half a second more; ``backend="numba"`` still asks for it.
+    """
+    if backend not in BACKENDS:
+        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}.")
+    if backend != "auto":
+        return backend
+    if method == "DOP853":
+        from ._ckernel import Unavailable, compiler
+
+        try:
+            compiler()
+            return "c"
+        except Unavailable:
+            pass
+    return "numpy"
 
 
 @dataclass
@@ -147,6 +177,10 @@ def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Pa
 # ------------------------------------------------------------------ inputs
 def _lookup(system: System, key: Any) -> tuple[str, int]:
     """``("q", i)`` for a coordinate, ``("v", i)`` for a velocity, given as symbol or name."""
+    import sympy as sp
+
+    from ._symbols import TIME
+
     names = [q.func.__name__ for q in system.coordinates]
     if isinstance(key, str):
         name = key.strip()
@@ -255,7 +289,7 @@ def simulate(
     atol: float = 1e-12,
     method: str = "DOP853",
     samples: int = 1001,
-    backend: str = "numpy",
+    backend: str = "auto",
     constants: Any = None,
     multipliers: Any = None,
     max_step: float = np.inf,
@@ -270,6 +304,8 @@ def simulate(
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
     if samples < 2:
         raise ChaplyginError("samples: at least 2 are needed (the start and the end).")
+    auto = backend == "auto"
+    backend = choose_backend(backend, method)
     if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.symmetric
         from .symmetric import simulate_symmetric
 
@@ -286,7 +322,14 @@ def simulate(
     q, qd = initial_state(system, initial, params, t0)
     if isinstance(family_c, str) and family_c == "match":
         family_c = _matching_constants(system, q, qd, params, t0)
-    compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+    from .codegen import BackendUnavailable, compile_model, parameter_vector
+
+    try:
+        compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+    except BackendUnavailable:
+        if not auto:
+            raise
+        compiled = compile_model(system, model, form, "numpy", constants=family_c, reduction=reduction)
     layout = compiled.layout
 
     y0 = list(q) + ([*qd] if model in ("chetaev", "vakonomic") else [qd[i] for i in system._ind])
@@ -303,6 +346,10 @@ def _evaluate(
 ) -> Any:
     """``expr`` (internal symbols; a matrix gives an array) at time ``t0``, state ``(q, q̇)``
     and the parameter values (velocities that are NaN are left out)."""
+    import sympy as sp
+
+    from ._symbols import TIME
+
     v = system._vars
     values = {TIME: t0, **dict(zip(v.x, q)), **{x: val for x, val in zip(v.xd, qd) if not np.isnan(val)}}
     values.update({system.parameter(k): val for k, val in params.items()})
@@ -316,6 +363,8 @@ def _matching_constants(
     system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
 ) -> list[float]:
     """The c with μ(0) = 0 — vakonomic momenta equal to the true ones: ``c_β = ∂T/∂q̇_{ε+β}`` at t0."""
+    import sympy as sp
+
     v = system._vars
     return [_evaluate(system, sp.diff(system._T, v.xd[i]), q, qd, params, t0) for i in system._dep]
 
@@ -368,13 +417,18 @@ def integrate(
 ) -> Trajectory:
     """Integrate ``compiled.rhs`` from ``y0`` and sample it.
 
-    ``numba`` backend with ``method="DOP853"``: the compiled loop of
-    :mod:`chaplygin._loop` (the whole integration inside numba).  ``jax``
+    ``c`` or ``numba`` backend with ``method="DOP853"``: the compiled loop of
+    :mod:`chaplygin._ckernel` or :mod:`chaplygin._loop` (the whole integration in C or numba).  ``jax``
     backend with ``"DOP853"``, ``"RK45"`` or ``"RK23"``: diffrax
     (:mod:`chaplygin.jaxbackend`).  Otherwise: SciPy's stepper class driven
     step by step, with dense output where a sample falls.
     """
     times = np.linspace(t_span[0], t_span[1], samples)
+    if compiled.backend == "c" and method == "DOP853":
+        from ._loop import integrate_dop853
+
+        res = integrate_dop853(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, max_step=max_step)
+        return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
     if compiled.backend == "numba" and method == "DOP853":
         from ._loop import integrate_dop853, loop_model
 
@@ -435,7 +489,10 @@ def _trajectory(
 ) -> Trajectory:
     layout = compiled.layout
     n = len(layout.coordinates)
-    obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(len(times), compiled.n_observed)
+    if compiled.backend == "c":  # every sample in one call
+        obs = compiled.module.observe_many(times, ys, p)
+    else:
+        obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(len(times), compiled.n_observed)
     n_react = len(layout.reactions)
     velocities = obs[:, obs.shape[1] - n :] if len(times) else np.empty((0, n))
     residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g and len(times) else np.zeros(len(times))

@@ -804,10 +804,13 @@ class System:
             ``atol`` and ``max_step`` do not apply to these methods.
         samples : int
             Number of equally spaced output times (default 1001).
-        backend : {"numpy", "numba", "jax"}
+        backend : {"auto", "numpy", "numba", "c", "jax"}
             Generated code run as plain Python/NumPy; compiled with numba (with
-            the compiled DOP853 loop of :mod:`chaplygin._loop`); or JAX with
-            diffrax (optional extra ``chaplygin[jax]``).
+            the compiled DOP853 loop of :mod:`chaplygin._loop`); built as C with
+            the same loop in C (:mod:`chaplygin._ckernel`); or JAX with diffrax
+            (optional extra ``chaplygin[jax]``).  ``"auto"`` (default): ``"c"``
+            for DOP853 where a C compiler is found, else ``"numpy"``
+            (:func:`chaplygin.simulate.choose_backend`).
         constants : optional
             Vakonomic models: the constants ``c_β`` (default 0), or the string
             ``"match"``: start with ``μ = 0``, i.e. with vakonomic momenta equal

@@ -1,0 +1,132 @@
+"""Warm runs of ``chaplygin simulate`` without SymPy: the run plans of the ``c`` backend.
+
+A run of ``chaplygin simulate`` spends half a second importing SymPy and
+building the system before it integrates for a few milliseconds.  So after a
+run with the ``c`` backend the command line stores a *run plan* in the
+derivation cache (:mod:`chaplygin.cache`: JSON, keyed by the system file's
+bytes or the example's name, the model, form and library version, verified on
+read): the model's layout, its generated C ``fill`` (source, not code: built
+into the kernel cache, :mod:`chaplygin._ckernel`), and the file's default
+parameters and initial state.  The next run of the same system and model
+loads the compiled kernel (or builds it from the stored source) and
+integrates without importing SymPy, numba or SciPy.
+
+A plan answers only what it can answer exactly as the full path would: a
+reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose state is the
+coordinates and the independent velocities, taken as given), DOP853, no
+constants, overrides naming known parameters, coordinates or velocities.  A
+given dependent velocity is checked against the constraints (the kernel's
+velocities); anything else, a disagreement included, returns ``None`` and the
+full path runs (and reports the error).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import cache
+
+if TYPE_CHECKING:
+    from .simulate import Trajectory
+
+__all__ = ["key", "plan", "remember", "run"]
+
+#: the reduced models, whose state a plan builds from the given numbers alone
+REDUCED = ("chaplygin", "voronets", "lindelof")
+#: bumped whenever the plan's shape changes
+FORMAT = 1
+
+
+def key(definition: bytes, model: str, form: str) -> str:
+    """The cache key of the plan for ``model``/``form`` of the system ``definition``."""
+    from ._ckernel import FLAGS, compiler
+
+    return cache.key("simulate-plan", str(FORMAT), definition, model, form, "\0".join([*compiler(), *FLAGS]))
+
+
+def applies(backend: str, model: str, method: str, constants: Any, step: Any) -> bool:
+    """Whether a plan could answer this run (before looking for one)."""
+    from .simulate import choose_backend
+
+    return (model in REDUCED and method == "DOP853" and constants is None and step is None
+            and backend in ("auto", "c") and choose_backend(backend, method) == "c")
+
+
+def remember(definition: bytes | None, model: str, form: str, loaded: Any, tr: Trajectory) -> None:
+    """Store the plan of a finished ``c``-backend run (a no-op for anything a plan cannot answer)."""
+    if definition is None or tr.backend != "c" or model not in REDUCED:
+        return
+    from .codegen import compile_model
+
+    compiled = compile_model(loaded.system, model, form, "c")  # the run's model (cached on the system)
+    kernel, layout = compiled.module, compiled.layout
+    system = loaded.system
+    value = {
+        "layout": {f: list(getattr(layout, f)) for f in ("coordinates", "velocities", "multipliers",
+                                                          "parameters", "reactions")}
+        | {"model": layout.model, "form": layout.form},
+        "fill": kernel.fill_source, "dim": kernel.DIM, "n": kernel.N, "k": kernel.K,
+        "n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react, "g": system.g,
+        "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
+        "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
+    }
+    cache.store(key(definition, model, form), value)
+
+
+def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
+    """The stored plan, or None."""
+    value = cache.load(key(definition, model, form))
+    return value if isinstance(value, dict) else None
+
+
+def run(definition: bytes | None, model: str, form: str, t_end: float, samples: int, backend: str,
+        method: str, constants: Any, step: Any, params: Mapping[str, float],
+        initial: Mapping[str, float]) -> Trajectory | None:
+    """The run from a stored plan, or None where the full path must run.
+
+    ``params`` and ``initial`` are the command line's overrides (by name).
+    """
+    if definition is None or not t_end > 0 or not applies(backend, model, method, constants, step):
+        return None
+    found = plan(definition, model, form)
+    if found is None:
+        return None
+    try:
+        return _run(found, t_end, samples, params, initial)
+    except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
+        return None
+
+
+def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str, float],
+         initial: Mapping[str, float]) -> Trajectory | None:
+    from ._ckernel import CKernel, CompiledModel, Layout, Unavailable
+    from .simulate import integrate
+
+    lay = found["layout"]
+    layout = Layout(lay["model"], lay["form"], *(tuple(lay[f]) for f in ("coordinates", "velocities",
+                                                                         "multipliers", "parameters", "reactions")))
+    values = {**found["parameters"], **params}
+    state = {**found["initial"], **initial}
+    if set(values) != set(layout.parameters):
+        return None  # an unknown or missing parameter: the full path explains
+    every = set(layout.coordinates) | {c + "'" for c in layout.coordinates}
+    if not set(state) <= every or not set(layout.coordinates) | set(layout.velocities) <= set(state):
+        return None
+    try:
+        kernel = CKernel(found["fill"], int(found["dim"]), int(found["n"]), int(found["k"]),
+                         int(found["n_observed"]), int(found["n_react"]))
+    except Unavailable:
+        return None
+    y0 = np.array([state[name] for name in layout.coordinates + layout.velocities], dtype=float)
+    p = np.array([values[name] for name in layout.parameters], dtype=float)
+    velocities = kernel.observe(0.0, y0, p)[-len(layout.coordinates):]
+    for name, implied in zip(layout.coordinates, velocities):
+        given = state.get(name + "'")
+        if not np.isfinite(implied) or (given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))):
+            return None  # a dependent velocity that violates the constraints: the full path's error
+    compiled = CompiledModel(layout, kernel, "c")
+    return integrate(compiled, (0.0, float(t_end)), y0, p, dict(values), rtol=1e-10, atol=1e-12,
+                     method="DOP853", samples=samples, max_step=np.inf, g=int(found["g"]))

@@ -1,0 +1,157 @@
+"""The kernel cache, the run plans and ``backend="auto"``, across real processes.
+
+Each check runs fresh Python processes on a private cache folder
+(``$CHAPLYGIN_CACHE``) and looks at what they did — libraries built or
+loaded (``chaplygin._ckernel.STATS``), whether SymPy was imported — never at
+how long they took.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import chaplygin
+from chaplygin import examples
+from chaplygin._ckernel import Unavailable, compiler
+from chaplygin.simulate import SYMMETRIC_METHODS, choose_backend, simulate
+from chaplygin.symmetric import METHODS
+
+try:
+    compiler()
+    HAVE_CC = True
+except Unavailable:  # pragma: no cover - every CI machine has a C compiler
+    HAVE_CC = False
+
+needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler")
+SRC = str(Path(chaplygin.__file__).resolve().parents[1])
+RUN = ["simulate", "example:rolling-disk", "-m", "chaplygin", "-t", "2", "-n", "21"]
+
+# a process that runs the command line, then reports what it built and imported
+CLI = """
+import json, sys
+from chaplygin import _ckernel
+from chaplygin.cli import main
+code = main(sys.argv[1:])
+print(json.dumps({"code": code, "stats": _ckernel.STATS, "sympy": "sympy" in sys.modules}))
+"""
+# a process that compiles the rolling disk's Chaplygin model for the c backend
+COMPILE = """
+import json
+from chaplygin import _ckernel, examples
+from chaplygin.codegen import compile_model
+model = compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
+print(json.dumps({"stats": _ckernel.STATS, "file": model.module.__file__}))
+"""
+
+
+def _python(script: str, args: list[str], cache: Path, **env: str) -> dict:
+    environ = {**os.environ, "CHAPLYGIN_CACHE": str(cache), "PYTHONPATH": SRC, **env}
+    done = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, env=environ,
+                          timeout=600, check=False)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.strip().splitlines()
+    return {**json.loads(lines[-1]), "stdout": "\n".join(lines[:-1])}
+
+
+@needs_cc
+def test_second_process_loads_the_compiled_kernel(tmp_path):
+    first = _python(COMPILE, [], tmp_path)
+    assert first["stats"]["built"] == 2  # the DOP853 loop and this model's fill
+    second = _python(COMPILE, [], tmp_path)
+    assert second["stats"] == {"built": 0, "loaded": 2, "discarded": 0}
+    assert second["file"] == first["file"]
+
+
+@needs_cc
+@pytest.mark.parametrize("damage", ["library", "record"])
+def test_a_corrupt_kernel_is_discarded_and_rebuilt(tmp_path, damage):
+    first = _python(COMPILE, [], tmp_path)
+    library = Path(first["file"])
+    target = library if damage == "library" else library.with_suffix(".json")
+    target.write_bytes(target.read_bytes()[: 200] + b"garbage")
+    again = _python(COMPILE, [], tmp_path)
+    assert again["stats"] == {"built": 1, "loaded": 1, "discarded": 1}
+    assert again["file"] == first["file"]
+    assert _python(COMPILE, [], tmp_path)["stats"]["built"] == 0  # and the rebuilt one is reused
+
+
+@needs_cc
+def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
+    out = [str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), str(tmp_path / "c.npz")]
+    cold = _python(CLI, [*RUN, "-o", out[0]], tmp_path / "cache")
+    assert cold["code"] == 0 and cold["sympy"] and cold["stats"]["built"] == 2
+    assert "chaplygin [auto: c]: success" in cold["stdout"]
+    warm = _python(CLI, [*RUN, "-o", out[1]], tmp_path / "cache")
+    assert warm["code"] == 0 and not warm["sympy"]
+    assert warm["stats"] == {"built": 0, "loaded": 2, "discarded": 0}
+    assert warm["stdout"].replace(out[1], out[0]) == cold["stdout"]
+    a, b = np.load(out[0]), np.load(out[1])
+    assert a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files)
+    # an override the plan knows is applied; a dependent velocity that violates the
+    # constraints takes the full path, which reports it
+    moved = _python(CLI, [*RUN, "-o", out[2], "-i", "theta=0.2"], tmp_path / "cache")
+    assert moved["code"] == 0 and not moved["sympy"]
+    assert abs(float(np.load(out[2])["theta"][0]) - 0.2) < 1e-15
+    bad = subprocess.run([sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "d.npz"), "-i", "x'=5"],
+                         capture_output=True, text=True, timeout=600, check=False,
+                         env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC})
+    assert bad.returncode == 1 and "violates the constraints" in bad.stderr
+
+
+@needs_cc
+def test_a_corrupt_run_plan_is_ignored_and_replaced(tmp_path):
+    cache = tmp_path / "cache"
+    _python(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], cache)
+    (plan,) = (cache / "derivations").glob("*.json")
+    plan.write_text(plan.read_text(encoding="utf-8").replace('"fill"', '"fil"'), encoding="utf-8")
+    again = _python(CLI, [*RUN, "-o", str(tmp_path / "b.npz")], cache)
+    assert again["code"] == 0 and again["sympy"]  # the full path ran
+    assert not _python(CLI, [*RUN, "-o", str(tmp_path / "c.npz")], cache)["sympy"]  # and stored a good plan
+
+
+def test_auto_says_which_backend_ran(tmp_path):
+    without = _python(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], tmp_path, CHAPLYGIN_CC="none")
+    assert "chaplygin [auto: numpy]: success" in without["stdout"]
+    forced = _python(CLI, [*RUN, "-o", str(tmp_path / "b.npz"), "-b", "numpy"], tmp_path)
+    assert "chaplygin [numpy]: success" in forced["stdout"]
+    if HAVE_CC:
+        c = _python(CLI, [*RUN, "-o", str(tmp_path / "c.npz"), "-b", "c"], tmp_path)
+        assert "chaplygin [c]: success" in c["stdout"]
+        a, b = np.load(tmp_path / "b.npz"), np.load(tmp_path / "c.npz")
+        assert max(float(np.max(np.abs(a[k] - b[k]))) for k in a.files) < 1e-8
+
+
+def test_auto_in_the_api():
+    disk = examples.rolling_disk()
+    start = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
+    params = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
+    tr = simulate(disk, "chaplygin", 1.0, start, params, samples=11)
+    assert tr.backend == ("c" if HAVE_CC else "numpy") and tr.success
+    assert choose_backend("auto", "RK45") == "numpy" and choose_backend("numba", "DOP853") == "numba"
+    assert simulate(disk, "chaplygin", 1.0, start, params, samples=11, method="midpoint", step=0.1).backend == "numpy"
+    with pytest.raises(chaplygin.ChaplyginError, match="unknown backend 'fortran'"):
+        simulate(disk, "chaplygin", 1.0, start, params, backend="fortran")
+
+
+def test_generated_source_is_the_same_in_every_process(tmp_path):
+    """numba's on-disk cache is keyed by the generated file: it must not change between processes."""
+    script = """
+import hashlib, json
+from chaplygin import examples
+from chaplygin.codegen import _source
+eqs = examples.rolling_disk().equations("chaplygin")
+print(json.dumps({"digest": hashlib.sha256(_source(eqs, "numba")[1].encode()).hexdigest()}))
+"""
+    digests = {_python(script, [], tmp_path, PYTHONHASHSEED=str(seed))["digest"] for seed in (1, 2, 3)}
+    assert len(digests) == 1
+
+
+def test_symmetric_methods_are_named_alike():
+    assert SYMMETRIC_METHODS == tuple(METHODS)
