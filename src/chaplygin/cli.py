@@ -732,13 +732,17 @@ def sweep(
     constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
     param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
     initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of a running Dask scheduler (tcp://HOST:8786), or 'serial' for this process without Dask; default: a LocalCluster on this machine."),
-    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of the LocalCluster (default: one per core)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md)."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of a LocalCluster; giving it asks for one (default: one per core)."),
     chunk_size: Optional[int] = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
     resume: bool = typer.Option(False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."),
     force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
 ) -> None:
-    """Simulate a model over a grid of parameters and initial values on Dask; one Parquet row per run."""
+    """Simulate a model over a grid of parameters and initial values; one Parquet row per run.
+
+    Small sweeps run in this process; long ones, or when asked (--scheduler, --workers), on Dask.
+    The summary says where the runs ran.
+    """
     from .sweep import parse_grid
 
     axes: dict[str, Any] = {}
