@@ -19,7 +19,7 @@ from chaplygin._loop import integrate_dop853, loop_model
 from chaplygin._symbols import TIME
 from chaplygin.codegen import compile_equations
 from chaplygin.ensemble import simulate_ensemble
-from chaplygin.simulate import simulate
+from chaplygin.simulate import _initial_multipliers, initial_state, simulate
 
 try:
     compiler()
@@ -200,6 +200,55 @@ def test_ensemble_input_errors(disk):
         simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend="numpy")
     with pytest.raises(ChaplyginError, match="parameters"):
         simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0, DISK_0], {**DISK_P, "m": [1.0, 2.0, 3.0]})
+
+
+def test_ensemble_dict_states_equal_array_states(disk):
+    """Mappings are prepared in one vectorised step: the same states as an array in layout order,
+    and the dependent velocities (and vakonomic μ(0)) of simulate's one-state path."""
+    rng = np.random.default_rng(7)
+    starts = [{**DISK_0, "theta": th, "psi": ps, "phi'": w}
+              for th, ps, w in zip(rng.uniform(0.1, 0.4, 6), rng.uniform(-1, 1, 6), rng.uniform(3, 6, 6))]
+    layout = compile_equations(disk.equations("chaplygin"), "numpy").layout
+    Y0 = np.array([[s[name] for name in layout.state] for s in starts])
+    from_dicts = simulate_ensemble(disk, "chaplygin", 0.5, starts, DISK_P, keep=2)
+    from_array = simulate_ensemble(disk, "chaplygin", 0.5, Y0, DISK_P, keep=2)
+    assert np.array_equal(from_dicts.samples, from_array.samples) and np.array_equal(from_dicts.y, from_array.y)
+    assert np.array_equal(from_dicts.samples[:, 0], Y0)
+    # all velocities integrated: the dependent ones (x', y') follow from the constraints
+    chetaev = simulate_ensemble(disk, "chetaev", 0.5, starts, DISK_P, keep=2)
+    for k, start in enumerate(starts):
+        q, qd = initial_state(disk, start, DISK_P, 0.0)
+        np.testing.assert_allclose(chetaev.samples[k, 0], np.concatenate([q, qd]), rtol=1e-14, atol=1e-14)
+    # vakonomic μ(0) from constants c, per member (parameters per member too)
+    knife = examples.knife_edge()
+    masses = np.array([1.0, 2.0, 3.0])
+    knife_starts = [{"x": 0.0, "y": 0.0, "phi": 0.1 * k, "x'": 1.0 + k, "phi'": 0.5} for k in range(3)]
+    vak = simulate_ensemble(knife, "vakonomic", 0.5, knife_starts, {"m": masses, "J": 2.0}, constants=[0.3], keep=2)
+    for k, start in enumerate(knife_starts):
+        params = {"m": masses[k], "J": 2.0}
+        q, qd = initial_state(knife, start, params, 0.0)
+        mu = _initial_multipliers(knife, {"constants": [0.3]}, q, qd, params, 0.0)
+        np.testing.assert_allclose(vak.samples[k, 0], np.concatenate([q, qd, mu]), rtol=1e-14, atol=1e-14)
+
+
+def test_ensemble_dict_errors_name_the_member_and_key(disk):
+    def error(starts, **options) -> str:
+        with pytest.raises(ChaplyginError) as info:
+            simulate_ensemble(disk, "chetaev", 1.0, starts, DISK_P, **options)
+        return str(info.value)
+
+    others = [DISK_0] * 3
+    assert error([*others, {**DISK_0, "psy": 0.1}]).startswith(
+        "initial_states[3]: 'psy' is neither a coordinate nor a velocity of")
+    lacking = {k: v for k, v in DISK_0.items() if k != "theta'"}
+    assert error([DISK_0, DISK_0, lacking]).startswith("initial_states[2]: missing theta'; give every coordinate")
+    assert error([DISK_0, {**DISK_0, "x": "east"}]) == "initial_states[1]: 'x' = 'east' is not a number."
+    assert error([DISK_0, {**DISK_0, "x'": 3.0}]).startswith("initial_states[1]: x' = 3 violates the constraints")
+    assert error([DISK_0, np.zeros(10)]).startswith("initial_states[1]: expected a mapping")
+    _, qd = initial_state(disk, DISK_0, DISK_P, 0.0)  # a given dependent velocity that agrees is accepted
+    agreeing = {**DISK_0, "x'": float(qd[3]), "y'": float(qd[4])}
+    ens = simulate_ensemble(disk, "chetaev", 0.1, [DISK_0, agreeing], DISK_P)
+    assert ens.success.all()
 
 
 # ------------------------------------------------------------------ jax

@@ -44,61 +44,137 @@ def entries(directory: Path) -> list[Path]:
     return sorted(directory.glob("*.json")) if directory.exists() else []
 
 
-def test_second_derive_reads_the_entry_and_prints_the_same(cache_dir: Path, tmp_path: Path, monkeypatch) -> None:
+@pytest.fixture
+def derivations(monkeypatch: pytest.MonkeyPatch) -> list[tuple]:
+    """Every derivation ``derive`` does (as its arguments); printing does not count."""
+    import chaplygin.cli as cli
+
+    calls: list[tuple] = []
+    real = cli._derive
+
+    def counting(*args):
+        calls.append(args)
+        return real(*args)
+
+    monkeypatch.setattr(cli, "_derive", counting)
+    return calls
+
+
+def test_second_derive_reads_the_entry_and_prints_the_same(cache_dir: Path, tmp_path: Path, derivations) -> None:
     f = tmp_path / "knife.toml"
     f.write_text(KNIFE)
     first = derive(f)
-    (entry,) = entries(cache_dir)
-    # a hit must not derive: make deriving impossible and ask again
-    monkeypatch.setattr("chaplygin.cli._derive_text", lambda *a: pytest.fail("derived despite the cache"))
+    stored = entries(cache_dir)
+    assert len(derivations) == 1 and len(stored) == 2  # the derivation, and its text
     assert derive(f) == first
-    assert entries(cache_dir) == [entry]
+    assert len(derivations) == 1 and entries(cache_dir) == stored
     assert not list(cache_dir.glob(".*.tmp"))  # written atomically, nothing left over
 
 
-def test_no_cache_neither_reads_nor_writes(cache_dir: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("spec, model, form", [
+    ("knife", "chaplygin", "classic"),
+    ("example:knife-edge", "chetaev", "classic"),            # multipliers
+    ("example:knife-edge", "vakonomic_family", "classic"),   # constants c_1
+    ("example:rolling-sphere", "lindelof", "new"),
+    ("example:turntable-ball", "voronets", "classic"),      # affine constraints
+])
+def test_one_derivation_serves_every_format(spec: str, model: str, form: str, cache_dir: Path,
+                                            tmp_path: Path, derivations) -> None:
+    """json, then text, latex and --no-accelerations: derived once, printed as if never cached."""
+    if spec == "knife":
+        spec = str(tmp_path / "knife.toml")
+        Path(spec).write_text(KNIFE)
+    requests = [["--format", fmt] for fmt in ("json", "text", "latex")]
+    requests += [["--format", fmt, "--no-accelerations"] for fmt in ("text", "json")]
+
+    def run(*extra: str) -> str:
+        result = runner.invoke(app, ["derive", spec, "--model", model, "--form", form, *extra])
+        assert result.exit_code == 0, result.output
+        return result.stdout
+
+    cached = [run(*r) for r in requests]
+    assert len(derivations) == 1
+    again = [run(*r) for r in requests]  # each format from its own printed entry
+    assert again == cached and len(derivations) == 1
+    fresh = [run(*r, "--no-cache") for r in requests]
+    assert len(derivations) == 1 + len(requests)
+    assert cached == fresh
+    assert json.loads(cached[0])["accelerations"] and json.loads(cached[4])["accelerations"] is None
+
+
+def test_latex_is_what_equations_print(cache_dir: Path, derivations) -> None:
+    """The LaTeX printed from a cached derivation is Equations.latex() of a fresh one."""
+    from chaplygin import examples
+
+    for fmt in ("text", "latex"):
+        result = runner.invoke(app, ["derive", "example:rolling-sphere", "--model", "chaplygin", "-f", fmt])
+        assert result.exit_code == 0, result.output
+    assert len(derivations) == 1
+    assert examples.rolling_sphere().equations("chaplygin").latex() in result.stdout.splitlines()
+
+
+def test_no_cache_neither_reads_nor_writes(cache_dir: Path, tmp_path: Path, derivations) -> None:
     f = tmp_path / "knife.toml"
     f.write_text(KNIFE)
     derive(f, "--no-cache")
     assert entries(cache_dir) == []
     first = derive(f)
-    (entry,) = entries(cache_dir)
-    entry.write_bytes(entry.read_bytes())  # untouched entry; --no-cache must still derive
     assert derive(f, "--no-cache") == first
+    assert len(derivations) == 3
 
 
-def test_changed_file_or_options_miss(cache_dir: Path, tmp_path: Path) -> None:
+def test_changed_file_or_options_miss(cache_dir: Path, tmp_path: Path, derivations) -> None:
     f = tmp_path / "knife.toml"
     f.write_text(KNIFE)
     a = derive(f)
     f.write_text(KNIFE.replace("J/2*phi'^2", "J/3*phi'^2"))
     b = derive(f)
-    assert a != b
-    derive(f, "--format", "json")
-    assert len(entries(cache_dir)) == 3
+    assert a != b and len(derivations) == 2
+    derive(f, "--form", "new")
+    assert len(derivations) == 3
+    derive(f, "--format", "json")  # the format is not part of the derivation
+    assert len(derivations) == 3
 
 
-@pytest.mark.parametrize(
-    "damage",
-    [
-        lambda raw: raw[: len(raw) // 2],                                  # truncated
-        lambda raw: raw.replace(b"phi", b"psi"),                           # edited body
-        lambda raw: b"0" * 64 + raw[64:],                                  # wrong digest
-        lambda raw: b"not json at all",
-        lambda raw: b"",
-    ],
-)
-def test_corrupt_entry_is_discarded_and_rebuilt(cache_dir: Path, tmp_path: Path, damage) -> None:
+DAMAGES = [
+    lambda raw: raw[: len(raw) // 2],                                  # truncated
+    lambda raw: raw.replace(b"phi", b"psi"),                           # edited body
+    lambda raw: b"0" * 64 + raw[64:],                                  # wrong digest
+    lambda raw: b"not json at all",
+    lambda raw: b"",
+]
+
+
+@pytest.mark.parametrize("damage", DAMAGES)
+def test_corrupt_entry_is_discarded_and_rebuilt(cache_dir: Path, tmp_path: Path, damage, derivations) -> None:
     f = tmp_path / "knife.toml"
     f.write_text(KNIFE)
     first = derive(f)
-    (entry,) = entries(cache_dir)
-    entry.write_bytes(damage(entry.read_bytes()))
-    k = entry.stem
-    assert cache.load(k) is None and not entry.exists()  # detected and deleted
-    entry.write_bytes(damage(first.encode()))
-    assert derive(f) == first  # rebuilt ...
-    assert cache.load(k) + "\n" == first  # ... and stored again, valid
+    stored = entries(cache_dir)
+    for entry in stored:
+        entry.write_bytes(damage(entry.read_bytes()))
+    for entry in stored:
+        assert cache.load(entry.stem) is None and not entry.exists()  # detected and deleted
+        entry.write_bytes(damage(first.encode()))
+    assert derive(f) == first and len(derivations) == 2  # rebuilt ...
+    assert entries(cache_dir) == stored
+    assert all(cache.load(entry.stem) is not None for entry in stored)  # ... and stored again, valid
+
+
+@pytest.mark.parametrize("damage", DAMAGES)
+def test_a_damaged_derivation_is_derived_again(cache_dir: Path, tmp_path: Path, damage, derivations) -> None:
+    """A damaged derivation entry is a miss for a format not printed yet; a damaged printed entry
+    is printed again from the derivation."""
+    f = tmp_path / "knife.toml"
+    f.write_text(KNIFE)
+    first = derive(f)
+    (printed,) = [e for e in entries(cache_dir) if isinstance(cache.load(e.stem), str)]
+    printed.write_bytes(damage(printed.read_bytes()))
+    assert derive(f) == first and len(derivations) == 1  # printed from the derivation
+    (derivation,) = [e for e in entries(cache_dir) if isinstance(cache.load(e.stem), dict)]
+    derivation.write_bytes(damage(derivation.read_bytes()))
+    latex = derive(f, "--format", "latex")
+    assert len(derivations) == 2 and latex == derive(f, "--format", "latex", "--no-cache")
 
 
 def test_stale_entry_from_another_version_is_discarded(cache_dir: Path) -> None:
@@ -131,3 +207,43 @@ def test_unwritable_cache_is_not_an_error(tmp_path: Path, monkeypatch: pytest.Mo
     f.write_text(KNIFE)
     assert "Solved" in derive(f)
     assert cache.clear() == 0
+
+
+# ---------------------------------------------------------------- expressions as data
+def test_expressions_round_trip_exactly() -> None:
+    import sympy as sp
+
+    from chaplygin import examples
+
+    eqs = examples.turntable_ball().equations("chetaev")
+    exprs = [*eqs.equations, *eqs.accelerations, *eqs.accelerations.values(), sp.pi * sp.E + sp.I,
+             sp.Rational(-3, 7) * sp.Abs(sp.Symbol("w", real=True)) ** sp.Rational(1, 2)]
+    data = cache.expressions_to_data(exprs)
+    assert data is not None
+    back = cache.expressions_from_data(json.loads(json.dumps(data)))
+    assert back == exprs and [str(e) for e in back] == [str(e) for e in exprs]
+    assert len(data["nodes"]) < sum(sp.count_ops(e, visual=False) + 1 for e in exprs)  # shared nodes once
+
+
+def test_expressions_it_cannot_store_are_not_cached() -> None:
+    import sympy as sp
+
+    assert cache.expressions_to_data([sp.Dummy("x") + 1]) is None
+    assert cache.expressions_to_data([sp.Float(0.5) * sp.Symbol("x")]) is None
+    assert cache.expressions_to_data([sp.Heaviside(sp.Symbol("x"))]) is None
+
+
+@pytest.mark.parametrize("data, why", [
+    ({"nodes": [["eval", "1"]], "roots": [0]}, "unknown kind"),
+    ({"nodes": [["Symbol", "x", {}], ["Add", 0, 2]], "roots": [1]}, "out of range"),   # a later node
+    ({"nodes": [["Symbol", "x", {}]], "roots": [1]}, "out of range"),
+    ({"nodes": [["Symbol", "x", {"real": "yes"}]], "roots": [0]}, "assumptions"),
+    ({"nodes": [["Symbol", "", {}]], "roots": [0]}, "name"),
+    ({"nodes": [["Rational", 1, 0]], "roots": [0]}, "rational"),
+    ({"nodes": [["Constant", "__class__"]], "roots": [0]}, "constant"),
+    ({"nodes": [["Add"]]}, "KeyError"),
+    ("nodes", "TypeError"),
+])
+def test_malformed_expression_data_is_refused(data, why: str) -> None:
+    with pytest.raises(ValueError, match=why):
+        cache.expressions_from_data(data)

@@ -1,5 +1,6 @@
 """Sweeps (``chaplygin.sweep``, ``chaplygin sweep``): the grid, a 2-worker Dask LocalCluster against a
-serial run, a worker killed mid-sweep, failed runs kept as rows, resume after an interruption."""
+serial run, a worker killed mid-sweep, failed runs kept as rows, resume after an interruption, and
+where the runs go (this process for small sweeps, a cluster for long ones or when asked)."""
 
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ def client():
     cluster.close()
 
 
-def same_rows(a: pa.Table, b: pa.Table, ignore: tuple[str, ...] = ("wall_time",)) -> None:
+def same_rows(a: pa.Table, b: pa.Table, ignore: tuple[str, ...] = ("wall_time",), rtol: float = 0.0) -> None:
     """Equal tables, column by column, NaN equal to NaN; ``wall_time`` differs between runs."""
     assert a.column_names == b.column_names
     for name in a.column_names:
@@ -52,7 +53,7 @@ def same_rows(a: pa.Table, b: pa.Table, ignore: tuple[str, ...] = ("wall_time",)
             continue
         x, y = a.column(name).to_numpy(zero_copy_only=False), b.column(name).to_numpy(zero_copy_only=False)
         if x.dtype.kind == "f":
-            assert np.array_equal(x, y, equal_nan=True), name
+            assert np.allclose(x, y, rtol=rtol, atol=0.0, equal_nan=True), name
         else:
             assert list(x) == list(y), name
 
@@ -308,6 +309,7 @@ def test_command_line(client, tmp_path: Path) -> None:
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
     assert done.stdout.startswith("chaplygin: 4 runs: 4 run now; 0 failed;")
+    assert f" s on the Dask cluster at {client.scheduler.address} (" in done.stdout  # (N worker processes)
     table = read_results(out)
     assert table.column("grid.x'").to_pylist() == [0.5, 0.5, 1.0, 1.0]
     assert table.column("grid.m").to_pylist() == [1.0, 2.0, 1.0, 2.0]
@@ -336,8 +338,74 @@ def test_command_line(client, tmp_path: Path) -> None:
         assert "Traceback" not in result.output
 
 
-def test_default_local_cluster(tmp_path: Path) -> None:
-    """No scheduler: a LocalCluster of its own, closed at the end."""
+def test_a_local_cluster_when_asked(tmp_path: Path) -> None:
+    """scheduler="local": a LocalCluster of its own, closed at the end, named in the summary."""
     result = sweep("example:knife-edge", {"m": "1,2"}, model="chaplygin", t_end=1.0, out=tmp_path / "r",
-                   workers=1, **FAST)
+                   scheduler="local", workers=1, **FAST)
     assert result.ran == 2 and statuses(result.table()) == ["success", "success"]
+    assert result.where == "on a LocalCluster of 1 worker process"
+    assert " s on a LocalCluster of 1 worker process -> " in result.summary()
+
+
+# ---------------------------------------------------------------- where the runs go
+def no_cluster(*args, **kwargs):
+    pytest.fail("started or reached a Dask cluster")
+
+
+def test_small_grids_run_in_this_process_by_default(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("chaplygin.sweep._client", no_cluster)
+    result = sweep(DISK, DISK_GRID, t_end=2.0, out=tmp_path / "auto.parquet", **FAST)
+    assert result.where == "in this process" and result.ran == 9
+    serial = sweep(DISK, DISK_GRID, t_end=2.0, out=tmp_path / "serial.parquet", scheduler="serial", **FAST)
+    same_rows(result.table(), serial.table())
+    args = ["sweep", "example:knife-edge", "--grid", "x'=0.5,1", "--model", "chaplygin", "-t", "1",
+            "-o", str(tmp_path / "cli.parquet"), "-b", "numpy", "-n", "11"]
+    done = runner.invoke(app, args)
+    assert done.exit_code == 0, done.output
+    assert done.stdout.startswith("chaplygin: 2 runs: 2 run now; 0 failed; ")
+    assert " s in this process -> " in done.stdout
+    again = runner.invoke(app, [*args, "--resume"])  # nothing to run: nowhere to say
+    assert again.exit_code == 0 and "0 run now, 2 already there; 0 failed; " in again.stdout
+    assert "in this process" not in again.stdout
+
+
+@pytest.mark.parametrize("given", ["example", "object"])
+def test_long_runs_move_to_a_local_cluster(given: str, client, tmp_path: Path,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """With no scheduler, runs measured to take long hand the rest to a LocalCluster (here the
+    module's cluster stands in for it), a System object included; the rows are a serial sweep's."""
+    import chaplygin.sweep as module
+    from chaplygin import examples
+    from chaplygin.files import SystemFile
+
+    asked: list = []
+
+    def local_cluster(scheduler, workers):
+        asked.append((scheduler, workers))
+        return client, []
+
+    monkeypatch.setattr(module, "AUTO_CLUSTER_SECONDS", 0.0)  # any measured run is long
+    monkeypatch.setattr(module, "_cores", lambda: 4)
+    monkeypatch.setattr(module, "_client", local_cluster)
+    grid = {"theta'": "0.5:1.5:3", "phi'": "0.1:0.2:2"}
+    entry = examples.get("vertical-rolling-disk")
+    system = DISK if given == "example" else SystemFile(entry.constructor(), dict(entry.parameters),
+                                                        dict(entry.initial), "disk", "disk")
+    result = sweep(system, grid, t_end=2.0, out=tmp_path / "auto.parquet", **FAST)
+    assert asked == [(None, None)]
+    assert result.where.startswith("2 in this process, then 4 on the Dask cluster at ")
+    assert result.ran == 6 and result.table().column("run_id").to_pylist() == list(range(6))
+    serial = sweep(DISK, grid, t_end=2.0, out=tmp_path / "serial.parquet", scheduler="serial", **FAST)
+    # a System object is derived anew in each worker process from its pickle: the same equations,
+    # possibly with terms in another order, so the last digits may differ
+    same_rows(result.table(), serial.table(), rtol=0.0 if given == "example" else 1e-12)
+
+
+def test_a_machine_of_one_core_never_starts_a_cluster(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import chaplygin.sweep as module
+
+    monkeypatch.setattr(module, "AUTO_CLUSTER_SECONDS", 0.0)
+    monkeypatch.setattr(module, "_cores", lambda: 1)
+    monkeypatch.setattr(module, "_client", no_cluster)
+    result = sweep(DISK, {"theta'": "0.5:1.5:4"}, t_end=1.0, out=tmp_path / "r", **FAST)
+    assert result.where == "in this process" and result.ran == 4

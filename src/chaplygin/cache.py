@@ -16,6 +16,13 @@ not.  An entry is one JSON document in ``cache_dir()/derivations`` (see
   (truncated, edited, unreadable, from another version) is deleted and
   reported as a miss, so the caller derives anew and overwrites it.  Nothing
   in an entry is ever evaluated: it is data (JSON) only.
+
+SymPy expressions are stored as data too: :func:`expressions_to_data` writes
+them as a table of nodes (a symbol, a number, or one of a fixed set of
+operations and functions applied to earlier nodes), and
+:func:`expressions_from_data` rebuilds exactly the same expressions from it
+(unevaluated, so in time proportional to their size, less than printing them
+costs), so one stored derivation can be printed in any format.
 """
 
 from __future__ import annotations
@@ -26,12 +33,14 @@ import json
 import os
 import tempfile
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Any
 
-__all__ = ["FORMAT", "key", "load", "store", "clear", "directory", "cache_dir"]
+__all__ = ["FORMAT", "key", "load", "store", "clear", "directory", "cache_dir",
+           "expressions_to_data", "expressions_from_data"]
 
 #: bumped whenever the shape of cached documents changes
-FORMAT = 1
+FORMAT = 2
 
 
 @functools.cache
@@ -135,3 +144,128 @@ def _discard(path: Path) -> bool:
         return True
     except OSError:
         return False
+
+
+# ====================================================================== expressions as data
+#: operations and functions an expression may be made of, by class name (``Class(*args, evaluate=False)``)
+_OPERATIONS = ("Add", "Mul", "Pow", "Derivative", "Equality",
+               "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "atan2",
+               "sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "exp", "log", "Abs", "sign",
+               "re", "im", "conjugate")
+#: named constants, by class name
+_CONSTANTS = ("Pi", "Exp1", "ImaginaryUnit")
+
+
+def expressions_to_data(exprs: Sequence[Any]) -> dict[str, Any] | None:
+    """SymPy expressions as JSON data: ``{"nodes": [...], "roots": [...]}``; None if they hold
+    something this format does not know (they are then simply not cached).
+
+    Each node is a list: ``["Symbol", name, assumptions]``, ``["Rational", p, q]``,
+    ``["Constant", class name]``, ``["Function", name, assumptions, *args]`` (an undefined
+    function such as a coordinate ``x(t)``), ``["Tuple", *args]`` or ``[class name, *args]`` for
+    the classes of :data:`_OPERATIONS`; ``args`` are indices of earlier nodes, so a subexpression
+    that occurs many times is stored once.  ``roots`` are the indices of ``exprs``.  The data is
+    checked by rebuilding it: what cannot be rebuilt equal to ``exprs`` is not returned.
+    """
+    import sympy as sp
+    from sympy.core.function import AppliedUndef
+
+    nodes: list[list[Any]] = []
+    index: dict[Any, int] = {}
+
+    def visit(e: Any) -> int:
+        i = index.get(e)
+        if i is not None:
+            return i
+        if isinstance(e, sp.Symbol):
+            if type(e) is not sp.Symbol:  # Dummy, Wild: identity beyond the name
+                raise TypeError(type(e).__name__)
+            node: list[Any] = ["Symbol", e.name, dict(e._assumptions_orig)]
+        elif isinstance(e, sp.Rational):
+            node = ["Rational", int(e.p), int(e.q)]
+        elif type(e).__name__ in _CONSTANTS:
+            node = ["Constant", type(e).__name__]
+        elif isinstance(e, AppliedUndef):
+            node = ["Function", e.func.__name__, dict(getattr(e.func, "_kwargs", {})),
+                    *[visit(a) for a in e.args]]
+        elif isinstance(e, sp.Tuple):
+            node = ["Tuple", *[visit(a) for a in e.args]]
+        elif type(e).__name__ in _OPERATIONS and type(e) is getattr(sp, type(e).__name__, None):
+            node = [type(e).__name__, *[visit(a) for a in e.args]]
+        else:
+            raise TypeError(type(e).__name__)
+        nodes.append(node)
+        index[e] = len(nodes) - 1
+        return len(nodes) - 1
+
+    try:
+        data = {"nodes": nodes, "roots": [visit(e) for e in exprs]}
+        if expressions_from_data(json.loads(json.dumps(data))) != list(exprs):
+            return None
+    except (TypeError, ValueError, RecursionError):
+        return None
+    return data
+
+
+def expressions_from_data(data: Any) -> list[Any]:
+    """The expressions stored by :func:`expressions_to_data`, rebuilt exactly (nothing is evaluated).
+
+    Raises
+    ------
+    ValueError
+        For data that is not such a table (a node of an unknown kind, an index out of range).
+    """
+    import sympy as sp
+
+    try:
+        nodes, roots = data["nodes"], data["roots"]
+        built: list[Any] = []
+        for i, node in enumerate(nodes):
+            head, rest = node[0], node[1:]
+            if head == "Symbol":
+                name, assumptions = rest
+                value = sp.Symbol(_text(name), **_flags(assumptions))
+            elif head == "Rational":
+                p, q = rest
+                if type(p) is not int or type(q) is not int or q < 1:
+                    raise ValueError(f"node {i}: not a rational number")
+                value = sp.Rational(p, q)
+            elif head == "Constant":
+                if len(rest) != 1 or rest[0] not in _CONSTANTS:
+                    raise ValueError(f"node {i}: not a known constant")
+                value = getattr(sp.S, rest[0])
+            else:
+                if head == "Function":
+                    name, assumptions, *rest = rest
+                    make = sp.Function(_text(name), **_flags(assumptions))
+                elif head == "Tuple":
+                    make = sp.Tuple
+                elif head in _OPERATIONS:
+                    make = functools.partial(getattr(sp, head), evaluate=False)
+                else:
+                    raise ValueError(f"node {i}: unknown kind {head!r}")
+                value = make(*[built[_earlier(a, i)] for a in rest])
+            built.append(value)
+        return [built[_earlier(r, len(built))] for r in roots]
+    except (KeyError, IndexError, TypeError, AttributeError) as exc:
+        raise ValueError(f"not a table of expressions ({type(exc).__name__}: {exc})") from None
+
+
+def _earlier(i: Any, before: int) -> int:
+    if type(i) is not int or not 0 <= i < before:
+        raise ValueError(f"node index {i!r} out of range")
+    return i
+
+
+def _text(name: Any) -> str:
+    if not isinstance(name, str) or not name:
+        raise ValueError("a name must be a non-empty string")
+    return name
+
+
+def _flags(assumptions: Any) -> dict[str, bool]:
+    if not isinstance(assumptions, dict) or not all(
+        isinstance(k, str) and isinstance(v, bool) for k, v in assumptions.items()
+    ):
+        raise ValueError("assumptions must map names to true/false")
+    return assumptions

@@ -19,6 +19,7 @@ import os
 import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional
@@ -253,26 +254,94 @@ def _names(items: Sequence[Any]) -> list[str]:
 
 def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[str, Any]:
     """The JSON document of ``chaplygin derive --format json`` (schema ``chaplygin.derive/1``)."""
-    s = eqs.system
-    return {
-        "schema": "chaplygin.derive/1",
-        "system": s.name,
-        "model": eqs.model,
-        "form": eqs.form,
-        "title": eqs.title,
-        "coordinates": _names(s.coordinates),
-        "independent": _names(s.independent),
-        "dependent": _names(s.dependent),
-        "parameters": [p.name for p in s.parameters],
-        "constraints": {file_syntax(k): file_syntax(v) for k, v in s.constraints.items()},
-        "unknowns": _names(eqs.unknowns),
-        "multipliers": _names(eqs.multipliers),
-        "constants": [c.name for c in eqs.constants],
-        "equations": [file_syntax(e.lhs) for e in eqs.equations],
-        "accelerations": None if accelerations is None else {
-            file_syntax(k): file_syntax(v) for k, v in accelerations.items()
-        },
-    }
+    return _Derivation.of(eqs, accelerations).json_doc()
+
+
+@dataclass
+class _Derivation:
+    """What ``derive`` derived, apart from how it is printed: the system's names as strings
+    (``head``: the keys of the JSON document before its equations) and the expressions."""
+
+    head: dict[str, Any]
+    equations: list[Any]  # sympy.Eq(expression, 0) each
+    accelerations: dict[Any, Any] | None
+
+    @classmethod
+    def of(cls, eqs: Equations, accelerations: dict[Any, Any] | None) -> _Derivation:
+        s = eqs.system
+        head = {
+            "system": s.name,
+            "model": eqs.model,
+            "form": eqs.form,
+            "title": eqs.title,
+            "coordinates": _names(s.coordinates),
+            "independent": _names(s.independent),
+            "dependent": _names(s.dependent),
+            "parameters": [p.name for p in s.parameters],
+            "constraints": {file_syntax(k): file_syntax(v) for k, v in s.constraints.items()},
+            "unknowns": _names(eqs.unknowns),
+            "multipliers": _names(eqs.multipliers),
+            "constants": [c.name for c in eqs.constants],
+        }
+        return cls(head, list(eqs.equations), None if accelerations is None else dict(accelerations))
+
+    def to_data(self) -> dict[str, Any] | None:
+        """A JSON value for the derivation cache (None if the expressions cannot be stored)."""
+        from .cache import expressions_to_data
+
+        pairs = list((self.accelerations or {}).items())
+        exprs = expressions_to_data([*self.equations, *(x for pair in pairs for x in pair)])
+        if exprs is None:
+            return None
+        return {"head": self.head, "expressions": exprs, "equations": len(self.equations),
+                "accelerations": None if self.accelerations is None else len(pairs)}
+
+    @classmethod
+    def from_data(cls, data: Any) -> _Derivation | None:
+        """The derivation stored by :meth:`to_data`; None for anything else."""
+        from .cache import expressions_from_data
+
+        try:
+            exprs = expressions_from_data(data["expressions"])
+            n, k = data["equations"], data["accelerations"]
+            if not isinstance(data["head"], dict) or len(exprs) != n + 2 * (k or 0):
+                return None
+            pairs = exprs[n:]
+            acc = None if k is None else dict(zip(pairs[0::2], pairs[1::2]))
+            return cls(data["head"], exprs[:n], acc)
+        except (KeyError, TypeError, ValueError):
+            return None
+
+    def json_doc(self) -> dict[str, Any]:
+        acc = self.accelerations
+        return {
+            "schema": "chaplygin.derive/1",
+            **self.head,
+            "equations": [file_syntax(e.lhs) for e in self.equations],
+            "accelerations": None if acc is None else {file_syntax(k): file_syntax(v) for k, v in acc.items()},
+        }
+
+    def render(self, fmt: DeriveFormat) -> str:
+        """What ``derive --format fmt`` prints."""
+        head, acc = self.head, self.accelerations
+        if fmt is DeriveFormat.json:
+            return json.dumps(self.json_doc(), indent=2, ensure_ascii=False)
+        if fmt is DeriveFormat.latex:
+            from sympy.physics.vector.printing import vlatex
+
+            rows = r" \\ ".join(vlatex(e) for e in self.equations)  # as Equations.latex()
+            lines = [f"% {head['title']} - {head['system']}",
+                     r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"]
+            if acc is not None:
+                rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
+                lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+            return "\n".join(lines)
+        lines = [f"{head['title']} - {head['system']}"]
+        lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
+        if acc is not None:
+            lines.append("Solved:")
+            lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+        return "\n".join(lines)
 
 
 # ====================================================================== derive
@@ -289,23 +358,35 @@ def derive(
 ) -> None:
     """Derive the equations of motion of one model and print them.
 
-    The result is kept in the derivation cache (see `chaplygin.cache`), keyed by
-    the file's contents, the options and the library version: asking again
-    prints it without deriving.
+    The derivation is kept in the derivation cache (see `chaplygin.cache`), keyed by the
+    file's contents, the model, the form, whether the accelerations are solved and the library
+    version, not by the output format: asking again, in any format, prints it without deriving.
     """
     from . import cache
 
     with _failures():
         source = _definition(file)
-        k = None if no_cache or source is None else cache.key(
-            "derive", source, model.value, form.value, fmt.value, str(accelerations))
-        cached = None if k is None else cache.load(k)
-        if isinstance(cached, str):
-            _emit(cached)
+        if no_cache or source is None:
+            _emit(_derive(file, model, form, accelerations).render(fmt))
             return
-        text = _derive_text(file, model, form, fmt, accelerations)
-        if k is not None:
-            cache.store(k, text)
+        request = ("derive", source, model.value, form.value)
+        out_key = cache.key(*request, str(accelerations), "printed as", fmt.value)
+        printed = cache.load(out_key)  # the same request printed before: no SymPy at all
+        if isinstance(printed, str):
+            _emit(printed)
+            return
+        keys = [cache.key(*request, "accelerations" if solved else "equations")
+                for solved in ((True,) if accelerations else (False, True))]
+        found = next((d for d in map(_Derivation.from_data, map(cache.load, keys)) if d is not None), None)
+        if found is None:
+            found = _derive(file, model, form, accelerations)
+            data = found.to_data()
+            if data is not None:
+                cache.store(keys[0], data)
+        if not accelerations:
+            found.accelerations = None  # an entry with them serves a request without
+        text = found.render(fmt)
+        cache.store(out_key, text)
         _emit(text)
 
 
@@ -320,8 +401,8 @@ def _definition(spec: str) -> bytes | None:
         return None  # _load reports the problem
 
 
-def _derive_text(file: str, model: Model, form: Form, fmt: DeriveFormat, accelerations: bool) -> str:
-    """What ``derive`` prints."""
+def _derive(file: str, model: Model, form: Form, accelerations: bool) -> _Derivation:
+    """Derive (the only place ``derive`` does symbolic work beyond printing)."""
     loaded = _load(file)
     system = loaded.system
     with _Steps(2 if accelerations else 1, f"deriving {model.value}/{form.value}") as steps:
@@ -332,22 +413,7 @@ def _derive_text(file: str, model: Model, form: Form, fmt: DeriveFormat, acceler
         if accelerations:
             steps.step("solving for the accelerations")
             acc = eqs.accelerations
-    if fmt is DeriveFormat.json:
-        return json.dumps(derive_json(eqs, acc), indent=2, ensure_ascii=False)
-    if fmt is DeriveFormat.latex:
-        from sympy.physics.vector.printing import vlatex
-
-        lines = [f"% {eqs.title} - {system.name}", eqs.latex()]
-        if acc is not None:
-            rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
-            lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
-        return "\n".join(lines)
-    lines = [f"{eqs.title} - {system.name}"]
-    lines += [f"  {file_syntax(e.lhs)} = 0" for e in eqs.equations]
-    if acc is not None:
-        lines.append("Solved:")
-        lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
-    return "\n".join(lines)
+    return _Derivation.of(eqs, acc)
 
 
 # ====================================================================== check
@@ -680,13 +746,17 @@ def sweep(
     constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
     param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
     initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of a running Dask scheduler (tcp://HOST:8786), or 'serial' for this process without Dask; default: a LocalCluster on this machine."),
-    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of the LocalCluster (default: one per core)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md)."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of a LocalCluster; giving it asks for one (default: one per core)."),
     chunk_size: Optional[int] = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
     resume: bool = typer.Option(False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."),
     force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
 ) -> None:
-    """Simulate a model over a grid of parameters and initial values on Dask; one Parquet row per run."""
+    """Simulate a model over a grid of parameters and initial values; one Parquet row per run.
+
+    Small sweeps run in this process; long ones, or when asked (--scheduler, --workers), on Dask.
+    The summary says where the runs ran.
+    """
     from .sweep import parse_grid
 
     axes: dict[str, Any] = {}

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
+from contextlib import suppress
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -28,7 +29,7 @@ import numpy as np
 from ._loop import STATUS
 from .codegen import CompiledModel, Layout, compile_model
 from .errors import ChaplyginError
-from .simulate import _initial_multipliers, _parameters, _vakonomic_setup, initial_state
+from .simulate import _initial_multipliers, _vakonomic_setup
 
 if TYPE_CHECKING:
     from .system import System
@@ -178,16 +179,121 @@ def _states(
             "initial_states: give an (N, len(state)) array in layout order or a non-empty list "
             "of mappings like simulate()'s `initial`."
         )
-    rows = []
-    for i, initial in enumerate(initial_states):
-        params = {name: float(P[i, j]) for j, name in enumerate(layout.parameters)} if P is not None else {}
-        params = _parameters(system, {k: v for k, v in params.items() if k in {p.name for p in system.parameters}})
-        q, qd = initial_state(system, initial, params, t0)
-        y0 = list(q) + ([*qd] if model in ("chetaev", "vakonomic") else [qd[k] for k in system._ind])
-        if model == "vakonomic":
-            y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
-        rows.append(y0)
-    return np.ascontiguousarray(rows, dtype=float)
+    Q, QD = _given(system, initial_states)
+    params = {name: P[:, j] for j, name in enumerate(layout.parameters)
+              if name in {p.name for p in system.parameters}} if P is not None else {}
+    if system.g:
+        _dependent_velocities(system, Q, QD, params, t0)
+    columns = [Q, QD if model in ("chetaev", "vakonomic") else QD[:, list(system._ind)]]
+    if model == "vakonomic":
+        columns.append(_multipliers(system, vak or {}, Q, QD, params, t0))
+    return np.ascontiguousarray(np.column_stack(columns), dtype=float)
+
+
+def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates and velocities (N × n each, NaN where not given) from N mappings; every
+    coordinate and independent velocity must be there (the messages name the member and key)."""
+    from .simulate import _lookup
+
+    n, count = system.n, len(initial_states)
+    Q, QD = np.full((count, n), np.nan), np.full((count, n), np.nan)
+    where: dict[Any, tuple[str, int]] = {}  # a key's column, looked up once for all members
+    for k, initial in enumerate(initial_states):
+        if not isinstance(initial, Mapping):
+            raise ChaplyginError(
+                f"initial_states[{k}]: expected a mapping like simulate()'s `initial`, not "
+                f"{type(initial).__name__} (or give every state as a row of one array)."
+            )
+        for key, value in initial.items():
+            try:
+                kind, i = where[key]
+            except (KeyError, TypeError):  # new, or unhashable
+                try:
+                    kind, i = _lookup(system, key)
+                except ChaplyginError as exc:
+                    raise ChaplyginError(f"initial_states[{k}]: {str(exc).removeprefix('initial: ')}") from None
+                with suppress(TypeError):
+                    where[key] = kind, i
+            try:
+                (Q if kind == "q" else QD)[k, i] = float(value)
+            except (TypeError, ValueError):
+                raise ChaplyginError(f"initial_states[{k}]: {key!r} = {value!r} is not a number.") from None
+    names = [c.func.__name__ for c in system.coordinates]
+    needed = np.concatenate([np.isnan(Q), np.isnan(QD[:, list(system._ind)])], axis=1)
+    if needed.any():
+        k = int(np.flatnonzero(needed.any(axis=1))[0])
+        labels = names + [names[i] + "'" for i in system._ind]
+        missing = [label for label, lacking in zip(labels, needed[k]) if lacking]
+        raise ChaplyginError(
+            f"initial_states[{k}]: missing {', '.join(missing)}; give every coordinate and the "
+            f"independent velocities ({', '.join(names[i] + chr(39) for i in system._ind)})."
+        )
+    return Q, QD
+
+
+def _evaluate_all(
+    system: System, exprs: Sequence[Any], Q: np.ndarray, QD: np.ndarray,
+    params: Mapping[str, np.ndarray], t0: float,
+) -> np.ndarray:
+    """``exprs`` (internal symbols) at every member's state: one vectorised call, N × len(exprs)."""
+    from ._sampling import compile_function
+    from ._symbols import TIME
+
+    v = system._vars
+    f = compile_function(list(exprs), [TIME, *v.x, *v.xd, *(system.parameter(name) for name in params)])
+    with np.errstate(all="ignore"):  # NaN velocities (not given yet) and poles show as NaN, not warnings
+        values = f(t0, *Q.T, *QD.T, *params.values())
+    return np.column_stack([np.broadcast_to(np.asarray(x, dtype=float), (len(Q),)) for x in values])
+
+
+def _dependent_velocities(
+    system: System, Q: np.ndarray, QD: np.ndarray, params: Mapping[str, np.ndarray], t0: float
+) -> None:
+    """Fill in the dependent velocities of every member from the constraints (``initial_state``
+    for N members at once): ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``; a given one must agree."""
+    ind, dep = list(system._ind), list(system._dep)
+    names = [c.func.__name__ for c in system.coordinates]
+    matrix = system._A.row_join(system._A0)
+    a = _evaluate_all(system, list(matrix), Q, QD, params, t0).reshape(len(Q), *matrix.shape)
+    lhs, rhs = a[:, :, dep], -(np.einsum("kij,kj->ki", a[:, :, ind], QD[:, ind]) + a[:, :, -1])
+    solvable = np.all(np.isfinite(lhs), axis=(1, 2)) & np.all(np.isfinite(rhs), axis=1)
+    solvable[solvable] = np.linalg.matrix_rank(lhs[solvable]) == len(dep)
+    if not solvable.all():
+        k = int(np.flatnonzero(~solvable)[0])
+        raise ChaplyginError(
+            f"initial_states[{k}]: the constraints cannot be solved for the dependent velocities "
+            f"({', '.join(names[i] + chr(39) for i in dep)}) at this configuration."
+        )
+    implied = np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]
+    given = QD[:, dep]
+    wrong = ~np.isnan(given) & (np.abs(given - implied) > 1e-9 * np.maximum(1.0, np.abs(implied)))
+    if wrong.any():
+        k, j = (int(x) for x in np.argwhere(wrong)[0])
+        name = names[dep[j]]
+        raise ChaplyginError(
+            f"initial_states[{k}]: {name}' = {given[k, j]:g} violates the constraints, which give "
+            f"{name}' = {implied[k, j]:.12g} (residual {given[k, j] - implied[k, j]:.3g})."
+        )
+    QD[:, dep] = implied
+
+
+def _multipliers(
+    system: System, vak: dict[str, Any], Q: np.ndarray, QD: np.ndarray,
+    params: Mapping[str, np.ndarray], t0: float,
+) -> np.ndarray:
+    """μ(0) of every member of the vakonomic model (N × g).
+
+    simulate's one-state path, for the first member, checks the request (and its μ(0) is every
+    member's when μ(0) is given or ``constants="match"``); from constants c, ``μ = c − ∂T/∂q̇_dep``
+    is evaluated for all members at once.
+    """
+    first = _initial_multipliers(system, vak, Q[0], QD[0], {k: float(v[0]) for k, v in params.items()}, t0)
+    c = vak.get("constants")
+    if "mu" in vak or (isinstance(c, str) and c == "match"):
+        return np.tile(first, (len(Q), 1))  # the same for every member
+    exprs = system.integrated_multipliers(c)
+    names = system.equations("vakonomic").multipliers
+    return _evaluate_all(system, [exprs[m].xreplace(system._to_sym) for m in names], Q, QD, params, t0)
 
 
 def _observe_all(compiled: CompiledModel, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -233,8 +339,10 @@ def simulate_ensemble(
         Either states in layout order (``compile_model(system, model).layout.state``:
         coordinates, the integrated velocities, multipliers), or ``N``
         mappings like ``simulate``'s ``initial`` (dependent velocities follow
-        from the constraints).  An array for a multiplier model (all
-        velocities integrated) must satisfy the constraints.
+        from the constraints, computed for all members in one vectorised
+        step; an error names the member, ``initial_states[k]``, and the key).
+        An array for a multiplier model (all velocities integrated) must
+        satisfy the constraints.
     parameters : mapping
         A number for every parameter, or an array of ``N`` numbers (one per
         member) for a parameter sweep.

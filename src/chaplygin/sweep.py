@@ -6,9 +6,13 @@ one run per point of the grid, and keeps one row per run: the inputs, the
 status and message, the final state, the energy at start and end, the energy
 drift and the largest constraint residual.
 
-The runs go to a Dask cluster (``dask.distributed``): a ``LocalCluster`` of
-worker processes on this machine by default, or any running cluster by the
-address of its scheduler.  Each worker process builds the system and compiles
+By default the runs go one after another in this process, which starts at
+once; only when the runs measured so far say that the rest would take longer
+than :data:`AUTO_CLUSTER_SECONDS` does the sweep hand the rest to a Dask
+``LocalCluster`` (``dask.distributed``) of worker processes on this machine.
+A cluster is also used when asked for: ``scheduler="local"`` (or ``workers``)
+for a ``LocalCluster``, or any running cluster by the address of its
+scheduler.  Each worker process builds the system and compiles
 the model once (the generated code lives in :func:`chaplygin.codegen.cache_dir`)
 and then runs chunks of grid points.  A worker that dies (killed, out of
 memory) loses nothing: the scheduler hands its tasks to the other workers.  A
@@ -28,13 +32,15 @@ directory; :func:`read_results` also sorts by run id and drops the duplicates
 that an interrupted compaction can leave.
 
 Optional extra ``chaplygin[sweep]``: ``dask[distributed]`` and ``pyarrow``
-(``scheduler="serial"`` runs in this process and needs only ``pyarrow``).
+(a sweep that runs in this process needs only ``pyarrow``).
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import hashlib
+import importlib.util
 import json
 import math
 import os
@@ -70,6 +76,7 @@ __all__ = [
     "SweepOutputExists",
     "SWEEP_BACKENDS",
     "SCHEMA",
+    "AUTO_CLUSTER_SECONDS",
 ]
 
 SCHEMA = "chaplygin.sweep/1"
@@ -81,6 +88,13 @@ MAX_RUNS = 100_000_000
 MAX_MESSAGE = 2000
 GRID_SYNTAX = "NAME=START:STOP:COUNT (e.g. theta=0.1:0.5:5) or NAME=V1,V2,... (e.g. m=1,2,4)"
 EXTRA_HINT = "pip install 'chaplygin[sweep]' (dask[distributed] and pyarrow)"
+#: A sweep given no scheduler runs in this process until the runs measured so far (the first,
+#: which builds and compiles the model, left out) say that the rest would take longer than this;
+#: then it hands the rest to a LocalCluster.  A LocalCluster costs seconds to tens of seconds to
+#: start (worker processes that import chaplygin, derive the model and load its compiled code:
+#: 5-20 s measured on 2 busy cores with the code cache warm, ~50 s seen on a busier or colder
+#: machine), which only work of this order can win back, and only with more than one core.
+AUTO_CLUSTER_SECONDS = 30.0
 
 #: columns every sweep has, after the inputs (``grid.*``, ``param.*``, ``initial.*``)
 OUTCOME_COLUMNS = ("status", "message", "t_end", "t_reached")
@@ -255,21 +269,21 @@ def _fingerprint(system: System) -> str:
 
 
 def _resolve(
-    spec: System | SystemFile | str | os.PathLike[str], serial: bool,
+    spec: System | SystemFile | str | os.PathLike[str], local: bool,
 ) -> tuple[System, _Recipe, dict[str, float], dict[str, float], str]:
     """``(system, recipe, default parameters, default initial state, label)`` of what was given.
 
     A ``System`` object travels to Dask workers as a pickle (without its derived equations); in
-    a serial sweep it is used as it is.
+    a sweep that starts in this process (``local``) it is used as it is.
     """
     from .files import SystemFile, _loads
     from .system import System
 
     if isinstance(spec, SystemFile):
-        recipe = _object_recipe(spec.system, spec.source, serial)
+        recipe = _object_recipe(spec.system, spec.source, local)
         return spec.system, recipe, dict(spec.parameters), dict(spec.initial), spec.source
     if isinstance(spec, System):
-        return spec, _object_recipe(spec, spec.name, serial), {}, {}, spec.name
+        return spec, _object_recipe(spec, spec.name, local), {}, {}, spec.name
     if isinstance(spec, str) and spec.startswith("example:"):
         from . import examples
 
@@ -304,8 +318,8 @@ def _resolve(
     )
 
 
-def _object_recipe(system: System, source: str, serial: bool) -> _Recipe:
-    if serial:
+def _object_recipe(system: System, source: str, local: bool) -> _Recipe:
+    if local:
         recipe = _Recipe("local", None, source, None, f"local-{id(system)}-{_fingerprint(system)}")
         _remember(recipe, system)
         return recipe
@@ -731,6 +745,10 @@ class SweepResult:
         Rows with status ``"failed"`` in the whole output.
     seconds : float
         Wall time of this call.
+    where : str
+        Where the runs of this call ran: ``"in this process"``, ``"on a LocalCluster of 2
+        worker processes"``, ``"on the Dask cluster at tcp://…"``, or ``"3 in this process,
+        then 97 on a LocalCluster …"``; ``""`` when nothing ran.
     """
 
     path: Path
@@ -739,16 +757,18 @@ class SweepResult:
     resumed: int
     failed: int
     seconds: float
+    where: str = ""
 
     def table(self, columns: Sequence[str] | None = None) -> pa.Table:
         """The rows (see :func:`read_results`)."""
         return read_results(self.path, columns)
 
     def summary(self) -> str:
-        """One line: runs done now and before, failures, the output."""
+        """One line: runs done now and before, failures, the time and where the runs ran, the output."""
         before = f", {self.resumed} already there" if self.resumed else ""
+        where = f" {self.where}" if self.where else ""
         return (f"{self.runs} runs: {self.ran} run now{before}; {self.failed} failed; "
-                f"{self.seconds:.3g} s -> {self.path}")
+                f"{self.seconds:.3g} s{where} -> {self.path}")
 
     def __repr__(self) -> str:
         return f"<SweepResult {self.summary()}>"
@@ -806,7 +826,7 @@ def _client(scheduler: Any, workers: int | None) -> tuple[Any, list[Any]]:
     distributed = _require("distributed")
     if isinstance(scheduler, distributed.Client):
         return scheduler, []
-    if scheduler is None:
+    if scheduler is None or (isinstance(scheduler, str) and scheduler.strip() == "local"):
         import logging
 
         n = workers or os.cpu_count() or 1
@@ -829,11 +849,12 @@ def _client(scheduler: Any, workers: int | None) -> tuple[Any, list[Any]]:
         except (OSError, TimeoutError, ValueError) as exc:
             raise ChaplyginError(
                 f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc}); give the "
-                "address the scheduler prints (tcp://HOST:8786), 'serial', or nothing for a LocalCluster."
+                "address the scheduler prints (tcp://HOST:8786), 'local' for a LocalCluster, 'serial' for "
+                "this process, or nothing."
             ) from None
         return client, [client]
     raise ChaplyginError(
-        f"scheduler: expected None, 'serial', a scheduler address or a distributed.Client, "
+        f"scheduler: expected None, 'serial', 'local', a scheduler address or a distributed.Client, "
         f"not {type(scheduler).__name__}."
     )
 
@@ -902,13 +923,18 @@ def sweep(
     parameters, initial : mapping, optional
         Fixed values over the file's (or example's) defaults; a ``System``
         given directly needs every parameter and initial value here or in the grid.
-    scheduler : None, "serial", address, or distributed.Client
-        ``None``: a ``LocalCluster`` of ``workers`` processes (one per core by
-        default), closed at the end.  An address (``"tcp://host:8786"``): that
-        running cluster (its workers need chaplygin installed).  ``"serial"``:
-        in this process, without Dask.
+    scheduler : None, "serial", "local", address, or distributed.Client
+        ``None``: in this process, handing the rest to a ``LocalCluster`` only
+        when the runs measured so far say that it would take longer than
+        :data:`AUTO_CLUSTER_SECONDS` (and the machine has more than one core).
+        ``"serial"``: in this process, without Dask.  ``"local"``: a
+        ``LocalCluster`` of ``workers`` processes (one per core by default),
+        closed at the end.  An address (``"tcp://host:8786"``): that running
+        cluster (its workers need chaplygin installed).
+        :attr:`SweepResult.where` says which ran the runs.
     workers : int, optional
-        Worker processes of the LocalCluster.
+        Worker processes of the LocalCluster; with ``scheduler=None``, giving
+        it asks for a LocalCluster from the start.
     resume : bool
         Continue the sweep in ``out``: run only the run ids that are not there
         (the settings must be the same).  Without it an existing ``out`` is
@@ -949,8 +975,8 @@ def sweep(
     """
     started = time.perf_counter()
     _require("pyarrow.parquet")
-    serial = isinstance(scheduler, str) and scheduler.strip() == "serial"
-    if not serial:
+    runner = _runner(scheduler, workers)
+    if runner == "cluster":
         _require("distributed")
     if backend not in SWEEP_BACKENDS:
         raise ChaplyginError(
@@ -969,7 +995,7 @@ def sweep(
     if resume and force:
         raise ChaplyginError("resume and force exclude each other: resume keeps the runs there, force deletes them.")
 
-    sys_, recipe, base_params, base_initial, label = _resolve(system, serial)
+    sys_, recipe, base_params, base_initial, label = _resolve(system, runner != "cluster")
     params = {**_names(sys_, base_params, "parameters"), **_names(sys_, parameters, "parameters")}
     start = {**_names(sys_, base_initial, "initial"), **_names(sys_, initial, "initial")}
     axes = _axes(sys_, grid)
@@ -1043,27 +1069,81 @@ def sweep(
         report = (lambda n: progress(n, total)) if progress is not None else (lambda n: None)
         writer = _Writer(directory, _schema(plan, meta), flush_seconds,
                          (parts[-1][0] + 1) if parts else 0)
+        where = ""
         try:
             report(resumed)
-            if serial and len(todo):
-                _remember(recipe, sys_)
-                _serial(plan, todo, writer, resumed, report)
+            if runner == "cluster" and len(todo):
+                where = _distributed(plan, todo, writer, resumed, report, scheduler, workers, chunk_size, retries)
             elif len(todo):
-                _distributed(plan, todo, writer, resumed, report, scheduler, workers, chunk_size, retries)
+                _remember(recipe, sys_)
+                here = _serial(plan, todo, writer, resumed, report, watch=runner == "auto" and _can_cluster())
+                where = "in this process"
+                if here < len(todo):  # the rest would take long: a LocalCluster
+                    travelling = _travelling(plan, sys_)
+                    rest = todo[here:]
+                    if travelling is None:
+                        _serial(plan, rest, writer, resumed + here, report, watch=False)
+                    else:
+                        there = _distributed(travelling, rest, writer, resumed + here, report, None, workers,
+                                             chunk_size, retries)
+                        where = f"{here} in this process, then {len(rest)} {there}"
         finally:
             writer.close()
         if compact:
             writer.compact()
     return SweepResult(directory, total, writer.written, resumed, failed_before + writer.failed,
-                       time.perf_counter() - started)
+                       time.perf_counter() - started, where)
 
 
-def _serial(plan: _Plan, todo: np.ndarray, writer: _Writer, resumed: int, report: Callable[[int], None]) -> None:
-    done = resumed
-    for run_id in todo:
+def _runner(scheduler: Any, workers: int | None) -> str:
+    """``"auto"`` (no scheduler, no workers), ``"serial"``, or ``"cluster"`` (asked for)."""
+    if scheduler is None:
+        return "auto" if workers is None else "cluster"
+    if isinstance(scheduler, str) and scheduler.strip() == "serial":
+        return "serial"
+    return "cluster"
+
+
+def _cores() -> int:
+    """CPU cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def _can_cluster() -> bool:
+    """Whether a LocalCluster could help: more than one core, and dask.distributed installed."""
+    return _cores() > 1 and importlib.util.find_spec("distributed") is not None
+
+
+def _travelling(plan: _Plan, system: System) -> _Plan | None:
+    """``plan`` with a recipe that worker processes can build (None if the system cannot travel)."""
+    if plan.recipe.kind != "local":
+        return plan
+    try:
+        return dataclasses.replace(plan, recipe=_object_recipe(system, plan.recipe.source, False))
+    except ChaplyginError:
+        return None
+
+
+def _serial(plan: _Plan, todo: np.ndarray, writer: _Writer, resumed: int, report: Callable[[int], None],
+            *, watch: bool) -> int:
+    """Run ``todo`` in this process; the number run.
+
+    With ``watch``, stop early once the runs so far (the first, which builds and compiles the
+    model, left out) say that the rest would take longer than :data:`AUTO_CLUSTER_SECONDS`.
+    """
+    took: list[float] = []
+    for count, run_id in enumerate(todo, 1):
+        start = time.perf_counter()
         writer.add(_run_chunk(plan, [int(run_id)]))
-        done += 1
-        report(done)
+        took.append(time.perf_counter() - start)
+        report(resumed + count)
+        left = len(todo) - count
+        if watch and left and len(took) > 1 and sum(took[1:]) / (len(took) - 1) * left > AUTO_CLUSTER_SECONDS:
+            return count
+    return len(todo)
 
 
 def _chunks(todo: np.ndarray, size: int) -> Iterator[list[int]]:
@@ -1074,8 +1154,9 @@ def _chunks(todo: np.ndarray, size: int) -> Iterator[list[int]]:
 def _distributed(
     plan: _Plan, todo: np.ndarray, writer: _Writer, resumed: int, report: Callable[[int], None],
     scheduler: Any, workers: int | None, chunk_size: int | None, retries: int,
-) -> None:
-    """Run the chunks of ``todo`` on Dask, a window of tasks at a time, writing rows as they come.
+) -> str:
+    """Run the chunks of ``todo`` on Dask, a window of tasks at a time, writing rows as they come;
+    where they ran (``"on a LocalCluster of 2 worker processes"``).
 
     A task lost with a dead worker is rescheduled by Dask.  A chunk whose task kept killing its
     workers (``KilledWorker``) is split: its runs become *suspects*, run one task at a time, so
@@ -1087,7 +1168,11 @@ def _distributed(
     suspects: deque[int] = deque()
     try:
         _check_workers(client)
-        threads = max(1, sum(client.nthreads().values()))
+        nthreads = client.nthreads()
+        count = f"{len(nthreads)} worker process{'' if len(nthreads) == 1 else 'es'}"
+        where = (f"on a LocalCluster of {count}" if any(isinstance(x, distributed.LocalCluster) for x in owned)
+                 else f"on the Dask cluster at {client.scheduler.address} ({count})")
+        threads = max(1, sum(nthreads.values()))
         size = chunk_size or max(1, min(64, math.ceil(len(todo) / (4 * threads))))
         window = max(8, 4 * threads)
         chunks = _chunks(todo, size)
@@ -1132,6 +1217,7 @@ def _distributed(
                 if chunk is None:
                     break
                 queue.add(submit(chunk))
+        return where
     finally:
         if pending:
             with suppress(Exception):  # the cluster may already be gone
