@@ -180,6 +180,24 @@ def test_derive_text_latex_and_multipliers() -> None:
     assert any("mu_1'" in e for e in doc["equations"])
 
 
+def test_derive_simplify_gives_the_same_accelerations() -> None:
+    """--simplify is a display option: the solved accelerations are the same functions."""
+    from chaplygin.parser import Names, parse_expression
+
+    docs = [json.loads(run("derive", "example:knife-edge", "-m", "chetaev", "-f", "json", *extra).stdout)
+            for extra in ((), ("--simplify",))]
+    assert docs[0]["accelerations"].keys() == docs[1]["accelerations"].keys()
+    names = Names.build(parameters=docs[0]["parameters"] + ["lambda_1"], coordinates=docs[0]["coordinates"])
+    point = {sp.Symbol(p, real=True): 0.7 + i / 10 for i, p in enumerate(docs[0]["parameters"] + ["lambda_1"])}
+    t = dynamicsymbols._t
+    for q, v in zip(dynamicsymbols(docs[0]["coordinates"]), (0.3, -0.4, 0.5)):
+        point[q.diff(t)] = v + 1
+        point[q] = v
+    for key in docs[0]["accelerations"]:
+        plain, simple = (parse_expression(d["accelerations"][key], names) for d in docs)
+        assert float(plain.xreplace(point)) == pytest.approx(float(simple.xreplace(point)), rel=1e-12)
+
+
 # ---------------------------------------------------------------- check
 def test_check_json_and_text() -> None:
     sphere = json.loads(run("check", "example:rolling-sphere", "--format", "json").stdout)

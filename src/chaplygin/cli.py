@@ -355,6 +355,9 @@ def derive(
                                        help="Also solve for the accelerations (and multipliers)."),
     no_cache: bool = typer.Option(False, "--no-cache",
                                   help="Derive anew: neither read nor write the derivation cache."),
+    simplify: bool = typer.Option(False, "--simplify",
+                                  help="Also pass each solved acceleration through SymPy's simplify "
+                                       "(slow; the default result is already an exact, cancelled normal form)."),
 ) -> None:
     """Derive the equations of motion of one model and print them.
 
@@ -367,9 +370,9 @@ def derive(
     with _failures():
         source = _definition(file)
         if no_cache or source is None:
-            _emit(_derive(file, model, form, accelerations).render(fmt))
+            _emit(_derive(file, model, form, accelerations, simplify).render(fmt))
             return
-        request = ("derive", source, model.value, form.value)
+        request = ("derive", source, model.value, form.value) + (("simplified",) if simplify else ())
         out_key = cache.key(*request, str(accelerations), "printed as", fmt.value)
         printed = cache.load(out_key)  # the same request printed before: no SymPy at all
         if isinstance(printed, str):
@@ -379,7 +382,7 @@ def derive(
                 for solved in ((True,) if accelerations else (False, True))]
         found = next((d for d in map(_Derivation.from_data, map(cache.load, keys)) if d is not None), None)
         if found is None:
-            found = _derive(file, model, form, accelerations)
+            found = _derive(file, model, form, accelerations, simplify)
             data = found.to_data()
             if data is not None:
                 cache.store(keys[0], data)
@@ -401,7 +404,7 @@ def _definition(spec: str) -> bytes | None:
         return None  # _load reports the problem
 
 
-def _derive(file: str, model: Model, form: Form, accelerations: bool) -> _Derivation:
+def _derive(file: str, model: Model, form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
     """Derive (the only place ``derive`` does symbolic work beyond printing)."""
     loaded = _load(file)
     system = loaded.system
@@ -411,8 +414,8 @@ def _derive(file: str, model: Model, form: Form, accelerations: bool) -> _Deriva
         eqs.equations  # noqa: B018 - computed here, under the progress display
         acc = None
         if accelerations:
-            steps.step("solving for the accelerations")
-            acc = eqs.accelerations
+            steps.step("solving for the accelerations" + (" and simplifying" if simplify else ""))
+            acc = eqs.solve(simplify=simplify)
     return _Derivation.of(eqs, acc)
 
 
@@ -849,7 +852,7 @@ def demo(
     force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
 ) -> None:
     """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
-    from . import compare as run_compare
+    from .compare import compare as run_compare
     from . import compare_models, equivalent
     from .report import STAGES, is_paper_sphere, paper_table, write_report
 
