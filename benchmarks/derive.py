@@ -33,20 +33,14 @@ from pathlib import Path
 
 import sympy as sp
 from sympy.core.cache import clear_cache
-from sympy.physics.mechanics import (
-    KanesMethod,
-    Point,
-    ReferenceFrame,
-    RigidBody,
-    dynamicsymbols,
-    inertia,
-)
 
 ROOT = Path(__file__).resolve().parent.parent
 _SRC = ROOT / "src"
 if "--src" in sys.argv[:-1]:  # time another checkout of chaplygin (e.g. a git worktree)
     _SRC = Path(sys.argv[sys.argv.index("--src") + 1]).resolve()
 sys.path.insert(0, str(_SRC))  # this working tree by default, also when not installed
+
+import peer_rolling_disk  # noqa: E402  (this folder)
 
 import chaplygin  # noqa: E402
 from chaplygin import examples  # noqa: E402
@@ -71,38 +65,9 @@ def chaplygin_task(build: Callable[[], chaplygin.System], accelerations: bool) -
 
 
 def kane_disk(rhs: bool) -> object:
-    """The rolling disk of ``examples.rolling_disk`` derived from scratch with KanesMethod.
-
-    Same coordinates (ψ, θ, φ, x, y), speeds u_i = q_i', dependent speeds u4, u5 (x', y')
-    through the no-slip velocity constraints; gravity on the centre.
-    """
-    t = dynamicsymbols._t
-    q = dynamicsymbols("psi theta phi x y")
-    psi, theta, phi, x, y = q
-    u = dynamicsymbols("u1:6")
-    m, r, A, C, g = sp.symbols("m r A C g", positive=True)
-    N = ReferenceFrame("N")
-    Y = N.orientnew("Y", "Axis", [psi, N.z])
-    L = Y.orientnew("L", "Axis", [theta, Y.x])
-    D = L.orientnew("D", "Axis", [phi, L.y])
-    origin = Point("O")
-    origin.set_vel(N, 0)
-    contact = origin.locatenew("P", x * N.x + y * N.y)
-    centre = contact.locatenew("G", r * L.z)
-    centre.set_vel(N, centre.pos_from(origin).dt(N))
-    disk = RigidBody("disk", centre, D, m, (inertia(L, A, C, A), centre))
-    slip = centre.vel(N) + D.ang_vel_in(N).cross(contact.pos_from(centre))
-    qd = [qi.diff(t) for qi in q]
-    to_u = dict(zip(qd, u))
-    km = KanesMethod(
-        N,
-        q_ind=q,
-        u_ind=u[:3],
-        kd_eqs=[a - b for a, b in zip(qd, u)],
-        u_dependent=u[3:],
-        velocity_constraints=[sp.expand(slip.dot(e).xreplace(to_u)) for e in (N.x, N.y)],
-    )
-    km.kanes_equations([disk], [(centre, -m * g * N.z)])
+    """The rolling disk derived from scratch with KanesMethod (``peer_rolling_disk.kane_disk``):
+    the full mass matrix and forcing, and with ``rhs`` the solved ``rhs()``."""
+    km = peer_rolling_disk.kane_disk(rhs=False)[0]
     out = [km.mass_matrix_full, km.forcing_full]
     assert out[0].shape == (10, 10)
     if rhs:
