@@ -528,6 +528,7 @@ table.paper td { overflow-wrap: anywhere; }
 .agree { color: #17652b; } .transcription { color: #8a5a00; } .substance { color: #a8141c; }
 .holds { color: #17652b; } .fails { color: #a8141c; }
 .note { color: #555; font-size: 0.92em; }
+.warning { color: #8a4b00; border-left: 3px solid #d08a00; padding-left: 0.5em; }
 td.ocr code { white-space: pre-wrap; word-break: break-word; }
 """
 
@@ -690,6 +691,7 @@ def _simulation_section(comparison: Comparison | None, note: str, stage: Callabl
                "<th>max constraint residual</th><th>final residual</th><th>status</th></tr>")
     out.append(_simulation_rows(comparison))
     out.append("</table>")
+    out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
     out.append('<p class="note">Energy drift: max |E − E(0)| / max(1, |E(0)|), E = T − U; it is an '
                "invariant for scleronomic homogeneous constraints. Constraint residual: "
                "max_β |Σ A_βs q̇_s + A_β0| (the reduced models satisfy the constraints exactly).</p>")
