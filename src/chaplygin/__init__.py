@@ -10,7 +10,7 @@ if TYPE_CHECKING:
     from .compare import Comparison, compare
     from .equations import Equations
     from .equivalence import EquivalenceReport, equivalent
-    from .errors import ChaplyginError, InputError, ModelError, SystemDefinitionError
+    from .errors import ChaplyginError, ChaplyginWarning, InputError, ModelError, SystemDefinitionError
     from .files import SystemFile, SystemFileError, dumps, load, loads
     from .integrability import IntegrabilityReport
     from .mechanics import from_mechanics
@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 _HOME = {
     "examples": "", "Comparison": "compare", "compare": "compare", "Equations": "equations",
     "EquivalenceReport": "equivalence", "equivalent": "equivalence",
-    "ChaplyginError": "errors", "InputError": "errors", "ModelError": "errors", "SystemDefinitionError": "errors",
+    "ChaplyginError": "errors", "ChaplyginWarning": "errors", "InputError": "errors", "ModelError": "errors", "SystemDefinitionError": "errors",
     "SystemFile": "files", "SystemFileError": "files", "dumps": "files", "load": "files",
     "loads": "files", "IntegrabilityReport": "integrability", "from_mechanics": "mechanics",
     "Trajectory": "simulate", "System": "system", "Classification": "transitions",
@@ -59,6 +59,7 @@ __all__ = [
     "SystemDefinitionError",
     "ModelError",
     "InputError",
+    "ChaplyginWarning",
     "examples",
     "Trajectory",
     "compare",

@@ -855,7 +855,7 @@ def demo(
     force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
 ) -> None:
     """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
-    from . import compare as run_compare
+    from .compare import compare as run_compare
     from . import compare_models, equivalent
     from .report import STAGES, is_paper_sphere, paper_table, write_report
 

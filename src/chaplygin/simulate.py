@@ -359,7 +359,8 @@ def _numeric(system: System, matrix: Any, q: np.ndarray, qd: np.ndarray,
     if fast is not None:
         with np.errstate(all="ignore"):
             out = np.asarray(fast(numbers), dtype=complex).reshape(shape)
-        return out.real if np.all(out.imag == 0) else np.full(shape, np.nan)
+        # (complex arithmetic leaves round-off in the imaginary parts of real values)
+        return np.where(np.abs(out.imag) <= 1e-12 * np.maximum(1.0, np.abs(out.real)), out.real, np.nan)
     plain = sp.Matrix(matrix.tolist()).xreplace({x: sp.Float(val) for x, val in zip(args, numbers)})
     try:
         return np.array(plain.evalf().tolist(), dtype=float)
@@ -506,15 +507,16 @@ def _watch(
         k, found = _lost_definiteness(compiled, tr, p, k_bad)
         if k < k_bad:
             k_bad, why, kind = k, found, "mass"
-    if k_bad == len(tr.t):
-        return tr
+    if k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1):
+        return tr  # (the last sample of a failed run: its own message says why)
     keep = slice(0, k_bad)
     for table in (tr.coordinates, tr.velocities, tr.multipliers):
         for key in table:
             table[key] = table[key][keep]
     tr.t, tr.energy, tr.constraint_residual = tr.t[keep], tr.energy[keep], tr.constraint_residual[keep]
     tr.status, tr.failure = "failed", kind
-    tr.message = why + (f"; the {tr.model} equations do not hold there" if kind == "pole" else "")
+    tr.message = why + (f"; the {tr.model} equations do not hold there"
+                        if kind == "pole" and tr.model in REDUCED_MODELS else "")
     if kind == "pole" and tr.model in ("chaplygin", "voronets"):
         tr.message += " (the multiplier model 'chetaev' does not solve the constraints and has no such pole)"
     return tr
