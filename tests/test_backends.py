@@ -73,8 +73,10 @@ def test_compiled_loop_reproduces_scipy_dop853(which, loop, disk, sphere):
     assert scipy_run.success and loop_run.success, loop_run.message
     assert loop_run.backend == loop
     assert _max_difference(scipy_run, loop_run) < 1e-8
-    # the same steps as SciPy's: the same number of right-hand-side evaluations, give or take
-    assert abs(loop_run.rhs_evaluations - scipy_run.rhs_evaluations) <= 0.01 * scipy_run.rhs_evaluations
+    # the same step controller as SciPy's: about the same number of right-hand-side evaluations
+    # (not exactly: LAPACK's solve and the loop's elimination differ in round-off, which can tip a
+    # step's acceptance differently on another machine)
+    assert abs(loop_run.rhs_evaluations - scipy_run.rhs_evaluations) <= 0.05 * scipy_run.rhs_evaluations
     assert loop_run.energy_drift() < 1e-9
 
 
@@ -153,13 +155,32 @@ def test_blow_up_is_a_status_with_partial_trajectory(failing, backend):
 
 
 @pytest.mark.parametrize("backend", ["numpy", *LOOPS])
-def test_singular_mass_matrix_is_a_status_with_partial_trajectory(failing, backend):
-    run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend=backend, samples=21)
+@pytest.mark.parametrize("samples", [21, 201])
+def test_singular_mass_matrix_is_a_status_with_partial_trajectory(failing, backend, samples):
+    """The mass of y drops to 0 at t = 0.5: every sample before it is kept, whatever steps the
+    integrator took (a step that fails is retried with smaller ones until the failure is pinned)."""
+    run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend=backend, samples=samples)
     assert run.status == "failed"
-    assert "singular" in run.message.lower(), run.message
-    assert 2 <= len(run.t) <= 6 and run.t[-1] <= 0.5
+    assert "singular" in run.message.lower() and "t = 0.5" in run.message, run.message
+    times = np.linspace(0.0, 2.0, samples)
+    np.testing.assert_array_equal(run.t, times[times < 0.5])
     np.testing.assert_allclose(run["x"], run.t, atol=1e-12)  # uniform motion until then
     assert np.all(np.isfinite(run.table()))
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_pole_of_the_solved_constraints_stops_a_reduced_run(backend):
+    """The knife edge's ẏ = tan φ ẋ has a pole at φ = π/2, reached at t = π/2 − 1.2 ≈ 0.371:
+    the reduced run stops at the sample before it (t = 0.35); the multiplier model runs on."""
+    knife = examples.knife_edge()
+    start = {"x": 0.0, "y": 0.0, "phi": 1.2, "x'": 1.0, "phi'": 1.0}
+    params = {"m": 1.0, "J": 0.5}
+    run = simulate(knife, "chaplygin", 1.0, start, params, backend=backend, samples=21)
+    assert run.status == "failed" and run.failure == "pole", run.message
+    assert "between t = 0.35 and 0.4" in run.message and "y'" in run.message
+    assert run.t[-1] == pytest.approx(0.35)
+    true = simulate(knife, "chetaev", 1.0, start, params, backend=backend, samples=21)
+    assert true.success and true.failure == "" and true.energy_drift() < 1e-8
 
 
 # ------------------------------------------------------------------ ensembles

@@ -429,3 +429,92 @@ def test_python_m_chaplygin() -> None:
     usage = subprocess.run([sys.executable, "-m", "chaplygin", "derive"], capture_output=True,
                            text=True, timeout=120)
     assert usage.returncode == 2
+
+
+# ---------------------------------------------------------------- meaningless input: refused, exit 1
+KNIFE = ["simulate", "example:knife-edge", "--samples", "5"]
+
+
+@pytest.mark.parametrize("args,named", [
+    (["--t-end", "1", "--param", "m=-1"], "m = -1"),                        # negative mass
+    (["--t-end", "1", "--param", "J=0"], "J = 0"),                          # no inertia
+    (["--t-end", "1", "--param", "J=nan"], "J = nan"),
+    (["--t-end", "1", "--initial", "phi=1.5707963267948966"], "pole of the solved constraints"),
+    (["--t-end", "1", "--initial", "x'=inf"], "x' = inf"),
+    (["--t-end", "inf"], "end time = inf"),
+    (["--t-end", "-1"], "must be after the start"),
+    (["--t-end", "1", "--samples", "10000000"], "samples = 10000000"),
+])
+def test_meaningless_input_exits_1_and_writes_nothing(tmp_path: Path, args: list[str], named: str) -> None:
+    out = tmp_path / "run.csv"
+    result = run(*KNIFE, *args, "--out", str(out))
+    assert result.exit_code == 1, result.output
+    assert result.stderr.startswith("error:") and named in result.stderr, result.stderr
+    assert "RuntimeWarning" not in result.stderr
+    no_traceback(result)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("option", ["--rtol", "--atol"])
+@pytest.mark.parametrize("value", ["0", "-1e-9", "inf", "nan"])
+def test_tolerances_must_be_positive_and_finite(tmp_path: Path, option: str, value: str) -> None:
+    result = run(*KNIFE, "--t-end", "1", option, value, "--out", str(tmp_path / "r.csv"))
+    assert result.exit_code == 2 and "positive finite tolerance" in result.output
+    assert not list(tmp_path.iterdir())
+
+
+def test_tolerances_reach_the_integrator(tmp_path: Path) -> None:
+    """Loose tolerances give a visibly larger constraint drift of the multiplier model."""
+    def residual(*tolerances: str) -> float:
+        result = run(*KNIFE, "--model", "chetaev", "--t-end", "2", "--initial", "phi'=1", "--force",
+                     "--out", str(tmp_path / "r.csv"), *tolerances)
+        assert result.exit_code == 0, result.stderr
+        return float(re.search(r"max constraint residual ([0-9.e+-]+)", result.stdout).group(1))
+
+    assert residual("--rtol", "1e-3", "--atol", "1e-3") > 1e3 * residual()
+
+
+def test_model_defaults_to_the_true_motion(tmp_path: Path, voronets_file: Path) -> None:
+    chaplygin_system = run(*KNIFE, "--t-end", "1", "--out", str(tmp_path / "a.csv"))
+    assert chaplygin_system.exit_code == 0 and chaplygin_system.stdout.startswith("chaplygin [")
+    other = run("simulate", str(voronets_file), "--t-end", "0.5", "--samples", "5", "--out",
+                str(tmp_path / "b.csv"))
+    assert other.exit_code == 0 and other.stdout.startswith("voronets ["), other.stderr
+
+
+def test_missing_initial_velocity_is_a_warning(tmp_path: Path, voronets_file: Path) -> None:
+    text = voronets_file.read_text().replace("\"y'\" = 0.5\n", "")
+    no_velocity = tmp_path / "v.toml"
+    no_velocity.write_text(text, encoding="utf-8")
+    result = run("simulate", str(no_velocity), "--t-end", "0.5", "--samples", "5", "--out",
+                 str(tmp_path / "v.csv"))
+    assert result.exit_code == 0
+    assert "warning: initial: y' is given neither in [initial] nor by --initial; it is 0." in result.stderr
+    given = run("simulate", str(no_velocity), "--t-end", "0.5", "--samples", "5", "--out",
+                str(tmp_path / "w.csv"), "--initial", "y'=0.5")
+    assert given.exit_code == 0 and "warning" not in given.stderr
+
+
+def test_created_folders_are_said(tmp_path: Path) -> None:
+    out = tmp_path / "new" / "deeper" / "run.csv"
+    result = run(*KNIFE, "--t-end", "1", "--out", str(out))
+    assert result.exit_code == 0 and out.exists()
+    assert f"created the folder {tmp_path / 'new'}" in result.stdout
+    again = run(*KNIFE, "--t-end", "1", "--out", str(out), "--force")
+    assert again.exit_code == 0 and "created the folder" not in again.stdout
+
+
+def test_compare_at_a_pole_warns_and_notes_the_fallback(tmp_path: Path) -> None:
+    result = run("compare", "example:knife-edge", "--t-end", "1", "--samples", "21", "--models",
+                 "chaplygin,chetaev", "--out", str(tmp_path / "cmp"), "--initial", "phi=1.2",
+                 "--initial", "phi'=1")
+    assert result.exit_code == 0, result.stderr
+    assert "warning: chaplygin: a pole of the solved constraints" in result.stderr
+    assert "note: chaplygin" in result.stdout and "chetaev model" in result.stdout
+    doc = json.loads((tmp_path / "cmp" / "summary.json").read_text())
+    assert doc["models"]["chaplygin"]["status"] == "success" and len(doc["notes"]) == 1
+
+
+def test_version() -> None:
+    result = run("--version")
+    assert result.exit_code == 0 and result.stdout.strip() == f"chaplygin {chaplygin.__version__}"

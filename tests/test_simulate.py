@@ -172,3 +172,29 @@ def test_matching_constants_for_the_family(sphere) -> None:
     multiplier = sphere.simulate("vakonomic", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
     for name in family.coordinates:
         assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
+
+
+def test_compare_falls_back_to_the_multiplier_model_at_a_pole():
+    """A knife edge heading through φ = π/2, where ẏ = tan φ ẋ has a pole: compare warns and shows
+    the Chetaev motion under the label 'chaplygin'; Lindelöf's run (no multiplier form) stops."""
+    from chaplygin import ChaplyginWarning
+
+    knife = examples.knife_edge()
+    start = {"x": 0.0, "y": 0.0, "phi": 1.2, "x'": 1.0, "phi'": 1.0}
+    with pytest.warns(ChaplyginWarning, match="pole") as caught:
+        cmp = compare(knife, ["chaplygin", "lindelof"], 1.0, start, {"m": 1.0, "J": 0.5}, samples=21)
+    assert len(caught) == 2 and len(cmp.notes) == 2
+    true = cmp.trajectories["chaplygin"]
+    assert true.model == "chetaev" and true.success and true.energy_drift() < 1e-8
+    assert "chetaev" in cmp.notes[0] and "between t = 0.35 and 0.4" in cmp.notes[0]
+    lind = cmp.trajectories["lindelof"]
+    assert lind.failure == "pole" and lind.t[-1] < np.pi / 2 - 1.2 and "lindelof" in cmp.notes[1]
+    assert "note: chaplygin" in cmp.summary()
+
+
+def test_compare_without_a_pole_has_no_notes(recwarn):
+    knife = examples.knife_edge()
+    start = {"x": 0.0, "y": 0.0, "phi": 0.2, "x'": 1.0, "phi'": 0.5}
+    cmp = compare(knife, ["chaplygin", "lindelof"], 1.0, start, {"m": 1.0, "J": 0.5}, samples=21)
+    assert cmp.notes == [] and all(tr.success for tr in cmp.trajectories.values())
+    assert cmp.trajectories["chaplygin"].model == "chaplygin" and not recwarn.list

@@ -165,8 +165,9 @@ def test_failed_runs_are_rows(client, tmp_path: Path) -> None:
     fine = by_point[(0.1, 1.0)]
     assert fine["status"] == "success" and fine["message"] == "" and fine["t_reached"] == 10.0
     stopped = by_point[(1.0, 1.0)]
-    assert stopped["status"] == "failed" and "step size" in stopped["message"]
-    assert 5.0 < stopped["t_reached"] < 10.0 and np.isfinite(stopped["final.phi"])  # the state it reached
+    # stopped at the sample before the pole, or by the integrator at it (which comes first depends on the steps)
+    assert stopped["status"] == "failed" and ("pole" in stopped["message"] or "step size" in stopped["message"])
+    assert 5.0 <= stopped["t_reached"] < 10.0 and np.isfinite(stopped["final.phi"])  # the state it reached
     for x in (0.1, 1.0):
         singular = by_point[(x, 0.0)]
         assert singular["status"] == "failed" and singular["message"]

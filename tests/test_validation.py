@@ -126,3 +126,85 @@ def test_parameter_lookup() -> None:
     assert sphere.parameter("a") == sp.Symbol("a", positive=True)
     with pytest.raises(SystemDefinitionError, match="the parameters are a, m"):
         sphere.parameter("g")
+
+
+# ------------------------------------------------------------------ simulation inputs
+KNIFE_P = {"m": 1.0, "J": 0.5}
+KNIFE_0 = {"x": 0.0, "y": 0.0, "phi": 0.3, "x'": 1.0, "phi'": 0.2}
+
+
+@pytest.fixture(scope="module")
+def knife() -> System:
+    return examples.knife_edge()
+
+
+def refused(system: System, *, model: str = "chaplygin", t_end: float = 0.1, initial=None,
+            parameters=None, **options) -> str:
+    """The InputError message of a simulation that must not start (nothing is integrated)."""
+    from chaplygin import InputError
+
+    with pytest.raises(InputError) as info:
+        system.simulate(model, t_end, initial or KNIFE_0, parameters or KNIFE_P, samples=3, **options)
+    return str(info.value)
+
+
+@pytest.mark.parametrize("model", ["chaplygin", "chetaev"])
+def test_negative_and_zero_inertia_are_refused(knife: System, model: str) -> None:
+    msg = refused(knife, model=model, parameters={"m": -1.0, "J": 0.5})
+    assert "not positive definite" in msg and "negative along x'" in msg and "m = -1" in msg
+    msg = refused(knife, model=model, parameters={"m": 1.0, "J": 0.0})
+    assert "singular" in msg and "along phi'" in msg and "J = 0" in msg
+
+
+def test_ill_conditioned_mass_matrix_is_refused(knife: System) -> None:
+    msg = refused(knife, parameters={"m": 1.0, "J": 1e-14})
+    assert "condition number" in msg and "phi'" in msg
+    # a large but honest ratio of inertias runs
+    assert knife.simulate("chaplygin", 0.1, KNIFE_0, {"m": 1.0, "J": 1e-6}, samples=3).success
+
+
+@pytest.mark.parametrize("constraint", ["implicit", "solved"])
+def test_start_on_a_pole_of_the_solved_constraints_is_refused(knife: System, constraint: str) -> None:
+    import math
+
+    if constraint == "solved":  # ẏ = tan φ ẋ as given by a user (form B)
+        phi = dynamicsymbols("phi")
+        m, J = sp.symbols("m J", positive=True)
+        knife = System([x, y, phi], m / 2 * (d(x) ** 2 + d(y) ** 2) + J / 2 * d(phi) ** 2,
+                       {d(y): sp.tan(phi) * d(x)})
+    msg = refused(knife, initial={**KNIFE_0, "phi": math.pi / 2})
+    assert "pole of the solved constraints" in msg and "y'" in msg and "phi = 1.5708" in msg
+
+
+@pytest.mark.parametrize("key,value,named", [
+    ("J", float("nan"), "parameters: J = nan"), ("m", float("inf"), "parameters: m = inf"),
+])
+def test_non_finite_parameters_are_refused(knife: System, key: str, value: float, named: str) -> None:
+    assert named in refused(knife, parameters={**KNIFE_P, key: value})
+
+
+@pytest.mark.parametrize("key", ["phi", "x'"])
+def test_non_finite_initial_values_are_refused(knife: System, key: str) -> None:
+    assert f"initial: {key} = inf is not finite" in refused(knife, initial={**KNIFE_0, key: float("inf")})
+
+
+@pytest.mark.parametrize("options,named", [
+    ({"t_end": float("inf")}, "the end time = inf"),
+    ({"t_end": float("nan")}, "the end time = nan"),
+    ({"t_end": -1.0}, "must be after the start"),
+    ({"samples": 1}, "samples = 1"),
+    ({"samples": 10**7}, "samples = 10000000"),
+    ({"samples": 2.5}, "samples = 2.5"),
+    ({"rtol": 0.0}, "rtol = 0.0"),
+    ({"rtol": float("nan")}, "rtol = nan"),
+    ({"atol": -1.0}, "atol = -1.0"),
+    ({"max_step": 0.0}, "max_step = 0.0"),
+])
+def test_run_options_are_checked(knife: System, options: dict, named: str) -> None:
+    from chaplygin import InputError
+
+    options = {"samples": 3, **options}
+    t_end = options.pop("t_end", 0.1)
+    with pytest.raises(InputError) as info:
+        knife.simulate("chaplygin", t_end, KNIFE_0, KNIFE_P, **options)
+    assert named in str(info.value)

@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from . import examples
-    from .compare import Comparison, compare
+    from .comparison import Comparison, compare
     from .equations import Equations
     from .equivalence import EquivalenceReport, equivalent
-    from .errors import ChaplyginError, ModelError, SystemDefinitionError
+    from .errors import ChaplyginError, ChaplyginWarning, InputError, ModelError, SystemDefinitionError
     from .files import SystemFile, SystemFileError, dumps, load, loads
     from .integrability import IntegrabilityReport
     from .mechanics import from_mechanics
@@ -21,9 +21,9 @@ if TYPE_CHECKING:
 #: where each public name lives; imported on first use, so that ``import chaplygin``
 #: (and the command line, whose cached answers need no SymPy) starts fast
 _HOME = {
-    "examples": "", "Comparison": "compare", "compare": "compare", "Equations": "equations",
+    "examples": "", "Comparison": "comparison", "compare": "comparison", "Equations": "equations",
     "EquivalenceReport": "equivalence", "equivalent": "equivalence",
-    "ChaplyginError": "errors", "ModelError": "errors", "SystemDefinitionError": "errors",
+    "ChaplyginError": "errors", "ChaplyginWarning": "errors", "InputError": "errors", "ModelError": "errors", "SystemDefinitionError": "errors",
     "SystemFile": "files", "SystemFileError": "files", "dumps": "files", "load": "files",
     "loads": "files", "IntegrabilityReport": "integrability", "from_mechanics": "mechanics",
     "Trajectory": "simulate", "System": "system", "Classification": "transitions",
@@ -58,6 +58,8 @@ __all__ = [
     "ChaplyginError",
     "SystemDefinitionError",
     "ModelError",
+    "InputError",
+    "ChaplyginWarning",
     "examples",
     "Trajectory",
     "compare",

@@ -309,6 +309,7 @@ static int k_solve(int n, double *M, double *b)
 static int k_eval(work_t *w, double t, const double *y, const double *p, double *f, int n)
 {
     k_fill(w, t, y, p);
+    for (int i = 0; i < w->nv; ++i) if (!isfinite(w->V[i])) return 9;  /* a pole of the constraints */
     if (k_solve(w->dim, w->M, w->b) != 0) return 5;
     for (int i = 0; i < w->nv; ++i) f[i] = w->V[i];
     for (int i = 0; i < n - w->nv; ++i) f[w->nv + i] = w->b[i];

@@ -84,6 +84,7 @@ STATUS = {
     4: "too many steps",
     5: "the mass matrix is singular",
     6: "the solver failed",  # jax backend: another diffrax failure
+    9: "a pole: a velocity (solved from the constraints) is not finite",  # (7, 8: chaplygin.symmetric)
 }
 
 # ------------------------------------------------------------------ DOP853 tableau
@@ -237,11 +238,15 @@ def _k_eval(t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
     ``V`` and the observables ``O``; ``M·x = F`` is solved by Gaussian
     elimination with partial pivoting in place (the generated ``rhs``'s
     arithmetic without its allocations).  Codes: 2 a non-finite derivative,
-    3 ``fill`` raised (e.g. a division by zero), 5 a singular mass matrix.
+    3 ``fill`` raised (e.g. a division by zero), 5 a singular mass matrix,
+    9 a non-finite velocity (a pole of the solved constraints).
     """
     code = _k_fill(t, y, p, M, b, V, O)
     if code != 0:
         return code
+    for i in range(V.size):
+        if not math.isfinite(V[i]):
+            return 9
     if _k_solve(M, b) != 0:
         return 5
     n_v = V.size
@@ -568,6 +573,10 @@ class LoopResult(NamedTuple):
     n_rhs: int
     code: int = 0
     n_steps: int = 0
+    #: the last accepted step, and where a failing evaluation was (NaN: none)
+    t_last: float = math.nan
+    y_last: np.ndarray | None = None
+    t_fail: float = math.nan
 
 
 def _tolerances(rtol: float, atol: float | np.ndarray, n: int) -> tuple[float, np.ndarray]:
@@ -587,7 +596,7 @@ def _tolerances(rtol: float, atol: float | np.ndarray, n: int) -> tuple[float, n
 
 
 def _message(module: ModuleType, code: int, t: float, t_fail: float, y_fail: np.ndarray,
-             p: np.ndarray, max_steps: int) -> str:
+             p: np.ndarray, max_steps: int, names: tuple[str, ...] = ()) -> str:
     if code == 1:
         return (f"the integrator stopped at t = {t:.6g}: Required step size is less than "
                 f"spacing between numbers.")
@@ -605,6 +614,11 @@ def _message(module: ModuleType, code: int, t: float, t_fail: float, y_fail: np.
     if code == 5:
         return (f"the right-hand side failed at t = {t_fail:.6g}: the mass matrix is singular "
                 f"(M·x = F has no unique solution)")
+    if code == 9:
+        v = np.asarray(module.observe(t_fail, y_fail, p))[-len(names):] if names else ()
+        bad = [name + "'" for name, x in zip(names, v) if not math.isfinite(x)] or ["a velocity"]
+        return (f"a pole at t = {t_fail:.6g}: {', '.join(bad)} (solved from the constraints) "
+                f"{'is' if len(bad) == 1 else 'are'} not finite")
     return ""
 
 
@@ -662,18 +676,19 @@ def integrate_dop853(
     if model.backend == "c":  # the same loop in C (chaplygin._ckernel)
         res = model.module.integrate(t0, t1, y0, p, times, rtol, atol_v, float(max_step),
                                      float(first_step or 0.0), int(max_steps))
-        out, filled, code, t, n_rhs, n_steps, t_fail, y_fail = (
-            res.out, res.filled, res.code, res.t, res.n_rhs, res.n_steps, res.t_fail, res.y_fail)
+        out, filled, code, t, y, n_rhs, n_steps, t_fail, y_fail = (
+            res.out, res.filled, res.code, res.t, res.y, res.n_rhs, res.n_steps, res.t_fail, res.y_fail)
     else:
-        filled, code, t, _y, n_rhs, n_steps, t_fail, y_fail = model.module._k_dop853(
+        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail = model.module._k_dop853(
             t0, t1, y0, p, times, rtol, atol_v, float(max_step),
             float(first_step or 0.0), int(max_steps), out,
         )
-    message = _message(model.module, code, t, t_fail, y_fail, p, max_steps)
+    message = _message(model.module, code, t, t_fail, y_fail, p, max_steps, model.layout.coordinates)
     status = "success" if code == 0 else "failed"
     if code == 0:
         message = f"reached t = {t1:g}"
-    return LoopResult(times[:filled], out[:filled], status, message, int(n_rhs), int(code), int(n_steps))
+    return LoopResult(times[:filled], out[:filled], status, message, int(n_rhs), int(code), int(n_steps),
+                      float(t), np.array(y), float(t_fail) if code else math.nan)
 
 
 def default_threads() -> int:

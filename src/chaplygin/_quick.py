@@ -36,8 +36,11 @@ __all__ = ["key", "plan", "remember", "run"]
 
 #: the reduced models, whose state a plan builds from the given numbers alone
 REDUCED = ("chaplygin", "voronets", "lindelof")
+#: what the command line asks for when no --model is given: the true motion (Chaplygin's
+#: equations for a Chaplygin system, else Voronets'), which the plan then names
+TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's shape changes
-FORMAT = 1
+FORMAT = 2
 
 
 def key(definition: bytes, model: str, form: str) -> str:
@@ -51,17 +54,21 @@ def applies(backend: str, model: str, method: str, constants: Any, step: Any) ->
     """Whether a plan could answer this run (before looking for one)."""
     from .simulate import choose_backend
 
-    return (model in REDUCED and method == "DOP853" and constants is None and step is None
+    return (model in (*REDUCED, TRUE_MOTION) and method == "DOP853" and constants is None and step is None
             and backend in ("auto", "c") and choose_backend(backend, method) == "c")
 
 
-def remember(definition: bytes | None, model: str, form: str, loaded: Any, tr: Trajectory) -> None:
-    """Store the plan of a finished ``c``-backend run (a no-op for anything a plan cannot answer)."""
-    if definition is None or tr.backend != "c" or model not in REDUCED:
+def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: Trajectory) -> None:
+    """Store the plan of a finished ``c``-backend run (a no-op for anything a plan cannot answer).
+
+    ``asked`` is the model as the command line asked for it (:data:`TRUE_MOTION` for none);
+    only a run that succeeded makes a plan, so the checks of its start passed.
+    """
+    if definition is None or tr.backend != "c" or tr.model not in REDUCED or not tr.success:
         return
     from .codegen import compile_model
 
-    compiled = compile_model(loaded.system, model, form, "c")  # the run's model (cached on the system)
+    compiled = compile_model(loaded.system, tr.model, form, "c")  # the run's model (cached on the system)
     kernel, layout = compiled.module, compiled.layout
     system = loaded.system
     value = {
@@ -72,8 +79,9 @@ def remember(definition: bytes | None, model: str, form: str, loaded: Any, tr: T
         "n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react, "g": system.g,
         "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
         "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
+        "defaulted": list(getattr(loaded, "defaulted", ())),
     }
-    cache.store(key(definition, model, form), value)
+    cache.store(key(definition, asked, form), value)
 
 
 def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
@@ -84,24 +92,32 @@ def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
 
 def run(definition: bytes | None, model: str, form: str, t_end: float, samples: int, backend: str,
         method: str, constants: Any, step: Any, params: Mapping[str, float],
-        initial: Mapping[str, float]) -> Trajectory | None:
+        initial: Mapping[str, float], rtol: float = 1e-10, atol: float = 1e-12) -> Trajectory | None:
     """The run from a stored plan, or None where the full path must run.
 
-    ``params`` and ``initial`` are the command line's overrides (by name).
+    ``params`` and ``initial`` are the command line's overrides (by name).  The
+    full path checks the start (a positive definite, well-conditioned mass
+    matrix; no pole of the solved constraints); the plan was made by a run that
+    passed those checks, so it answers only runs whose mass matrix and
+    constraints are the same: the same parameters and coordinates (velocities
+    may differ), every number finite, ``samples`` within the full path's limits.
     """
-    if definition is None or not t_end > 0 or not applies(backend, model, method, constants, step):
+    from .simulate import MAX_SAMPLES
+
+    if (definition is None or not 0 < t_end < np.inf or not 2 <= samples <= MAX_SAMPLES
+            or not applies(backend, model, method, constants, step)):
         return None
     found = plan(definition, model, form)
     if found is None:
         return None
     try:
-        return _run(found, t_end, samples, params, initial)
+        return _run(found, t_end, samples, params, initial, rtol, atol)
     except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
         return None
 
 
 def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str, float],
-         initial: Mapping[str, float]) -> Trajectory | None:
+         initial: Mapping[str, float], rtol: float, atol: float) -> Trajectory | None:
     from ._ckernel import CKernel, CompiledModel, Layout, Unavailable
     from .simulate import integrate
 
@@ -110,8 +126,12 @@ def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str,
                                                                          "multipliers", "parameters", "reactions")))
     values = {**found["parameters"], **params}
     state = {**found["initial"], **initial}
-    if set(values) != set(layout.parameters):
-        return None  # an unknown or missing parameter: the full path explains
+    if set(values) != set(layout.parameters) or values != found["parameters"]:
+        return None  # another parameter value (or an unknown name): the full path checks it
+    if any(name in initial and initial[name] != found["initial"].get(name) for name in layout.coordinates):
+        return None  # another configuration: the full path checks the mass matrix there
+    if not all(np.isfinite(v) for v in state.values()):
+        return None
     every = set(layout.coordinates) | {c + "'" for c in layout.coordinates}
     if not set(state) <= every or not set(layout.coordinates) | set(layout.velocities) <= set(state):
         return None
@@ -128,5 +148,14 @@ def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str,
         if not np.isfinite(implied) or (given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))):
             return None  # a dependent velocity that violates the constraints: the full path's error
     compiled = CompiledModel(layout, kernel, "c")
-    return integrate(compiled, (0.0, float(t_end)), y0, p, dict(values), rtol=1e-10, atol=1e-12,
+    missing = [k for k in found["defaulted"] if k.endswith("'") and k not in initial]
+    if missing:  # as the full path warns (chaplygin.cli._numbers)
+        import warnings
+
+        from .errors import ChaplyginWarning
+
+        warnings.warn(f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
+                      f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
+                      ChaplyginWarning, stacklevel=3)
+    return integrate(compiled, (0.0, float(t_end)), y0, p, dict(values), rtol=rtol, atol=atol,
                      method="DOP853", samples=samples, max_step=np.inf, g=int(found["g"]))

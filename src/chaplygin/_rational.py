@@ -177,6 +177,7 @@ class Algebra:
         """
         numer, denom = frac
         _check(numer, denom)
+        candidates = []
         best = numer, denom
         for direction in (0, 1) if self.pairs else (0,):
             # the second direction starts from the first's (smaller) cancelled result
@@ -184,12 +185,12 @@ class Algebra:
             n, d = _eliminate(best[0], pairs), _eliminate(best[1], pairs)
             if not d:
                 raise ZeroDivisionError
-            n, d = n.cancel(d)
-            if direction == 0 or len(n) + len(d) < len(best[0]) + len(best[1]):
-                best = (n, d)
-        if denom == 1 and len(numer) <= len(best[0]) and best[1] == 1:
-            best = numer, denom  # a polynomial that the identity does not shorten stays as written
-        return self.field.raw_new(*best)
+            best = n.cancel(d)
+            candidates.append(best)
+        if denom == 1:
+            candidates.append((numer, denom))  # a polynomial may read best as it was written
+        # the fewest terms; on a tie the fewest minus signs (sin²θ + 2/5 rather than 7/5 − cos²θ)
+        return self.field.raw_new(*min(candidates, key=_length))
 
     def matrix(self, entries: sp.Matrix) -> tuple[DomainMatrix, PolyElement]:
         """``entries`` as ``N / d``: a polynomial matrix over one common denominator."""
@@ -228,6 +229,11 @@ class Algebra:
     def fractions(self, N: DomainMatrix, d: PolyElement) -> list[FracElement]:
         """The entries of the column ``N / d``, each reduced (:meth:`reduce`)."""
         return [self.reduce((N[i, 0].element, d)) for i in range(N.shape[0])]
+
+
+def _length(frac: Fraction) -> tuple[int, int]:
+    n, d = frac
+    return len(n) + len(d), sum(c < 0 for c in n.itercoeffs()) + sum(c < 0 for c in d.itercoeffs())
 
 
 def _sum(parts: list[Fraction]) -> Fraction:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -30,7 +31,7 @@ from rich.console import Console
 from .errors import ChaplyginError
 
 if TYPE_CHECKING:
-    from .compare import Comparison
+    from .comparison import Comparison
     from .equations import Equations
     from .system import System
 
@@ -46,6 +47,22 @@ app = typer.Typer(
 examples_app = typer.Typer(help="The built-in examples: list them, or print one as a system file.",
                            no_args_is_help=True)
 app.add_typer(examples_app, name="examples")
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        from . import __version__
+
+        _emit(f"chaplygin {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
+    """Equations of motion of nonholonomic systems: derive, check, simulate, compare, report."""
 
 DEMO_GENERATOR = "chaplygin demo"
 DEMO_REPORT = Path("demo") / "report.html"
@@ -153,7 +170,24 @@ class _Steps:
 
 @contextmanager
 def _failures() -> Iterator[None]:
-    """Turn errors into a message on stderr and exit status 1 (no traceback)."""
+    """Turn errors into a message on stderr and exit status 1 (no traceback); warnings are
+    printed on stderr as ``warning: …`` lines, each once."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            with _errors():
+                yield
+        finally:
+            seen: set[str] = set()
+            for w in caught:
+                text = str(w.message)
+                if text not in seen:
+                    seen.add(text)
+                    _stderr().print(f"warning: {text}", markup=False)
+
+
+@contextmanager
+def _errors() -> Iterator[None]:
     try:
         yield
     except (typer.Exit, typer.Abort, typer.BadParameter):
@@ -223,8 +257,39 @@ def _overrides(values: Optional[list[str]], option: str) -> dict[str, float]:
 
 
 def _numbers(loaded: Any, params: Optional[list[str]], initial: Optional[list[str]]) -> tuple[dict[str, float], dict[str, float]]:
+    from .errors import ChaplyginWarning
+
+    given = _overrides(initial, "--initial")
+    missing = [k for k in getattr(loaded, "defaulted", ()) if k.endswith("'") and k not in given]
+    if missing:
+        warnings.warn(f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
+                      f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
+                      ChaplyginWarning, stacklevel=2)
     return ({**dict(loaded.parameters or {}), **_overrides(params, "--param")},
-            {**dict(loaded.initial or {}), **_overrides(initial, "--initial")})
+            {**dict(loaded.initial or {}), **given})
+
+
+def _true_motion(system: System) -> str:
+    """The default model: Chaplygin's equations for a Chaplygin system, else Voronets'."""
+    return "chaplygin" if system.is_chaplygin else "voronets"
+
+
+def _created(path: Path) -> Path | None:
+    """The outermost missing folder above ``path`` (which writing it will create), or None."""
+    missing = None
+    for parent in path.absolute().parents:
+        if parent.exists():
+            break
+        missing = parent
+    return missing
+
+
+def _tolerance(value: float, option: str) -> float:
+    import math
+
+    if not (math.isfinite(value) and value > 0):
+        raise typer.BadParameter(f"{value:g}: give a positive finite tolerance, e.g. 1e-10.", param_hint=option)
+    return value
 
 
 # ====================================================================== printing in the file syntax
@@ -542,9 +607,9 @@ def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
 @app.command()
 def simulate(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: Model = typer.Option(..., "--model", "-m", help="The model to simulate."),
+    model: Optional[Model] = typer.Option(None, "--model", "-m", help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the run starts at t = 0)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz (missing folders are created)."),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
@@ -554,6 +619,8 @@ def simulate(
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
     method: str = typer.Option("DOP853", "--method", help="Integrator: DOP853 (adaptive, the default), RK45, RK23, Radau, BDF, LSODA; or, for the true motion (chetaev, chaplygin, voronets), a symmetric fixed-step method that keeps the energy error bounded: midpoint, gauss4, gauss6 (needs --step)."),
     step: Optional[float] = typer.Option(None, "--step", help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used)."),
+    rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the adaptive integrators (positive)."),
+    atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."),
 ) -> None:
     """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
     from .simulate import METHODS, SYMMETRIC_METHODS
@@ -568,43 +635,53 @@ def simulate(
         raise typer.BadParameter(f"method {method} takes a fixed step: give --step, e.g. --step 0.01.",
                                  param_hint="--step")
     c = _constants(constants)
+    rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
     _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
     with _failures():
         _refuse_existing([out], force)
         from . import _quick
 
-        label = model.value if form is Form.classic else f"{model.value}/{form.value}"
         definition = _definition(file)
         # a run plan in the cache answers without SymPy (chaplygin._quick); else the full path
-        tr = _quick.run(definition, model.value, form.value, t_end, samples, backend.value, method, c, step,
-                        _overrides(param, "--param"), _overrides(initial, "--initial"))
+        asked = model.value if model is not None else _quick.TRUE_MOTION
+        tr = _quick.run(definition, asked, form.value, t_end, samples, backend.value, method, c, step,
+                        _overrides(param, "--param"), _overrides(initial, "--initial"), rtol, atol)
+        created = None
+        if tr is None:
+            loaded = _load(file)
+            params, start = _numbers(loaded, param, initial)
+            system = loaded.system
+            model = model or Model(_true_motion(system))
+        else:
+            model = Model(tr.model)
+        label = model.value if form is Form.classic else f"{model.value}/{form.value}"
         with _Steps(3, f"simulating {label}") as steps:
             if tr is None:
-                loaded = _load(file)
-                params, start = _numbers(loaded, param, initial)
-                system = loaded.system
                 steps.step(f"deriving {label}")
                 if model is not Model.vakonomic_family:  # (the family is derived with its constants)
                     system.equations(model.value, form.value)
                 steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
                 options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value,
-                                           "method": method}
+                                           "method": method, "rtol": rtol, "atol": atol}
                 if c is not None:
                     options["constants"] = c
                 if step is not None:
                     options["step"] = step
                 tr = system.simulate(model.value, t_end, start, params, **options)
-                _quick.remember(definition, model.value, form.value, loaded, tr)
+                _quick.remember(definition, asked, form.value, loaded, tr)
             steps.step(f"writing {out}")
+            created = _created(out)
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
         _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
+        if created is not None:
+            _emit(f"created the folder {created} (it did not exist)")
         if not tr.success:
             raise ChaplyginError(f"the run failed: {tr.message}; {out} holds the trajectory up to then.")
 
 
 # ====================================================================== compare
 def _comparison_outputs(directory: Path, labels: Sequence[str], figure_format: str, with_path: bool) -> list[Path]:
-    from .compare import FIGURES
+    from .comparison import FIGURES
 
     files = [directory / "summary.txt", directory / "summary.json"]
     files += [directory / f"{_safe(label)}.csv" for label in labels]
@@ -633,7 +710,8 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
             "max_constraint_residual": float(np.max(tr.constraint_residual, initial=0.0)),
         }
     return {"schema": "chaplygin.compare/1", "system": comparison.system_name,
-            "reference": comparison.reference, "path": list(comparison.path or []), "models": rows}
+            "reference": comparison.reference, "path": list(comparison.path or []), "models": rows,
+            "notes": list(comparison.notes)}
 
 
 def _print_comparison(comparison: Comparison) -> None:
@@ -650,6 +728,8 @@ def _print_comparison(comparison: Comparison) -> None:
     out = _stdout()
     if out.is_terminal:
         out.print(table)
+        for note in comparison.notes:
+            out.print(f"note: {note}", markup=False)
     else:
         _emit(comparison.summary())
 
@@ -666,9 +746,16 @@ def compare(
     param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
     initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
+    rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
+    atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
 ) -> None:
-    """Simulate several models from one initial state: summary table, trajectories and figures."""
+    """Simulate several models from one initial state: summary table, trajectories and figures.
+
+    A reduced model whose solved constraints have a pole on the path is replaced by the
+    same motion with multipliers (chetaev; vakonomic for the family), with a warning and a note.
+    """
     specs = [_model_spec(m) for m in models.split(",")] if models else None
+    rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
     _overrides(param, "--param"), _overrides(initial, "--initial")
     with _failures():
         if out.exists() and not out.is_dir():
@@ -676,20 +763,23 @@ def compare(
         loaded = _load(file)
         params, start = _numbers(loaded, param, initial)
         system = loaded.system
-        from .compare import Comparison, _default_path
-        from .compare import compare as run_compare
+        from .comparison import Comparison, _default_path
+        from .comparison import compare as run_compare
         from .report import default_models
 
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else default_models(system)
         _refuse_existing(_comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None), force)
         with _Steps(len(chosen) + 2, "comparing") as steps:
-            runs = {}
+            runs, notes = {}, []
             for label in chosen:
                 steps.step(f"simulating {label}")
-                part = run_compare(system, [label], t_end, start, params, samples=samples, backend=backend.value)
+                part = run_compare(system, [label], t_end, start, params, samples=samples, backend=backend.value,
+                                   rtol=rtol, atol=atol)
                 runs.update(part.trajectories)
-            comparison = Comparison(system.name, runs, chosen[0], part.path)
+                notes += part.notes
+            comparison = Comparison(system.name, runs, chosen[0], part.path, notes)
             steps.step("writing trajectories and summary")
+            created = _created(out / "summary.txt")
             _write_comparison(comparison, out)
             steps.step("drawing figures")
             written = comparison.save_figures(out, fmt=figure_format.value)
@@ -697,6 +787,8 @@ def compare(
         _emit(f"wrote {out}/: summary.txt, summary.json, "
                         + ", ".join(f"{_safe(k)}.csv" for k in runs) + ", "
                         + ", ".join(p.name for p in written))
+        if created is not None:
+            _emit(f"created the folder {created} (it did not exist)")
         failed = [k for k, tr in runs.items() if not tr.success]
         if failed:
             raise ChaplyginError("failed: " + "; ".join(f"{k}: {runs[k].message}" for k in failed))
@@ -828,11 +920,14 @@ def report(
         loaded = _load(file)
         params, start = _numbers(loaded, param, initial)
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
+        created = _created(out)
         with _Steps(len(STAGES), "report") as steps:
             write_report(loaded, out, models=chosen, t_end=t_end, samples=samples,
                          backend=backend.value, parameters=params, initial=start,
                          progress=_report_progress(steps))
         _emit(f"wrote {out}")
+        if created is not None:
+            _emit(f"created the folder {created} (it did not exist)")
 
 
 # ====================================================================== demo
@@ -852,7 +947,7 @@ def demo(
     force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
 ) -> None:
     """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
-    from .compare import compare as run_compare
+    from .comparison import compare as run_compare
     from . import compare_models, equivalent
     from .report import STAGES, is_paper_sphere, paper_table, write_report
 

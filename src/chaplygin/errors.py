@@ -6,7 +6,7 @@ whose message names the offending item and says what would be accepted.
 
 from __future__ import annotations
 
-__all__ = ["ChaplyginError", "SystemDefinitionError", "ModelError"]
+__all__ = ["ChaplyginError", "SystemDefinitionError", "ModelError", "InputError", "ChaplyginWarning"]
 
 
 class ChaplyginError(Exception):
@@ -19,3 +19,12 @@ class SystemDefinitionError(ChaplyginError, ValueError):
 
 class ModelError(ChaplyginError, ValueError):
     """A model or form was asked for that does not apply to the system."""
+
+
+class InputError(ChaplyginError, ValueError):
+    """A simulation input is invalid or physically meaningless (a negative mass, ``t_end = inf``,
+    a start on a pole of the solved constraints, …)."""
+
+
+class ChaplyginWarning(UserWarning):
+    """Something the user should know that does not stop the work (a fallback, a default used)."""

@@ -117,6 +117,8 @@ class SystemFile:
         The system's name (``name = ...``, else the file's stem, else ``"system"``).
     source : str
         The path it was read from, or ``"<string>"``.
+    defaulted : tuple of str
+        The keys of :attr:`initial` that ``[initial]`` did not give (set to 0).
     """
 
     system: System
@@ -124,6 +126,7 @@ class SystemFile:
     initial: dict[str, float]
     name: str
     source: str
+    defaulted: tuple[str, ...] = ()
 
     def dumps(self) -> str:
         """This file written back as TOML (see :func:`dumps`)."""
@@ -270,7 +273,9 @@ class _Reader:
                 "remove the unused ones.",
             )
         initial = self.read_initial(system)
-        return SystemFile(system, parameters, initial, name, self.source)
+        given = self.table("initial")
+        return SystemFile(system, parameters, initial, name, self.source,
+                          tuple(k for k in initial if k not in given))
 
     # ------------------------------------------------------------ sections
     def read_name(self) -> str:

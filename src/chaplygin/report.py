@@ -40,7 +40,7 @@ from ._symbols import TIME
 from .errors import ChaplyginError
 
 if TYPE_CHECKING:
-    from .compare import Comparison
+    from .comparison import Comparison
     from .system import System
 
 __all__ = [
@@ -528,6 +528,7 @@ table.paper td { overflow-wrap: anywhere; }
 .agree { color: #17652b; } .transcription { color: #8a5a00; } .substance { color: #a8141c; }
 .holds { color: #17652b; } .fails { color: #a8141c; }
 .note { color: #555; font-size: 0.92em; }
+.warning { color: #8a4b00; border-left: 3px solid #d08a00; padding-left: 0.5em; }
 td.ocr code { white-space: pre-wrap; word-break: break-word; }
 """
 
@@ -690,11 +691,12 @@ def _simulation_section(comparison: Comparison | None, note: str, stage: Callabl
                "<th>max constraint residual</th><th>final residual</th><th>status</th></tr>")
     out.append(_simulation_rows(comparison))
     out.append("</table>")
+    out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
     out.append('<p class="note">Energy drift: max |E − E(0)| / max(1, |E(0)|), E = T − U; it is an '
                "invariant for scleronomic homogeneous constraints. Constraint residual: "
                "max_β |Σ A_βs q̇_s + A_β0| (the reduced models satisfy the constraints exactly).</p>")
     stage("figures")
-    from .compare import FIGURES
+    from .comparison import FIGURES
 
     for kind in FIGURES:
         if kind == "paths" and not comparison.path:
@@ -759,7 +761,7 @@ def render_report(
 ) -> str:
     """The report as one HTML string (see :func:`write_report` for the arguments)."""
     from . import __version__
-    from .compare import compare
+    from .comparison import compare
 
     src = _source(source, parameters, initial)
     system = src.system

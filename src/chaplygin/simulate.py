@@ -12,28 +12,38 @@ entirely in C (:mod:`chaplygin._ckernel`) or inside numba (:mod:`chaplygin._loop
 ``backend="jax"``, diffrax; otherwise SciPy's stepper classes (``DOP853`` by
 default) driven step by step.  Every path ends a failed run (step-size
 underflow, a singular mass matrix, a blow-up) with a status, a message and the
-trajectory so far.
+trajectory so far; after a failure inside a step, the compiled loop and the SciPy
+path integrate again from the last accepted step with smaller steps, so the
+samples reach the failure whatever steps the integrator chose.
+
+Before integrating, :func:`simulate` refuses (:class:`~chaplygin.errors.InputError`)
+what cannot be a motion: non-finite parameters or initial values, a time span
+or sample count that is not finite or too large, a start on a pole of the solved
+constraints, and a reduced mass matrix that is not positive definite or is
+ill-conditioned.  After integrating, a reduced model's run stops where its solved
+constraints have a pole or its mass matrix stops being positive definite.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple
 
 import numpy as np
 
-from .errors import ChaplyginError
+from .errors import ChaplyginError, InputError
 
 if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
     # warm run of the command line (chaplygin._quick) needs none of them
     from ._ckernel import CompiledModel
     from .system import System
 
-__all__ = ["Trajectory", "simulate", "METHODS", "BACKENDS", "choose_backend"]
+__all__ = ["Trajectory", "simulate", "METHODS", "BACKENDS", "choose_backend", "MAX_SAMPLES", "MAX_CONDITION"]
 
 #: chaplygin.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
 SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
@@ -66,6 +76,15 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
         except Unavailable:
             pass
     return "numpy"
+#: the most samples one run returns: each is a row of every column in memory (10**6 samples
+#: of a ten-coordinate system take about 0.2 GB, more while they are observed)
+MAX_SAMPLES = 10**6
+#: the largest condition number of the reduced mass matrix accepted at the start: beyond it
+#: the accelerations lose more than about four of the sixteen digits of a double
+MAX_CONDITION = 1e12
+#: the reduced models, whose solved constraints q̇_dep = B q̇_σ + B_0 have poles where the
+#: dependent block of A is singular (the multiplier models do not solve them)
+REDUCED_MODELS = ("chaplygin", "voronets", "lindelof", "vakonomic_family")
 
 
 @dataclass
@@ -87,6 +106,10 @@ class Trajectory:
         ``max_β |Σ_s A_βs q̇_s + A_β0|`` at each sample.
     status, message : str
         ``"success"`` or ``"failed"``, and why.
+    failure : str
+        What stopped a failed run where a check of :func:`simulate` found it:
+        ``"pole"`` (the solved constraints of a reduced model have a pole there),
+        ``"mass"`` (the mass matrix stopped being positive definite); else ``""``.
     """
 
     model: str
@@ -102,6 +125,7 @@ class Trajectory:
     message: str = ""
     parameters: dict[str, float] = field(default_factory=dict)
     rhs_evaluations: int = 0
+    failure: str = ""
 
     @property
     def success(self) -> bool:
@@ -203,15 +227,18 @@ def initial_state(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Full coordinates and velocities at ``t0`` from the user's initial data.
 
-    Every coordinate and every independent velocity is needed; dependent
-    velocities follow from the constraints (a given one must agree with them).
+    Every coordinate and every independent velocity is needed, as finite
+    numbers; dependent velocities follow from the constraints (a given one must
+    agree with them).  A configuration where the constraints cannot be solved
+    for the dependent velocities (a pole of ``q̇_dep = B q̇_σ + B_0``) is refused.
     """
     n = system.n
     q = np.full(n, np.nan)
     qd = np.full(n, np.nan)
     for key, value in initial.items():
         kind, i = _lookup(system, key)
-        (q if kind == "q" else qd)[i] = float(value)
+        name = system.coordinates[i].func.__name__ + ("'" if kind == "v" else "")
+        (q if kind == "q" else qd)[i] = _finite(value, f"initial: {name}", "a finite number")
     names = [c.func.__name__ for c in system.coordinates]
     missing = [names[i] for i in range(n) if np.isnan(q[i])]
     missing += [names[i] + "'" for i in system._ind if np.isnan(qd[i])]
@@ -225,14 +252,21 @@ def initial_state(
     # A_dep q̇_dep = −(A_ind q̇_σ + A_0), solved numerically (no symbolic B needed)
     ind, dep = list(system._ind), list(system._dep)
     a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
-    try:
-        implied_all = np.linalg.solve(a[:, dep], -(a[:, ind] @ qd[ind] + a[:, -1]))
-    except np.linalg.LinAlgError:
-        raise ChaplyginError(
-            "initial: the constraints cannot be solved for the dependent velocities "
-            f"({', '.join(names[i] + chr(39) for i in dep)}) at this configuration."
-        ) from None
+    dep_names = ", ".join(names[i] + "'" for i in dep)
+    at = ", ".join(f"{names[i]} = {q[i]:.6g}" for i in range(n))
+    if not _solvable(a[:, :-1], dep):
+        raise InputError(
+            f"initial: the constraints cannot be solved for the dependent velocities ({dep_names}) "
+            f"at {at}: this configuration is a pole of the solved constraints (their block of A "
+            "is singular there). Start away from it, or choose other dependent coordinates."
+        )
+    implied_all = np.linalg.solve(a[:, dep], -(a[:, ind] @ qd[ind] + a[:, -1]))
     for i, implied in zip(dep, implied_all):
+        if not np.isfinite(implied):
+            raise InputError(
+                f"initial: the constraints give {names[i]}' = {implied} at {at}; start where "
+                "they give finite velocities."
+            )
         if not np.isnan(qd[i]) and abs(qd[i] - implied) > 1e-9 * max(1.0, abs(implied)):
             raise ChaplyginError(
                 f"initial: {names[i]}' = {qd[i]:g} violates the constraints, which give "
@@ -242,10 +276,35 @@ def initial_state(
     return q, qd
 
 
+def _finite(value: Any, what: str, accepted: str) -> float:
+    """``value`` as a float, or an :class:`InputError` naming ``what`` and what is ``accepted``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} = {value!r} is not a number; give {accepted}.") from None
+    if not math.isfinite(number):
+        raise InputError(f"{what} = {number} is not finite; give {accepted}.")
+    return number
+
+
+def _solvable(a: np.ndarray, dep: Sequence[int]) -> bool:
+    """Whether ``A`` (numbers, g × n) can be solved for the velocities ``dep``: its rows scaled
+    to largest entry 1, the dependent block must be finite and of full rank (smallest singular
+    value above 1e-10)."""
+    if not np.all(np.isfinite(a)):
+        return False
+    scale = np.max(np.abs(a), axis=1, keepdims=True)
+    if np.any(scale == 0):
+        return False
+    block = a[:, list(dep)] / scale
+    return bool(np.linalg.svd(block, compute_uv=False)[-1] > 1e-10)
+
+
 def _parameters(system: System, parameters: Mapping[Any, float] | None) -> dict[str, float]:
     out: dict[str, float] = {}
     for key, value in (parameters or {}).items():
-        out[system.parameter(key).name] = float(value)
+        name = system.parameter(key).name
+        out[name] = _finite(value, f"parameters: {name}", "a finite number")
     missing = [p.name for p in system.parameters if p.name not in out]
     if missing:
         raise ChaplyginError(
@@ -253,6 +312,96 @@ def _parameters(system: System, parameters: Mapping[Any, float] | None) -> dict[
             f"({', '.join(p.name for p in system.parameters)}) needs a number."
         )
     return out
+
+
+def _check_options(t0: float, t1: float, samples: Any, rtol: Any, atol: Any, max_step: Any) -> None:
+    """Refuse a time span, sample count, tolerance or step bound no run can honour."""
+    _finite(t0, "t_span: the start time", "a finite number")
+    _finite(t1, "t_span: the end time", f"a finite number after the start ({t0:g})")
+    if not t1 > t0:
+        raise InputError(f"t_span: the end time {t1:g} must be after the start {t0:g}.")
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)):
+        raise InputError(f"samples = {samples!r}: give a whole number from 2 to {MAX_SAMPLES}.")
+    if not 2 <= samples <= MAX_SAMPLES:
+        raise InputError(
+            f"samples = {samples}: give from 2 (the start and the end) to {MAX_SAMPLES} samples "
+            f"(each sample is a row of every column in memory; for finer output, simulate shorter spans)."
+        )
+    _finite(rtol, "rtol", "a positive finite tolerance, e.g. 1e-10")
+    if not float(rtol) > 0:
+        raise InputError(f"rtol = {rtol}: give a positive finite tolerance, e.g. 1e-10.")
+    a = np.asarray(atol, dtype=float) if np.ndim(atol) else np.asarray(_finite(
+        atol, "atol", "a positive finite tolerance, e.g. 1e-12"))
+    if not (np.all(np.isfinite(a)) and np.all(a > 0)):
+        raise InputError(f"atol = {atol}: give positive finite tolerances, e.g. 1e-12.")
+    if not (float(max_step) > 0):  # NaN fails too
+        raise InputError(f"max_step = {max_step}: give a positive bound on the step (inf: none).")
+
+
+def _check_mass(system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float) -> None:
+    """Refuse a start where the reduced mass matrix ``Cᵀ M C`` is not positive definite or is
+    ill-conditioned (condition number above :data:`MAX_CONDITION`), naming the velocity along
+    which the kinetic energy fails and the parameters of T that are not positive."""
+    from symengine import DenseMatrix
+
+    mass = system._M if system._native is None else DenseMatrix(system._native.H)
+    m = _numeric(system, mass, q, qd, params, t0)
+    c = np.eye(system.n)[:, list(system._ind)]
+    if system.g:
+        a = _numeric(system, system._constraint_matrix(), q, qd, params, t0)
+        c = system._numeric_C(a)
+    ind = [system.coordinates[i].func.__name__ + "'" for i in system._ind]
+    if c is None or not np.all(np.isfinite(m)):
+        raise InputError("initial: the mass matrix is not finite at the initial state; start elsewhere.")
+    reduced = c.T @ m @ c
+    w, v = np.linalg.eigh((reduced + reduced.T) / 2)
+    biggest = float(np.max(np.abs(w), initial=0.0))
+    along = ind[int(np.argmax(np.abs(v[:, 0])))] if len(w) else ""
+    symbols = {str(x) for x in system.kinetic_energy.free_symbols}
+    bad = [f"{k} = {val:g}" for k, val in params.items() if k in symbols and val <= 0]
+    hint = f" Check the parameters of T that are not positive: {', '.join(bad)}." if bad else (
+        " Check the parameters and the kinetic energy.")
+    if biggest == 0 or w[0] < -1e-12 * biggest:
+        raise InputError(
+            f"the kinetic energy is not positive definite at the initial state: it is "
+            f"{'zero' if biggest == 0 else 'negative'} along {along} (eigenvalue {w[0]:.3g} of the "
+            f"reduced mass matrix in {', '.join(ind)}); a motion needs T > 0 for every non-zero "
+            f"admissible velocity.{hint}"
+        )
+    if w[0] <= biggest / MAX_CONDITION:
+        raise InputError(
+            f"the reduced mass matrix (in {', '.join(ind)}) is singular or nearly so at the initial "
+            f"state: its condition number {biggest / w[0] if w[0] > 0 else math.inf:.3g} exceeds "
+            f"{MAX_CONDITION:g}, so the accelerations are not determined along {along}.{hint}"
+        )
+
+
+def _numeric(system: System, matrix: Any, q: np.ndarray, qd: np.ndarray,
+             params: Mapping[str, float], t0: float) -> np.ndarray:
+    """A SymPy or SymEngine matrix of internal symbols at ``(t0, q, q̇)`` and the parameters."""
+    import sympy as sp
+
+    from ._fast import evaluator, to_sympy
+    from ._symbols import TIME
+
+    v = system._vars
+    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
+    by_name = dict(params)
+    # SymEngine's symbols come back without assumptions: a parameter is known by its name
+    args = sorted({to_sympy(x) for x in matrix.free_symbols}, key=str)
+    numbers = [values[x] if x in values else by_name[x.name] for x in args]
+    fast = evaluator(args, list(matrix))
+    shape = (matrix.rows, matrix.cols)
+    if fast is not None:
+        with np.errstate(all="ignore"):
+            out = np.asarray(fast(numbers), dtype=complex).reshape(shape)
+        # (complex arithmetic leaves round-off in the imaginary parts of real values)
+        return np.where(np.abs(out.imag) <= 1e-12 * np.maximum(1.0, np.abs(out.real)), out.real, np.nan)
+    plain = sp.Matrix(matrix.tolist()).xreplace({x: sp.Float(val) for x, val in zip(args, numbers)})
+    try:
+        return np.array(plain.evalf().tolist(), dtype=float)
+    except TypeError:  # zoo or nan: a singular point
+        return np.full(shape, np.nan)
 
 
 def _vakonomic_setup(
@@ -274,7 +423,28 @@ def _vakonomic_setup(
 
 # ------------------------------------------------------------------ integration
 class _StepFailure(Exception):
-    pass
+    """A right-hand side that failed inside a step (at time ``t``): the step is not taken."""
+
+    def __init__(self, message: str, t: float) -> None:
+        super().__init__(message)
+        self.t = t
+
+
+class _Attempt(NamedTuple):
+    """One integration from ``(t_start, y_start)``: the samples it reached and how it ended."""
+
+    t: np.ndarray
+    y: np.ndarray
+    message: str  # "" on success
+    retry: bool  # a right-hand side failed inside a step: smaller steps may get closer
+    t_last: float  # the last accepted step
+    y_last: np.ndarray
+    t_fail: float
+    n_rhs: int
+
+
+#: a failure inside a step is pinned down to this fraction of max(1, |t|) before the run stops
+PIN = 1e-9
 
 
 def simulate(
@@ -296,30 +466,39 @@ def simulate(
     step: float | None = None,
     reduction: str = "auto",
 ) -> Trajectory:
-    """Simulate one model of ``system`` (see :meth:`System.simulate`)."""
-    t0, t1 = (0.0, float(t_span)) if np.isscalar(t_span) else map(float, t_span)  # type: ignore[arg-type]
-    if not t1 > t0:
-        raise ChaplyginError(f"t_span: the end time {t1:g} must be after the start {t0:g}.")
+    """Simulate one model of ``system`` (see :meth:`System.simulate`).
+
+    Inputs that cannot give a motion are refused with an :class:`InputError`
+    before anything is derived or compiled: a start or end time that is not
+    finite, ``samples`` outside ``2 … MAX_SAMPLES``, tolerances that are not
+    positive and finite, parameters or initial values that are not finite, a
+    start on a pole of the solved constraints, and a reduced mass matrix that is
+    not positive definite or whose condition number exceeds :data:`MAX_CONDITION`.
+    """
+    t0, t1 = (0.0, t_span) if np.isscalar(t_span) else t_span  # type: ignore[misc]
+    t0, t1 = _finite(t0, "t_span: the start time", "a finite number"), _finite(
+        t1, "t_span: the end time", "a finite number after the start")
+    _check_options(t0, t1, samples, rtol, atol, max_step)
     if method not in METHODS:
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
-    if samples < 2:
-        raise ChaplyginError("samples: at least 2 are needed (the start and the end).")
     auto = backend == "auto"
     backend = choose_backend(backend, method)
+    params = _parameters(system, parameters)
+    q, qd = initial_state(system, initial, params, t0)
+    _check_mass(system, q, qd, params, t0)
     if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.symmetric
         from .symmetric import simulate_symmetric
 
-        return simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
-                                  form=form, samples=samples, backend=backend, constants=constants,
-                                  multipliers=multipliers)
+        tr = simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
+                                form=form, samples=samples, backend=backend, constants=constants,
+                                multipliers=multipliers)
+        return _watch(system, tr, params, reduced=True)
     if step is not None:
         raise ChaplyginError(
             f"step: a fixed step size is for the symmetric methods ({', '.join(SYMMETRIC_METHODS)}); "
             f"method {method!r} adapts its steps to rtol/atol (bounded by max_step)."
         )
-    params = _parameters(system, parameters)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
-    q, qd = initial_state(system, initial, params, t0)
     if isinstance(family_c, str) and family_c == "match":
         family_c = _matching_constants(system, q, qd, params, t0)
     from .codegen import BackendUnavailable, compile_model, parameter_vector
@@ -336,8 +515,146 @@ def simulate(
     if model == "vakonomic":
         y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
     p = parameter_vector(layout, params)
-    return integrate(compiled, (t0, t1), np.array(y0), p, params, rtol=rtol, atol=atol,
-                     method=method, samples=samples, max_step=max_step, g=system.g)
+    tr = integrate(compiled, (t0, t1), np.array(y0), p, params, rtol=rtol, atol=atol,
+                   method=method, samples=samples, max_step=max_step, g=system.g)
+    return _watch(system, tr, params, reduced=model in REDUCED_MODELS, compiled=compiled, p=p)
+
+
+# ------------------------------------------------------------------ checks along a run
+def _watch(
+    system: System, tr: Trajectory, params: Mapping[str, float], *, reduced: bool,
+    compiled: CompiledModel | None = None, p: np.ndarray | None = None,
+) -> Trajectory:
+    """``tr`` cut at the first sample where the motion stops making sense, with status
+    ``"failed"`` and a message that says where and along which coordinate.
+
+    Checked at every sample: the velocities are finite; for reduced models (which solve
+    the constraints for the dependent velocities) the constraints stay solvable — the
+    dependent block of ``A`` neither becomes singular at a sample nor changes the sign of
+    its determinant between two (a pole of ``q̇_dep = B q̇_σ + B_0`` crossed); where the
+    generated ``M`` is the reduced mass matrix, it stays positive definite.
+    """
+    k_bad, why, kind = len(tr.t), "", ""
+    names = list(tr.coordinates)
+    vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
+    finite = np.all(np.isfinite(vel), axis=1) if len(tr.t) else np.empty(0, dtype=bool)
+    if not np.all(finite):
+        k = int(np.argmin(finite))
+        bad = [c + "'" for c, x in zip(names, vel[k]) if not np.isfinite(x)]
+        k_bad, kind = k, "pole"
+        why = (f"a pole at t = {tr.t[k]:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+               f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite")
+    if reduced and system.g and k_bad > 0:
+        k, found = _pole(system, tr, params, k_bad)
+        if k < k_bad:
+            k_bad, why, kind = k, found, "pole"
+    if reduced and compiled is not None and p is not None and k_bad > 0:
+        k, found = _lost_definiteness(compiled, tr, p, k_bad)
+        if k < k_bad:
+            k_bad, why, kind = k, found, "mass"
+    if k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1):
+        return tr  # (the last sample of a failed run: its own message says why)
+    keep = slice(0, k_bad)
+    for table in (tr.coordinates, tr.velocities, tr.multipliers):
+        for key in table:
+            table[key] = table[key][keep]
+    tr.t, tr.energy, tr.constraint_residual = tr.t[keep], tr.energy[keep], tr.constraint_residual[keep]
+    tr.status, tr.failure = "failed", kind
+    tr.message = why + (f"; the {tr.model} equations do not hold there"
+                        if kind == "pole" and tr.model in REDUCED_MODELS else "")
+    if kind == "pole" and tr.model in ("chaplygin", "voronets"):
+        tr.message += " (the multiplier model 'chetaev' does not solve the constraints and has no such pole)"
+    return tr
+
+
+def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
+    """The first sample (before ``stop``) at or just after a pole of the solved constraints;
+    ``(stop, "")`` if none.
+
+    At a sample: ``A`` (or a factor of a denominator of its entries) is not finite, or the
+    dependent block of ``A`` is singular (rows scaled to largest entry 1).  Between two: the
+    sign of ``det A_dep`` times the factors of the denominators of ``A``'s entries (``tan φ``
+    counts as ``sin φ / cos φ``) changes — a singular block or a pole of ``B`` crossed.
+    """
+    if stop == 0:
+        return stop, ""
+    evaluate, n_factors = _pole_functions(system)
+    names = [q.func.__name__ for q in system.coordinates]
+    columns = [tr.t[:stop], *(tr.coordinates[c][:stop] for c in names),
+               *(np.full(stop, params[par.name]) for par in system.parameters)]
+    with np.errstate(all="ignore"):
+        values = [np.asarray(x) for x in evaluate(*columns)]
+    values = [np.broadcast_to(np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else
+                              x.astype(float), (stop,)) for x in values]
+    g, n, dep = system.g, system.n, list(system._dep)
+    a = np.stack(values[: g * n], axis=1).reshape(stop, g, n)
+    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((stop, 1))
+    finite = np.all(np.isfinite(a), axis=(1, 2)) & np.all(np.isfinite(factors), axis=1)
+    dep_names = ", ".join(names[i] + "'" for i in dep)
+    with np.errstate(all="ignore"):
+        sign = np.sign(np.linalg.det(np.where(np.isfinite(a), a, 0.0)[:, :, dep]) * np.prod(factors, axis=1))
+    for k in range(stop):
+        if not finite[k] or sign[k] == 0 or not _solvable(a[k], dep):
+            return k, (f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
+                       f"solved for {dep_names} there")
+        if k and sign[k] != sign[k - 1]:
+            return k, (f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
+                       f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between")
+    return stop, ""
+
+
+def _pole_functions(system: System) -> tuple[Any, int]:
+    """A NumPy function of ``(t, q…, parameters…)`` giving ``A``'s entries (row-major), then
+    the distinct factors of the denominators of ``[A | A_0]``; and how many factors."""
+    cached = system.__dict__.get("_pole_functions")
+    if cached is not None:
+        return cached
+    import sympy as sp
+
+    from ._symbols import TIME
+
+    quotients = {
+        sp.tan: lambda a: sp.sin(a) / sp.cos(a), sp.cot: lambda a: sp.cos(a) / sp.sin(a),
+        sp.sec: lambda a: 1 / sp.cos(a), sp.csc: lambda a: 1 / sp.sin(a),
+        sp.tanh: lambda a: sp.sinh(a) / sp.cosh(a), sp.coth: lambda a: sp.cosh(a) / sp.sinh(a),
+    }
+    factors: list[sp.Expr] = []
+    for entry in [*system._A, *system._A0]:
+        for fn, quotient in quotients.items():
+            entry = entry.replace(fn, quotient)
+        for factor in sp.Mul.make_args(sp.denom(sp.together(entry))):
+            base = factor.base if factor.is_Pow else factor
+            if base.free_symbols and base not in factors:
+                factors.append(base)
+    args = [TIME, *system._vars.x, *system.parameters]
+    cached = (sp.lambdify(args, [*system._A, *factors], modules="numpy"), len(factors))
+    system.__dict__["_pole_functions"] = cached
+    return cached
+
+
+def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, stop: int) -> tuple[int, str]:
+    """The first sample (before ``stop``) where the generated ``M`` — the reduced mass matrix
+    of a symbolically reduced model — is not positive definite; ``(stop, "")`` if none (and
+    for the models whose ``M`` is not a mass matrix)."""
+    module = compiled.module
+    evaluate = getattr(module, "evaluate", None)
+    if evaluate is None or int(module.DIM) != int(module.K) or compiled.layout.model not in REDUCED_MODELS:
+        return stop, ""
+    layout = compiled.layout
+    for k in range(stop):
+        y = np.array([tr[name][k] for name in layout.state], dtype=float)
+        m = np.asarray(evaluate(float(tr.t[k]), y, p)[0], dtype=float)
+        if not np.allclose(m, m.T, rtol=1e-9, atol=1e-12 * np.max(np.abs(m), initial=1.0)):
+            return stop, ""  # not a symmetric mass matrix: nothing to check
+        try:
+            np.linalg.cholesky(m)
+        except np.linalg.LinAlgError:
+            w, vec = np.linalg.eigh(m)
+            along = layout.velocities[int(np.argmax(np.abs(vec[:, 0])))]
+            return k, (f"the mass matrix is no longer positive definite at t = {tr.t[k]:.6g}: the "
+                       f"kinetic energy is {'zero' if w[0] == 0 else 'negative' if w[0] < 0 else 'nearly zero'} "
+                       f"along {along} (eigenvalue {w[0]:.3g})")
+    return stop, ""
 
 
 def _evaluate(
@@ -422,65 +739,132 @@ def integrate(
     backend with ``"DOP853"``, ``"RK45"`` or ``"RK23"``: diffrax
     (:mod:`chaplygin.jaxbackend`).  Otherwise: SciPy's stepper class driven
     step by step, with dense output where a sample falls.
+
+    When the right-hand side fails inside a step (a singular mass matrix, a
+    non-finite value), the step is not taken; the compiled loop and the SciPy
+    path then integrate again from the last accepted step with steps of at most
+    half the distance to the failure, until it is pinned down to :data:`PIN`.
+    So a failed run keeps every sample before the failure, whatever steps the
+    integrator chose (a first step that jumps past all the samples included).
     """
     times = np.linspace(t_span[0], t_span[1], samples)
-    if compiled.backend == "c" and method == "DOP853":
-        from ._loop import integrate_dop853
-
-        res = integrate_dop853(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, max_step=max_step)
-        return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
-    if compiled.backend == "numba" and method == "DOP853":
-        from ._loop import integrate_dop853, loop_model
-
-        looped = loop_model(compiled)
-        res = integrate_dop853(looped, t_span, y0, p, times, rtol=rtol, atol=atol, max_step=max_step)
-        return _trajectory(looped, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
     if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
         from .jaxbackend import solve
 
         res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
         return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+    if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
+        if compiled.backend == "numba":
+            from ._loop import loop_model
 
+            compiled = loop_model(compiled)
+        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol)
+    else:
+        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method)
+    ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
+    status = "failed" if message else "success"
+    message = message or f"reached t = {t_span[1]:g}"
+    return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
+
+
+def _pinned(
+    attempt: Callable[[float, np.ndarray, np.ndarray, float, float | None], _Attempt],
+    t0: float, y0: np.ndarray, times: np.ndarray, max_step: float,
+) -> tuple[np.ndarray, np.ndarray, str, int]:
+    """Samples at ``times`` from ``attempt``s: after a failure inside a step, again from the
+    last accepted step with ``max_step`` half the distance to the failure (see :func:`integrate`)."""
+    t_parts, y_parts, n_rhs, k = [], [], 0, 0
+    t_start, y_start, cap, first = t0, y0, max_step, None
+    for _ in range(200):  # the distance to the failure halves every time: ~40 suffice
+        run = attempt(t_start, y_start, times[k:], cap, first)
+        t_parts.append(run.t)
+        y_parts.append(run.y)
+        n_rhs += run.n_rhs
+        k += len(run.t)
+        gap = run.t_fail - run.t_last
+        if not (run.message and run.retry and gap > PIN * max(1.0, abs(run.t_fail))):
+            break
+        t_start, y_start, cap = run.t_last, run.y_last, min(max_step, gap / 2)
+        first = cap  # steps after the first stay within it, so the next failure is at most this far
+    return np.concatenate(t_parts), np.concatenate(y_parts).reshape(k, len(y0)), run.message, n_rhs
+
+
+def _loop_attempt(looped: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any) -> Callable[..., _Attempt]:
+    """An attempt of :func:`_pinned` with the compiled DOP853 loop."""
+    from ._loop import integrate_dop853
+
+    def attempt(t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float,
+                first: float | None) -> _Attempt:
+        res = integrate_dop853(looped, (t_start, t1), y_start, p, times, rtol=rtol, atol=atol,
+                               max_step=cap, first_step=first)
+        message = "" if res.code == 0 else res.message
+        return _Attempt(res.t, res.y, message, res.code in (2, 3, 5, 9), res.t_last, res.y_last,
+                        res.t_fail, res.n_rhs)
+
+    return attempt
+
+
+def _scipy_attempt(
+    compiled: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any, method: str
+) -> Callable[..., _Attempt]:
+    """An attempt of :func:`_pinned` with SciPy's stepper, driven step by step."""
     import scipy.integrate as si
 
     rhs = compiled.rhs
-    count = [0]
+    names = compiled.layout.coordinates
+    n = len(names)
 
     def fun(t: float, y: np.ndarray) -> np.ndarray:
         count[0] += 1
         try:
             dy = rhs(t, y, p)
         except (np.linalg.LinAlgError, ZeroDivisionError, ValueError, ArithmeticError) as exc:
-            raise _StepFailure(f"the right-hand side failed at t = {t:.6g}: {exc}") from None
+            raise _StepFailure(f"the right-hand side failed at t = {t:.6g}: {exc}", t) from None
         if not np.all(np.isfinite(dy)):
-            raise _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}")
+            bad = [c + "'" for c, x in zip(names, dy[:n]) if not math.isfinite(x)]
+            if bad:
+                raise _StepFailure(f"a pole at t = {t:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+                                   f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite", t)
+            raise _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}", t)
         return dy
 
-    out = np.empty((samples, len(y0)))
-    status, message, k = "success", "", 0
-    try:
-        stepper = getattr(si, method)(fun, t_span[0], y0, t_span[1], rtol=rtol, atol=atol, max_step=max_step)
-        out[0], k = y0, 1
-        while k < samples:
-            msg = stepper.step()
-            if stepper.status == "failed":
-                status, message = "failed", f"the integrator stopped at t = {stepper.t:.6g}: {msg}"
-                break
-            if times[k] > stepper.t and stepper.status != "finished":
-                continue  # no sample in this step: skip the dense output (extra evaluations)
-            dense = stepper.dense_output()
-            while k < samples and times[k] <= stepper.t:
-                out[k] = dense(times[k])
-                k += 1
-            if stepper.status == "finished" and k < samples:
-                out[k:] = dense(times[k:]).T
-                k = samples
-    except _StepFailure as exc:
-        status, message = "failed", str(exc)
-    times, out = times[:k], out[:k]
-    if status == "success":
-        message = f"reached t = {t_span[1]:g}"
-    return _trajectory(compiled, times, out, p, params, status, message, count[0], g)
+    count = [0]
+
+    def attempt(t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float,
+                first: float | None) -> _Attempt:
+        count[0] = 0
+        out = np.empty((len(times), len(y_start)))
+        k, t_last, y_last = 0, t_start, y_start
+        message, retry, t_fail = "", False, math.nan
+        stepper = None
+        try:
+            stepper = getattr(si, method)(fun, t_start, y_start, t1, rtol=rtol, atol=atol,
+                                          max_step=cap, first_step=first)
+            if len(times) and times[0] == t_start:
+                out[0], k = y_start, 1
+            while k < len(times):
+                msg = stepper.step()
+                if stepper.status == "failed":
+                    message, t_fail = f"the integrator stopped at t = {stepper.t:.6g}: {msg}", stepper.t
+                    break
+                if times[k] > stepper.t and stepper.status != "finished":
+                    continue  # no sample in this step: skip the dense output (extra evaluations)
+                dense = stepper.dense_output()
+                while k < len(times) and times[k] <= stepper.t:
+                    out[k] = dense(times[k])
+                    k += 1
+                if stepper.status == "finished" and k < len(times):
+                    out[k:] = dense(times[k:]).T
+                    k = len(times)
+            t_last, y_last = stepper.t, stepper.y
+        except _StepFailure as exc:
+            message, retry, t_fail = str(exc), True, exc.t
+            if stepper is not None:  # (None: the stepper's own first evaluations failed)
+                t_last, y_last = stepper.t, stepper.y
+        return _Attempt(times[:k], out[:k], message, retry, float(t_last), np.array(y_last),
+                        t_fail, count[0])
+
+    return attempt
 
 
 def _trajectory(

@@ -6,18 +6,26 @@ equations (or any vakonomic motion) drift from the true, Chetaev motion?
 of a chosen pair of coordinates (the contact point or centre, by default
 ``x, y``) over time, and draws matplotlib figures: paths in the plane,
 coordinates over time, energy and constraint drift.
+
+A reduced model (Chaplygin's, Voronets' equations, the vakonomic family) solves
+the constraints for the dependent velocities; where that solution has a pole on
+the path (a knife edge whose ``ẏ = tan φ ẋ`` meets φ = π/2) its run stops
+there.  :func:`compare` then warns and simulates the multiplier form of the same
+motion (``chetaev``; ``vakonomic`` for the family), which has no such pole, under
+the same label; :attr:`Comparison.notes` says so.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .errors import ChaplyginError
+from .errors import ChaplyginError, ChaplyginWarning
 from .simulate import Trajectory, _atomic_write
 
 if TYPE_CHECKING:
@@ -28,6 +36,8 @@ if TYPE_CHECKING:
 __all__ = ["Comparison", "compare"]
 
 FIGURES = ("paths", "coordinates", "invariants")
+#: the multiplier form of the same motion, used where a reduced model's solved constraints have a pole
+FALLBACK = {"chaplygin": "chetaev", "voronets": "chetaev", "vakonomic_family": "vakonomic"}
 
 
 def _parse(model: str | tuple[str, str]) -> tuple[str, str, str]:
@@ -51,12 +61,16 @@ class Comparison:
         The label the others are measured against (the first model).
     path : tuple of str or None
         The coordinates whose path in the plane is compared.
+    notes : list of str
+        What the reader must know about the runs, e.g. that a reduced model met
+        a pole of its solved constraints and its multiplier form was used.
     """
 
     system_name: str
     trajectories: dict[str, Trajectory]
     reference: str
     path: tuple[str, str] | None
+    notes: list[str] = field(default_factory=list)
 
     def distance(self, label: str) -> np.ndarray:
         """Distance from the reference over time: in the path's plane, else over all coordinates."""
@@ -80,6 +94,7 @@ class Comparison:
                 f"  {label:<22} {d[k] if len(d) else float('nan'):>30.6g} {tr.t[k] if len(d) else float('nan'):>9.4g} "
                 f"{tr.energy_drift():>13.3g} {np.max(tr.constraint_residual, initial=0.0):>13.3g}  {tr.status}"
             )
+        lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -166,6 +181,11 @@ def compare(
         or ``[("chaplygin", "new")]``.  The first is the reference.
     t_span, initial, parameters
         As for :meth:`System.simulate`; ``options`` are passed on to it.
+        A reduced model whose solved constraints have a pole on the path is
+        replaced by its multiplier form (:data:`FALLBACK`), with a
+        :class:`~chaplygin.errors.ChaplyginWarning` and a note in
+        :attr:`Comparison.notes`; Lindelöf's equations have none, so their run
+        stops at the pole (noted too).
     path : (str, str), optional
         The coordinates whose paths are compared and drawn; by default ``x, y``
         when the system has them, else its first two dependent coordinates.
@@ -176,7 +196,19 @@ def compare(
     if path is not None and any(c not in names for c in path):
         raise ChaplyginError(f"path: {path} are not both coordinates of {system.name} ({', '.join(names)}).")
     trajectories: dict[str, Trajectory] = {}
+    notes: list[str] = []
     for model in models:
         name, form, label = _parse(model)
-        trajectories[label] = system.simulate(name, t_span, initial, parameters, form=form, **options)
-    return Comparison(system.name, trajectories, next(iter(trajectories)), path or _default_path(system))
+        tr = system.simulate(name, t_span, initial, parameters, form=form, **options)
+        if tr.failure == "pole":
+            fallback = FALLBACK.get(name)
+            if fallback is None:
+                note = f"{label} stops at {tr.message.split(';')[0]} (these equations have no multiplier form)"
+            else:
+                note = (f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
+                        f"shown instead: the {fallback} model (the same motion with multipliers, no pole)")
+                tr = system.simulate(fallback, t_span, initial, parameters, **options)
+            warnings.warn(note, ChaplyginWarning, stacklevel=2)
+            notes.append(note)
+        trajectories[label] = tr
+    return Comparison(system.name, trajectories, next(iter(trajectories)), path or _default_path(system), notes)
