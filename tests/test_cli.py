@@ -70,7 +70,7 @@ def voronets_file(tmp_path: Path) -> Path:
     [
         [],                                                           # no command
         ["bogus-command"],
-        ["derive", "example:knife-edge"],                             # --model missing
+        ["derive", "example:knife-edge", "--form", "newest"],                 # not a form
         ["derive", "example:knife-edge", "--model", "newton"],        # not a model
         ["derive", "example:knife-edge", "--model", "chetaev", "--format", "xml"],
         ["simulate", "example:knife-edge", "--model", "chaplygin", "--t-end", "1", "--out", "run.txt"],
@@ -178,6 +178,12 @@ def test_derive_text_latex_and_multipliers() -> None:
     doc = json.loads(bare.stdout)
     assert doc["accelerations"] is None and doc["multipliers"] == ["mu_1"]
     assert any("mu_1'" in e for e in doc["equations"])
+
+
+def test_derive_defaults_to_the_true_motion() -> None:
+    for name, title in (("knife-edge", "Chaplygin's equations"), ("turntable-ball", "Voronets' equations")):
+        doc = json.loads(run("derive", f"example:{name}", "-f", "json").stdout)
+        assert doc["title"].startswith(title), name
 
 
 def test_derive_simplify_gives_the_same_accelerations() -> None:

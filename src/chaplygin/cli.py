@@ -413,7 +413,7 @@ class _Derivation:
 @app.command()
 def derive(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: Model = typer.Option(..., "--model", "-m", help="The model to derive."),
+    model: Optional[Model] = typer.Option(None, "--model", "-m", help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."),
     fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
     accelerations: bool = typer.Option(True, "--accelerations/--no-accelerations",
@@ -437,7 +437,8 @@ def derive(
         if no_cache or source is None:
             _emit(_derive(file, model, form, accelerations, simplify).render(fmt))
             return
-        request = ("derive", source, model.value, form.value) + (("simplified",) if simplify else ())
+        asked = model.value if model is not None else "true-motion"  # the entry names the model
+        request = ("derive", source, asked, form.value) + (("simplified",) if simplify else ())
         out_key = cache.key(*request, str(accelerations), "printed as", fmt.value)
         printed = cache.load(out_key)  # the same request printed before: no SymPy at all
         if isinstance(printed, str):
@@ -469,10 +470,11 @@ def _definition(spec: str) -> bytes | None:
         return None  # _load reports the problem
 
 
-def _derive(file: str, model: Model, form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
-    """Derive (the only place ``derive`` does symbolic work beyond printing)."""
+def _derive(file: str, model: Optional[Model], form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
+    """Derive (the only place ``derive`` does symbolic work beyond printing); no ``model``: the true motion."""
     loaded = _load(file)
     system = loaded.system
+    model = model or Model(_true_motion(system))
     with _Steps(2 if accelerations else 1, f"deriving {model.value}/{form.value}") as steps:
         steps.step(f"deriving the {model.value} equations")
         eqs = system.equations(model.value, form.value)
