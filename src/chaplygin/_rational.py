@@ -26,6 +26,7 @@ are never re-rounded.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 
 import sympy as sp
@@ -43,6 +44,8 @@ __all__ = ["Algebra", "TooLarge", "normal_all", "simplified", "solve_linear"]
 TERMS = 400
 
 
+#: the most terms an intermediate product or power may have before it is formed
+_WORK = 50 * TERMS
 #: denominators up to this many terms are shown factored
 _FACTOR_TERMS = 40
 
@@ -134,6 +137,8 @@ class Algebra:
         elif expr.is_Pow and (split := _split_power(expr)) is not None:
             base, k = split
             n, d = (self._gen[base], ring.one) if base in self._gen else self.convert(base)
+            if max(math.comb(len(n) + abs(k) - 1, abs(k)), math.comb(len(d) + abs(k) - 1, abs(k))) > _WORK:
+                raise TooLarge  # a power of a sum with too many terms to expand
             out = (n**k, d**k) if k >= 0 else (d ** (-k), n ** (-k))
         else:  # pragma: no cover - every other expression is a kernel
             raise KeyError(expr)
@@ -252,6 +257,8 @@ def _sum(parts: list[Fraction]) -> Fraction:
 def _product(parts: list[Fraction]) -> Fraction:
     n_out, d_out = parts[0]
     for n, d in parts[1:]:
+        if len(n_out) * len(n) > _WORK or len(d_out) * len(d) > _WORK:
+            raise TooLarge
         n_out, d_out = n_out * n, d_out * d
     return n_out, d_out
 
