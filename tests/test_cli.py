@@ -505,9 +505,9 @@ def test_created_folders_are_said(tmp_path: Path) -> None:
     out = tmp_path / "new" / "deeper" / "run.csv"
     result = run(*KNIFE, "--t-end", "1", "--out", str(out))
     assert result.exit_code == 0 and out.exists()
-    assert f"created the folder {tmp_path / 'new'}" in result.stdout
+    assert f"created the folder {tmp_path / 'new' / 'deeper'} (and 1 above it): it did not exist" in result.stdout
     again = run(*KNIFE, "--t-end", "1", "--out", str(out), "--force")
-    assert again.exit_code == 0 and "created the folder" not in again.stdout
+    assert again.exit_code == 0 and "created" not in again.stdout
 
 
 def test_compare_at_a_pole_warns_and_notes_the_fallback(tmp_path: Path) -> None:

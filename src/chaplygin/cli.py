@@ -274,14 +274,13 @@ def _true_motion(system: System) -> str:
     return "chaplygin" if system.is_chaplygin else "voronets"
 
 
-def _created(path: Path) -> Path | None:
-    """The outermost missing folder above ``path`` (which writing it will create), or None."""
-    missing = None
-    for parent in path.absolute().parents:
-        if parent.exists():
-            break
-        missing = parent
-    return missing
+def _created(path: Path) -> str | None:
+    """Words for the missing folders above ``path`` (which writing it will create), or None."""
+    folder = path.absolute().parent
+    missing = [p for p in (folder, *folder.parents) if not p.exists()]
+    if not missing:
+        return None
+    return f"the folder {folder}" + (f" (and {len(missing) - 1} above it)" if len(missing) > 1 else "")
 
 
 def _tolerance(value: float, option: str) -> float:
@@ -676,7 +675,7 @@ def simulate(
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
         _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
         if created is not None:
-            _emit(f"created the folder {created} (it did not exist)")
+            _emit(f"created {created}: it did not exist")
         if not tr.success:
             raise ChaplyginError(f"the run failed: {tr.message}; {out} holds the trajectory up to then.")
 
@@ -790,7 +789,7 @@ def compare(
                         + ", ".join(f"{_safe(k)}.csv" for k in runs) + ", "
                         + ", ".join(p.name for p in written))
         if created is not None:
-            _emit(f"created the folder {created} (it did not exist)")
+            _emit(f"created {created}: it did not exist")
         failed = [k for k, tr in runs.items() if not tr.success]
         if failed:
             raise ChaplyginError("failed: " + "; ".join(f"{k}: {runs[k].message}" for k in failed))
@@ -929,7 +928,7 @@ def report(
                          progress=_report_progress(steps))
         _emit(f"wrote {out}")
         if created is not None:
-            _emit(f"created the folder {created} (it did not exist)")
+            _emit(f"created {created}: it did not exist")
 
 
 # ====================================================================== demo
