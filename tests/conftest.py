@@ -1,15 +1,13 @@
-"""Test-suite set-up: reproducible Hypothesis runs, numba's cache per xdist worker, xdist groups.
+"""Test-suite set-up: reproducible Hypothesis runs, numba's cache per xdist worker, xdist scheduling.
 
-``make test`` runs the suite on all cores with pytest-xdist (``-n auto --dist loadgroup``); a
+``make test`` runs the suite on all cores with pytest-xdist (``-n auto``, scheduled below); a
 plain ``python -m pytest tests/test_x.py`` runs serially, with the same settings.
 """
 
 from __future__ import annotations
 
 import os
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -34,25 +32,19 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 # ---------------------------------------------------------------- caches
-# The run's own cache (generated modules, C libraries, derivations), unless CHAPLYGIN_CACHE names
-# one: a fresh directory made by the first process (plain pytest, or xdist's controller, whose
-# workers and their subprocesses inherit it) and removed at the end. So no run depends on, or
-# fills, the user's cache. All xdist workers share it: every file in it is content-addressed and
-# written atomically (a temporary file, then a rename). numba's cache of compiled functions is not
-# race-free between processes (two processes compiling different signatures of one function at
-# once can number their data files alike), so each worker keeps its own, inside the run's cache;
-# set before anything imports numba, which reads NUMBA_CACHE_DIR once.
-_RUN_CACHE: str | None = None
-if not os.environ.get("CHAPLYGIN_CACHE"):
-    _RUN_CACHE = os.environ["CHAPLYGIN_CACHE"] = tempfile.mkdtemp(prefix="chaplygin-tests-")
+# chaplygin's cache ($CHAPLYGIN_CACHE, else the user's cache directory: generated modules, C
+# libraries, derivations) is shared by all xdist workers, their subprocesses and later runs, as in
+# normal use: every file in it is content-addressed, verified or compared on reading, and written
+# atomically (a temporary file, then a rename). Point CHAPLYGIN_CACHE at an empty directory for a
+# cold run. numba's cache of compiled functions is not race-free between processes (two processes
+# compiling different signatures of one function at once can both take data file 1, and the index
+# then maps a signature to the other's code), so each xdist worker keeps its own, beside
+# chaplygin's; set before anything imports numba, which reads NUMBA_CACHE_DIR once.
 _WORKER = os.environ.get("PYTEST_XDIST_WORKER")
 if _WORKER and "NUMBA_CACHE_DIR" not in os.environ:
-    os.environ["NUMBA_CACHE_DIR"] = os.path.join(os.environ["CHAPLYGIN_CACHE"], "numba", _WORKER)
+    from chaplygin.cache import cache_dir  # imports neither numba nor SymPy
 
-
-def pytest_unconfigure(config: pytest.Config) -> None:
-    if _RUN_CACHE is not None:
-        shutil.rmtree(_RUN_CACHE, ignore_errors=True)
+    os.environ["NUMBA_CACHE_DIR"] = str(cache_dir() / "numba-test-workers" / _WORKER)
 
 
 # ---------------------------------------------------------------- xdist scheduling
