@@ -15,8 +15,10 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/chaplygin demo
 
+# on all cores (pytest-xdist); tests/conftest.py schedules: modules with costly shared fixtures
+# stay on one worker, the longest start first
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/derive.py

@@ -86,19 +86,20 @@ def test_compiled_loop_and_symmetric_method_run_on_a_c_fill(monkeypatch) -> None
     init = {"x": 0.0, "y": 0.0, "theta0": 0.2, "theta1": 0.1, "theta2": -0.1, "x'": 1.0, "theta0'": 0.3}
     par = {"m": 1.0, "I": 0.5, "L": 1.0}
     monkeypatch.setattr(codegen, "C_FILL_FROM_LINES", 0)
+    chain = examples.sleigh_chain(2)  # one instance: its numba model is compiled once, for every path
     runs = {}
     for backend in ("numba", "numpy"):
-        runs[backend] = simulate(examples.sleigh_chain(2), "voronets", 2.0, init, par, backend=backend,
+        runs[backend] = simulate(chain, "voronets", 2.0, init, par, backend=backend,
                                  samples=5, reduction="numeric")
         assert runs[backend].status == "success"
-    assert uses_c(compile_model(examples.sleigh_chain(2), "voronets", backend="numba", reduction="numeric"))
+    assert uses_c(compile_model(chain, "voronets", backend="numba", reduction="numeric"))
     for name, values in runs["numba"].coordinates.items():
         np.testing.assert_allclose(values, runs["numpy"].coordinates[name], rtol=1e-8, atol=1e-10)
-    gauss = simulate(examples.sleigh_chain(2), "voronets", 2.0, init, par, backend="numba", samples=5,
+    gauss = simulate(chain, "voronets", 2.0, init, par, backend="numba", samples=5,
                      reduction="numeric", method="gauss4", step=0.01)
     for name, values in gauss.coordinates.items():
         np.testing.assert_allclose(values, runs["numpy"].coordinates[name], atol=1e-6)
-    ens = simulate_ensemble(examples.sleigh_chain(2), "voronets", 2.0, [init, init], par, reduction="numeric")
+    ens = simulate_ensemble(chain, "voronets", 2.0, [init, init], par, reduction="numeric")
     final = np.array([runs["numpy"].coordinates[name][-1] for name in ens.layout.coordinates])
     for member in ens.y:
         np.testing.assert_allclose(member[:len(final)], final, rtol=1e-8, atol=1e-10)
