@@ -168,7 +168,7 @@ def test_singular_mass_matrix_is_a_status_with_partial_trajectory(failing, backe
     assert np.all(np.isfinite(run.table()))
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("backend", ["numpy", *LOOPS])
 def test_a_pole_of_the_solved_constraints_stops_a_reduced_run(backend):
     """The knife edge's ẏ = tan φ ẋ has a pole at φ = π/2, reached at t = π/2 − 1.2 ≈ 0.371:
     the reduced run stops at the sample before it (t = 0.35); the multiplier model runs on."""
