@@ -247,6 +247,7 @@ def part_trajectory(disk, eqs, y0, p, t_end: float) -> None:
 
     runs("numpy", "simulate(backend='numpy'): SciPy DOP853 stepper", 1)
     runs("numba", "simulate(backend='numba'): compiled DOP853 loop", 3)
+    runs("c", "simulate(backend='c'): the loop in C (the default)", 3)
     from chaplygin._loop import integrate_dop853, loop_model
 
     model = loop_model(compile_equations(eqs, "numba"))
