@@ -218,10 +218,11 @@ FAMILIES = ("valid", "constant", "mutated", "soup", "noise")
 def draw(source: Source) -> tuple[str, str]:
     """``(family, text)``: a valid expression (half the time), a constant one, or anything."""
     k = source.integer(0, 9)
+    depth = source.integer(0, 6)
     if k <= 4:
-        return "valid", valid(source, depth=source.integer(0, 6))
+        return "valid", valid(source, depth=depth)
     if k == 5:
-        return "constant", valid(source, depth=source.integer(0, 5), names=False)
+        return "constant", valid(source, depth=depth, names=False)
     if k <= 7:
         return "mutated", mutated(source)
     if k == 8:
