@@ -43,11 +43,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))  # this working tree, also when not installed
 sys.path.insert(0, str(ROOT / "tests"))
 
-import mpmath  # noqa: E402
-from sympy.core.parameters import global_parameters  # noqa: E402
+import fuzzgrammar as fg
+import mpmath
+from sympy.core.parameters import global_parameters
 
-import fuzzgrammar as fg  # noqa: E402
-from chaplygin.parser import ParseError, parse_constant, parse_expression  # noqa: E402
+from chaplygin.parser import ParseError, parse_constant, parse_expression
 
 FAILURES = ("crash", "hang", "valid refused", "internal", "state")
 EXAMPLES = 5

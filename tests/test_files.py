@@ -506,7 +506,7 @@ def test_huge_constants_name_the_key_and_leave_mpmath_alone() -> None:
 
 
 def test_unexpected_failures_become_file_errors(monkeypatch: pytest.MonkeyPatch) -> None:
-    import chaplygin.files as files
+    from chaplygin import files
 
     def broken(self: object, system: object) -> dict:
         raise OverflowError("int too large to convert to float")

@@ -342,10 +342,8 @@ def test_preserved_state_restores_mpmath_after_the_workprec_overflow() -> None:
     import mpmath
 
     before = (mpmath.mp.prec, mpmath.mp.dps)
-    with pytest.raises(OverflowError):
-        with parser.preserved_state():
-            with mpmath.workprec(10**400):
-                pass  # pragma: no cover - __enter__ raises
+    with pytest.raises(OverflowError), parser.preserved_state(), mpmath.workprec(10**400):
+        pass  # pragma: no cover - __enter__ raises
     assert (mpmath.mp.prec, mpmath.mp.dps) == before
 
 

@@ -68,17 +68,17 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = [
-    "SystemFile",
-    "SystemFileError",
-    "ParseError",
-    "load",
-    "loads",
-    "dumps",
-    "MAX_FILE_SIZE",
     "MAX_COORDINATES",
+    "MAX_FILE_SIZE",
     "MAX_PARAMETERS",
     "MAX_SYSTEM_NAME_LENGTH",
     "SECTIONS",
+    "ParseError",
+    "SystemFile",
+    "SystemFileError",
+    "dumps",
+    "load",
+    "loads",
 ]
 
 #: Largest file, in characters (and bytes for :func:`load`).

@@ -48,29 +48,29 @@ from ._symbols import TIME
 from .errors import ChaplyginError
 
 __all__ = [
-    "SystemFileError",
-    "ParseError",
-    "Names",
-    "parse_expression",
-    "parse_constant",
-    "preserved_state",
-    "ERROR_KINDS",
-    "check_name",
-    "parameter_symbol",
-    "coordinate_function",
-    "FUNCTIONS",
     "CONSTANTS",
-    "RESERVED",
-    "MAX_EXPRESSION_LENGTH",
-    "MAX_TOKENS",
+    "ERROR_KINDS",
+    "FUNCTIONS",
     "MAX_DEPTH",
-    "MAX_EXPONENT",
-    "MAX_NUMBER_BITS",
-    "MAX_ROOT_BITS",
     "MAX_EXPANDED_TERMS",
+    "MAX_EXPONENT",
+    "MAX_EXPRESSION_LENGTH",
     "MAX_HYPERBOLIC_TERMS",
     "MAX_LITERAL_DIGITS",
     "MAX_NAME_LENGTH",
+    "MAX_NUMBER_BITS",
+    "MAX_ROOT_BITS",
+    "MAX_TOKENS",
+    "RESERVED",
+    "Names",
+    "ParseError",
+    "SystemFileError",
+    "check_name",
+    "coordinate_function",
+    "parameter_symbol",
+    "parse_constant",
+    "parse_expression",
+    "preserved_state",
 ]
 
 # ---------------------------------------------------------------------------- limits
@@ -679,7 +679,7 @@ class _Parser:
 
     def name(self, tok: _Token) -> _Value:
         name = tok.text
-        primes = []
+        primes: list[_Token] = []
         end = tok.pos + len(name)
         while self.at("'"):
             prime = self.take()
