@@ -488,3 +488,30 @@ def test_structured_fuzz(T: str, constraint: str, initial: dict) -> None:
             loads(text)
         except SystemFileError as exc:
             str(exc)
+
+
+# ---------------------------------------------------------------------------- global state
+def test_huge_constants_name_the_key_and_leave_mpmath_alone() -> None:
+    import mpmath
+
+    before = (mpmath.mp.prec, mpmath.mp.dps)
+    exc = file_error(KNIFE.replace("J = 0.5", 'J = "tan(t - tan(sinh(1e400)))"'))
+    assert exc.key == "[parameters] J" and "time t is not allowed" in exc.reason
+    exc = file_error(KNIFE.replace("J = 0.5", 'J = "tan(1 - tan(sinh(1e400)))"'))
+    assert exc.key == "[parameters] J" and "in size" in exc.reason and exc.kind == "limit"
+    exc = file_error(KNIFE.replace("tan(phi)*x'", "tan(t - tan(sinh(1e400)))*x'"))
+    assert exc.key == "[constraints] \"y'\"" and exc.text == "tan(t - tan(sinh(1e400)))*x'"
+    assert (mpmath.mp.prec, mpmath.mp.dps) == before
+
+
+def test_unexpected_failures_become_file_errors(monkeypatch: pytest.MonkeyPatch) -> None:
+    from chaplygin import files
+
+    def broken(self: object, system: object) -> dict:
+        raise OverflowError("int too large to convert to float")
+
+    monkeypatch.setattr(files._Reader, "read_initial", broken)
+    exc = file_error(KNIFE, source="knife.toml")
+    assert type(exc) is SystemFileError and exc.source == "knife.toml"
+    assert "could not read this (OverflowError: int too large to convert to float)" in exc.reason
+    assert isinstance(exc.__cause__, OverflowError)

@@ -256,6 +256,15 @@ def caret_column(exc: ParseError) -> int:
         ("log(0)", "undefined here", 0),
         ("tan(pi/2)", "undefined here", 0),
         ("0^-1", "undefined here", 1),
+        ("atan2(m, a,)", "a trailing comma after the last argument of atan2", 10),
+        ("sin(x,)", "a trailing comma", 5),
+        ("x '", "a space before the prime: write x'", 1),
+        ("theta\t'", "a space before the prime", 5),
+        ("x' '", "a space before the prime: write x''", 2),
+        ("sqrt(-1)*x", "not a finite real number", 0),
+        ("m + exp(5000)", "this constant is about 10^2171 in size", 4),
+        ("tan(t - tan(sinh(1e400)))", "more than 10^(10^399) in size", 12),
+        ("cosh((x + t)^4)", "the argument of cosh is too large", 0),
     ],
 )
 def test_errors_name_the_column(text: str, reason: str, column: int) -> None:
@@ -265,6 +274,28 @@ def test_errors_name_the_column(text: str, reason: str, column: int) -> None:
     assert exc.text == text
     assert caret_column(exc) == column
     assert isinstance(exc, SystemFileError) and isinstance(exc, ValueError)
+
+
+@pytest.mark.parametrize(
+    "text, kind",
+    [
+        ("m +", "syntax"), ("m x", "syntax"), ("sin(x,)", "syntax"), ("x '", "syntax"), ("x''", "syntax"),
+        ("b", "name"), ("m'", "name"), ("foo(x)", "name"), ("sin", "name"),
+        ("9^9^9^9", "limit"), ("1e401", "limit"), ("exp(5000)", "limit"), ("sinh((x + t)^4)", "limit"),
+        ("(m + a + x + theta)^1000", "limit"), ("(" * 60 + "m" + ")" * 60, "limit"),
+        ("1/0", "value"), ("log(0)", "value"), ("acos(2)", "value"), ("(-8)^(1/3)", "value"),
+    ],
+)
+def test_error_kinds(text: str, kind: str) -> None:
+    assert error(text).kind == kind
+
+
+def test_bounded_constants_and_hyperbolic_arguments_are_accepted() -> None:
+    assert P("exp(2800)") == sp.exp(2800)  # 2^4040: just below the limit
+    assert P("sinh((x + t)^3)") == sp.sinh((x + t) ** 3)  # 20 terms in re/im parts
+    assert P("tanh(a*x')") == sp.tanh(a * x.diff(t))
+    assert P("sin(10^300)^1000") == sp.sin(sp.Integer(10) ** 300) ** 1000
+    assert P("x*exp(-1e400)") == x * sp.exp(-sp.Integer(10) ** 400)  # tiny constants are fine
 
 
 def test_error_rendering() -> None:
@@ -299,9 +330,41 @@ def test_error_on_a_later_line() -> None:
 def test_errors_pickle() -> None:
     import pickle
 
-    exc = error("m +").located(source="f.toml", key="[energy] T")
+    exc = error("9^9^9^9").located(source="f.toml", key="[energy] T")
     again = pickle.loads(pickle.dumps(exc))
-    assert type(again) is ParseError and str(again) == str(exc)
+    assert type(again) is ParseError and str(again) == str(exc) and again.kind == exc.kind == "limit"
+
+
+# ---------------------------------------------------------------------------- global state
+def test_preserved_state_restores_mpmath_after_the_workprec_overflow() -> None:
+    """The root cause of the leaked precision, without the parser: mpmath.workprec sets prec,
+    then fails computing dps for an astronomically large one, and its __exit__ never runs."""
+    import mpmath
+
+    before = (mpmath.mp.prec, mpmath.mp.dps)
+    with pytest.raises(OverflowError), parser.preserved_state(), mpmath.workprec(10**400):
+        pass  # pragma: no cover - __enter__ raises
+    assert (mpmath.mp.prec, mpmath.mp.dps) == before
+
+
+def test_preserved_state_reads_with_sympy_defaults() -> None:
+    from sympy.core.parameters import global_parameters
+
+    with sp.evaluate(False):
+        assert P("2*m + 3*m") == 5 * m  # evaluated although the caller's block is not
+        assert global_parameters.evaluate is False
+    assert global_parameters.evaluate is True
+
+
+def test_sympy_failures_become_parse_errors(monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(arg: sp.Expr) -> sp.Expr:
+        raise ZeroDivisionError("deep inside SymPy")
+
+    monkeypatch.setitem(parser._SYMPY_FUNCTIONS, "atan", broken)
+    exc = error("m + atan(x)")
+    assert exc.kind == "internal" and "ZeroDivisionError: deep inside SymPy" in exc.reason
+    assert exc.column == 10 and exc.text == "m + atan(x)"
+    assert isinstance(exc.__cause__, ZeroDivisionError)
 
 
 @pytest.mark.parametrize(

@@ -58,6 +58,7 @@ from .parser import (
     check_name,
     parse_constant,
     parse_expression,
+    preserved_state,
 )
 from .system import System
 
@@ -67,17 +68,17 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = [
-    "SystemFile",
-    "SystemFileError",
-    "ParseError",
-    "load",
-    "loads",
-    "dumps",
-    "MAX_FILE_SIZE",
     "MAX_COORDINATES",
+    "MAX_FILE_SIZE",
     "MAX_PARAMETERS",
     "MAX_SYSTEM_NAME_LENGTH",
     "SECTIONS",
+    "ParseError",
+    "SystemFile",
+    "SystemFileError",
+    "dumps",
+    "load",
+    "loads",
 ]
 
 #: Largest file, in characters (and bytes for :func:`load`).
@@ -177,8 +178,21 @@ def _loads(text: str, source: str, default_name: str | None) -> SystemFile:
             allowed=f"Limit: {MAX_FILE_SIZE} characters per system file.",
         )
     text = text.removeprefix("\ufeff")
-    data = _parse_toml(text, source)
-    return _Reader(data, source, default_name).read()
+    reader: _Reader | None = None
+    with preserved_state():  # mpmath's precision and SymPy's flags are the same afterwards
+        try:
+            data = _parse_toml(text, source)
+            reader = _Reader(data, source, default_name)
+            return reader.read()
+        except SystemFileError:
+            raise
+        except Exception as exc:  # the boundary between user files and SymPy: never a traceback
+            key, value = (reader.where, reader.text) if reader is not None else (None, None)
+            raise SystemFileError(
+                f"chaplygin could not read this ({type(exc).__name__}: {str(exc)[:200]})", source=source,
+                key=key, text=value,
+                allowed="This is a limitation of chaplygin; please report it with the file.",
+            ) from exc
 
 
 def _parse_toml(text: str, source: str) -> dict[str, Any]:
@@ -229,6 +243,9 @@ class _Reader:
         self.data = data
         self.source = source
         self.default_name = default_name
+        # the key and text being read, for errors that escape from SymPy (see _loads)
+        self.where: str | None = None
+        self.text: str | None = None
 
     def error(self, reason: str, key: str | None = None, **fields: Any) -> SystemFileError:
         return SystemFileError(reason, source=self.source, key=key, **fields)
@@ -353,10 +370,13 @@ class _Reader:
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
             raise self.error(f"expected a number, got {_describe(value)}", where, allowed=allowed)
         if isinstance(value, str):
+            self.where, self.text = where, value
             try:
-                return parse_constant(value)
+                number = parse_constant(value)
             except ParseError as exc:
                 raise exc.located(source=self.source, key=where) from None
+            self.where = self.text = None
+            return number
         try:
             number = float(value)
         except OverflowError:
@@ -372,10 +392,13 @@ class _Reader:
                 allowed="Expressions are strings, e.g. \"m/2*x'^2\".",
             )
         text = value if isinstance(value, str) else repr(value)
+        self.where, self.text = where, text
         try:
-            return parse_expression(text, names, velocity_message=velocity_message)
+            expr = parse_expression(text, names, velocity_message=velocity_message)
         except ParseError as exc:
             raise exc.located(source=self.source, key=where) from None
+        self.where = self.text = None
+        return expr
 
     def read_energy(self, names: Names) -> dict[str, Any]:
         table = self.table("energy", required=True)

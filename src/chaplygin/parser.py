@@ -8,8 +8,9 @@ directly from a whitelist.  The grammar (``docs/system-files.md``)::
     term       := unary (("*" | "/") unary)*
     unary      := ("+" | "-") unary | power
     power      := primary (("^" | "**") unary)?          # right-associative
-    primary    := NUMBER | NAME | NAME "'" | NAME "(" arguments ")" | "(" expression ")"
-    arguments  := expression ("," expression)*
+    primary    := NUMBER | NAME | VELOCITY | NAME "(" arguments ")" | "(" expression ")"
+    arguments  := expression ("," expression)*            # no trailing comma
+    VELOCITY   := NAME "'"                                 # no space before the prime
 
 * ``NUMBER``: ``2``, ``0.5``, ``.5``, ``1.5e-3``; always an **exact** rational
   (``0.1`` is ``1/10``), so derivations stay exact;
@@ -34,36 +35,42 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+import mpmath
 import sympy as sp
+from sympy.core.parameters import global_parameters
 
 from ._symbols import TIME
 from .errors import ChaplyginError
 
 __all__ = [
-    "SystemFileError",
-    "ParseError",
-    "Names",
-    "parse_expression",
-    "parse_constant",
-    "check_name",
-    "parameter_symbol",
-    "coordinate_function",
-    "FUNCTIONS",
     "CONSTANTS",
-    "RESERVED",
-    "MAX_EXPRESSION_LENGTH",
-    "MAX_TOKENS",
+    "ERROR_KINDS",
+    "FUNCTIONS",
     "MAX_DEPTH",
-    "MAX_EXPONENT",
-    "MAX_NUMBER_BITS",
-    "MAX_ROOT_BITS",
     "MAX_EXPANDED_TERMS",
+    "MAX_EXPONENT",
+    "MAX_EXPRESSION_LENGTH",
+    "MAX_HYPERBOLIC_TERMS",
     "MAX_LITERAL_DIGITS",
     "MAX_NAME_LENGTH",
+    "MAX_NUMBER_BITS",
+    "MAX_ROOT_BITS",
+    "MAX_TOKENS",
+    "RESERVED",
+    "Names",
+    "ParseError",
+    "SystemFileError",
+    "check_name",
+    "coordinate_function",
+    "parameter_symbol",
+    "parse_constant",
+    "parse_expression",
+    "preserved_state",
 ]
 
 # ---------------------------------------------------------------------------- limits
@@ -75,12 +82,16 @@ MAX_TOKENS = 10_000
 MAX_DEPTH = 50
 #: Largest absolute value of a numeric exponent (and largest denominator of a rational one).
 MAX_EXPONENT = 1000
-#: Largest exact number (in bits, numerator plus denominator) an expression may produce.
+#: Largest exact number (in bits, numerator plus denominator) an expression may produce; also
+#: the largest size of any constant (``exp(3000)`` is about ``2**4328``: refused), as ``log2 |c|``.
 MAX_NUMBER_BITS = 4096
 #: Largest (bits of the radicand) × (degree of the root) for an exact root of a number.
 MAX_ROOT_BITS = 1024
 #: Most terms the full expansion of an expression may have (SymPy expands kinetic energies).
 MAX_EXPANDED_TERMS = 10_000
+#: Most terms the argument of sinh, cosh or tanh may have when expanded into real and imaginary
+#: parts (each coordinate, velocity and t counting two); see ``_Parser.check_hyperbolic``.
+MAX_HYPERBOLIC_TERMS = 32
 #: Most digits in one number literal, and the largest power of ten of its exponent.
 MAX_LITERAL_DIGITS = 100
 MAX_LITERAL_EXPONENT = 400
@@ -97,6 +108,7 @@ _SYMPY_FUNCTIONS: dict[str, Callable[..., sp.Expr]] = {
     "atan": sp.atan, "atan2": sp.atan2, "sinh": sp.sinh, "cosh": sp.cosh, "tanh": sp.tanh,
     "exp": sp.exp, "log": sp.log, "abs": sp.Abs, "sign": sp.sign,
 }
+_HYPERBOLIC = frozenset({"sinh", "cosh", "tanh"})
 #: Named constants.
 CONSTANTS: dict[str, sp.Expr] = {"pi": sp.pi, "E": sp.E}
 #: Names that cannot be parameters or coordinates.
@@ -221,7 +233,30 @@ def _rebuild(cls: type[SystemFileError], reason: str, fields: dict[str, Any]) ->
 
 
 class ParseError(SystemFileError):
-    """An expression does not follow the grammar or breaks a limit."""
+    """An expression does not follow the grammar, breaks a limit or has no value.
+
+    Attributes
+    ----------
+    kind : str
+        Why the text was refused, one of :data:`ERROR_KINDS`: ``"syntax"`` (not in the
+        grammar), ``"name"`` (an unknown or misused name), ``"limit"`` (one of the limits
+        of the module docstring), ``"value"`` (a division by zero, a singular function
+        value, a constant that is not a finite real number) or ``"internal"`` (SymPy or
+        mpmath failed on the expression: a bug of chaplygin's, to be reported).
+    """
+
+    def __init__(self, reason: str, *, kind: str = "syntax", **fields: Any) -> None:
+        if kind not in ERROR_KINDS:
+            raise ValueError(f"unknown kind of parse error {kind!r}; one of {', '.join(ERROR_KINDS)}")
+        self.kind = kind
+        super().__init__(reason, **fields)
+
+    def _fields(self) -> dict[str, Any]:
+        return {**super()._fields(), "kind": self.kind}
+
+
+#: The kinds of :class:`ParseError`.
+ERROR_KINDS = ("syntax", "name", "limit", "value", "internal")
 
 
 # ---------------------------------------------------------------------------- names
@@ -354,10 +389,12 @@ class _Parser:
         self.tokens = self._tokenize(text)
         self.i = 0
         self.depth = 0
+        self.bounded: set[sp.Expr] = set()  # constants already checked by check_size
+        self._complex: frozenset[sp.Expr] | None = None
 
     # ------------------------------------------------------------ helpers
-    def error(self, reason: str, pos: int, allowed: str | None = SYNTAX) -> ParseError:
-        return ParseError(reason, text=self.text, column=pos, allowed=allowed)
+    def error(self, reason: str, pos: int, allowed: str | None = SYNTAX, kind: str = "syntax") -> ParseError:
+        return ParseError(reason, text=self.text, column=pos, allowed=allowed, kind=kind)
 
     def _tokenize(self, text: str) -> list[_Token]:
         tokens: list[_Token] = []
@@ -374,7 +411,7 @@ class _Parser:
                 if len(tokens) > MAX_TOKENS:
                     raise self.error(
                         f"the expression has more than {MAX_TOKENS} tokens", pos,
-                        f"Limit: {MAX_TOKENS} numbers, names and operators per expression.",
+                        f"Limit: {MAX_TOKENS} numbers, names and operators per expression.", "limit",
                     )
             pos = m.end()
         tokens.append(_Token("end", "", n))
@@ -433,7 +470,7 @@ class _Parser:
         if self.depth > MAX_DEPTH:
             raise self.error(
                 f"the expression is nested more than {MAX_DEPTH} levels deep", pos,
-                f"Limit: {MAX_DEPTH} levels of parentheses, function calls, signs and powers.",
+                f"Limit: {MAX_DEPTH} levels of parentheses, function calls, signs and powers.", "limit",
             )
 
     def leave(self) -> None:
@@ -443,17 +480,51 @@ class _Parser:
         if value.is_number and value.has(*_UNDEFINED):
             raise self.error(
                 "the expression is undefined here (a division by zero or a singular function value)", pos,
-                None,
+                None, "value",
             )
-        if value.is_Rational and _bits(value) > MAX_NUMBER_BITS:
-            raise self.error(f"a number with more than {MAX_NUMBER_BITS} bits", pos, _NUMBER_LIMITS)
+        if value.is_Rational:
+            if _bits(value) > MAX_NUMBER_BITS:
+                raise self.error(f"a number with more than {MAX_NUMBER_BITS} bits", pos, _NUMBER_LIMITS, "limit")
+            return value
+        # Every constant is bounded as it is built, so that no evaluation by SymPy (which may happen
+        # while building a later node) works at a precision as large as a constant's exponent.
+        for c in [value] if value.is_number else [a for a in value.args if a.is_number]:
+            if not c.is_Rational and c not in self.bounded:
+                self.check_size(c, pos)
+                self.bounded.add(c)
         return value
+
+    def check_size(self, constant: sp.Expr, pos: int) -> None:
+        """Refuse a constant above ``2**MAX_NUMBER_BITS`` in size, or not real (from 15 digits).
+
+        Complex constants (``sqrt(-1)``, ``acos(2)``) have no place in a mechanical system, and
+        SymPy's sign tests on functions of them can refine their precision without end.
+        """
+        value = constant.evalf(15)
+        size = max((mpmath.mag(mpmath.mpf(f)) for f in value.atoms(sp.Float) if f != 0), default=0)
+        real, imag = value.as_real_imag()
+        if imag.is_Float and imag != 0 and (
+            not real.is_Float or real == 0 or mpmath.mag(mpmath.mpf(imag)) > mpmath.mag(mpmath.mpf(real)) - 40
+        ):
+            raise self.error(
+                f"this constant is not a finite real number (it is about {sp.sstr(value)[:60]})", pos,
+                "Constants must be real: no square roots or logarithms of negative numbers, "
+                "asin/acos only on [-1, 1].", "value",
+            )
+        if size > MAX_NUMBER_BITS:
+            digits = size * 30103 // 100000  # log10(2) = 0.30103
+            shown = f"about 10^{digits}" if digits < 10**9 else f"more than 10^(10^{len(str(digits)) - 1})"
+            raise self.error(
+                f"this constant is {shown} in size (limit 2^{MAX_NUMBER_BITS}, about 10^1233)", pos,
+                _NUMBER_LIMITS, "limit",
+            )
 
     def check_terms(self, terms: int, pos: int) -> int:
         if terms > MAX_EXPANDED_TERMS:
             raise self.error(
                 f"this expression would expand to more than {MAX_EXPANDED_TERMS} terms", pos,
                 f"Limit: the full expansion of an expression may have at most {MAX_EXPANDED_TERMS} terms.",
+                "limit",
             )
         return terms
 
@@ -488,7 +559,7 @@ class _Parser:
                     if groups[rest] > MAX_NUMBER_BITS:
                         raise self.error(
                             f"the numbers in this sum add up to more than {MAX_NUMBER_BITS} bits",
-                            first.pos, _NUMBER_LIMITS,
+                            first.pos, _NUMBER_LIMITS, "limit",
                         )
         count = self.check_terms(sum(v.terms for v in terms), first.pos)
         return _Value(self.check_defined(sp.Add(*exprs), first.pos), count, first.pos)
@@ -512,7 +583,7 @@ class _Parser:
         if rational > MAX_NUMBER_BITS or radical > MAX_ROOT_BITS:
             raise self.error(
                 "the numbers in this product are too large to multiply exactly", first.pos,
-                _NUMBER_LIMITS,
+                _NUMBER_LIMITS, "limit",
             )
         count = 1
         for v in factors:
@@ -588,13 +659,15 @@ class _Parser:
         whole, frac, exp = m.group(1), m.group(2) or "", m.group(3)
         digits = (whole + frac).lstrip("0")
         if len(digits) > MAX_LITERAL_DIGITS:
-            raise self.error(f"a number with more than {MAX_LITERAL_DIGITS} digits", tok.pos, _NUMBER_LIMITS)
+            raise self.error(
+                f"a number with more than {MAX_LITERAL_DIGITS} digits", tok.pos, _NUMBER_LIMITS, "limit"
+            )
         e = 0
         if exp is not None:
             if len(exp.lstrip("+-").lstrip("0")) > 4 or abs(int(exp)) > MAX_LITERAL_EXPONENT:
                 raise self.error(
                     f"the exponent of a number may be at most {MAX_LITERAL_EXPONENT} in size", tok.pos,
-                    _NUMBER_LIMITS,
+                    _NUMBER_LIMITS, "limit",
                 )
             e = int(exp)
         shift = e - len(frac)
@@ -606,9 +679,17 @@ class _Parser:
 
     def name(self, tok: _Token) -> _Value:
         name = tok.text
-        primes = []
+        primes: list[_Token] = []
+        end = tok.pos + len(name)
         while self.at("'"):
-            primes.append(self.take())
+            prime = self.take()
+            if prime.pos != end:
+                raise self.error(
+                    f"a space before the prime: write {name}{chr(39) * (len(primes) + 1)} with no space "
+                    "between the name and its prime", end,
+                )
+            primes.append(prime)
+            end += 1
         names = self.names
         if name in names.coordinates:
             q = names.coordinates[name]
@@ -620,7 +701,7 @@ class _Parser:
                     f"({name}') may appear, accelerations are not part of a system", primes[1].pos,
                 )
             if self.velocity_message is not None:
-                raise self.error(self.velocity_message, tok.pos, None)
+                raise self.error(self.velocity_message, tok.pos, None, "name")
             return _Value(q.diff(TIME), 1, tok.pos)
         if primes:
             if name in names.parameters:
@@ -634,7 +715,7 @@ class _Parser:
             if what is not None:
                 raise self.error(
                     f"{name} is {what}: only coordinates have velocities ({name}' is not defined)",
-                    primes[0].pos, names.describe(),
+                    primes[0].pos, names.describe(), "name",
                 )
         if name in names.parameters:
             return _Value(names.parameters[name], 1, tok.pos)
@@ -643,7 +724,7 @@ class _Parser:
         if name in CONSTANTS:
             return _Value(CONSTANTS[name], 1, tok.pos)
         if name in FUNCTIONS:
-            raise self.error(f"{name} is a function: write {name}(...)", tok.pos, names.describe())
+            raise self.error(f"{name} is a function: write {name}(...)", tok.pos, names.describe(), "name")
         reason = f"unknown name {name!r}"
         if name == "t":
             reason = "time t is not allowed here (a number is expected)"
@@ -653,7 +734,7 @@ class _Parser:
             close = difflib.get_close_matches(name, names.all(), n=1)
             if close:
                 reason += f" (did you mean {close[0]!r}?)"
-        raise self.error(reason, tok.pos, names.describe())
+        raise self.error(reason, tok.pos, names.describe(), "name")
 
     def call(self, tok: _Token) -> _Value:
         name = tok.text
@@ -662,19 +743,24 @@ class _Parser:
             if name in self.names.parameters or name in self.names.coordinates:
                 raise self.error(
                     f"{name} is not a function: write {name}*(...) for a product", open_.pos,
-                    self.names.describe(),
+                    self.names.describe(), "name",
                 )
             reason = f"unknown function {name!r}"
             close = difflib.get_close_matches(name, list(FUNCTIONS), n=1)
             if close:
                 reason += f" (did you mean {close[0]!r}?)"
-            raise self.error(reason, tok.pos, "Functions: " + ", ".join(FUNCTIONS) + ".")
+            raise self.error(reason, tok.pos, "Functions: " + ", ".join(FUNCTIONS) + ".", "name")
         self.enter(open_.pos)
         args: list[_Value] = []
         if not self.at(")"):
             args.append(self.expression())
             while self.at(","):
-                self.take()
+                comma = self.take()
+                if self.at(")"):
+                    raise self.error(
+                        f"a trailing comma after the last argument of {name}: remove the ','", comma.pos,
+                        "Arguments are separated by commas, with none after the last: atan2(y, x).",
+                    )
                 args.append(self.expression())
         if not self.at(")"):
             nxt = self.peek()
@@ -693,8 +779,35 @@ class _Parser:
         if name == "sqrt":
             value = self.power_of(args[0], _Value(sp.S.Half, 1, tok.pos), tok.pos)
             return _Value(value.expr, value.terms, tok.pos)
+        if name in _HYPERBOLIC:
+            self.check_hyperbolic(name, args[0].expr, tok.pos)
         result = _SYMPY_FUNCTIONS[name](*[a.expr for a in args])
         return _Value(self.check_defined(result, tok.pos), 1, tok.pos)
+
+    def check_hyperbolic(self, name: str, arg: sp.Expr, pos: int) -> None:
+        """Refuse sinh/cosh/tanh of an argument too large for SymPy's test of whether it is real.
+
+        Coordinates and ``t`` are not real symbols, so SymPy decides whether ``sinh(arg)`` is
+        real by splitting ``arg`` into real and imaginary parts, fully expanded: for
+        ``sinh((x + t)^16)`` that takes seconds, for ``sinh((x + t)^64)`` minutes (other
+        functions do not do this).
+        """
+        cost = _complex_terms(arg, self.complex_atoms(), MAX_HYPERBOLIC_TERMS)
+        if cost > MAX_HYPERBOLIC_TERMS:
+            raise self.error(
+                f"the argument of {name} is too large for SymPy: split into real and imaginary parts it "
+                f"would expand to more than {MAX_HYPERBOLIC_TERMS} terms", pos,
+                f"Limit: the argument of sinh, cosh or tanh may expand to at most {MAX_HYPERBOLIC_TERMS} "
+                "terms, counting each coordinate, velocity and t as two (its real and imaginary parts).",
+                "limit",
+            )
+
+    def complex_atoms(self) -> frozenset[sp.Expr]:
+        """The objects SymPy does not know to be real: coordinates, velocities, t."""
+        if self._complex is None:
+            coords = list(self.names.coordinates.values())
+            self._complex = frozenset([*coords, *(q.diff(TIME) for q in coords), TIME])
+        return self._complex
 
     # ------------------------------------------------------------ powers
     def power_of(self, base: _Value, exponent: _Value, pos: int) -> _Value:
@@ -711,11 +824,11 @@ class _Parser:
                 except (TypeError, ValueError, OverflowError):
                     size = math.inf
                 if not math.isfinite(size):
-                    raise self.error("the exponent is not a finite number", pos, _POWER_LIMITS)
+                    raise self.error("the exponent is not a finite number", pos, _POWER_LIMITS, "value")
             if size > MAX_EXPONENT or denominator > MAX_EXPONENT:
                 raise self.error(
                     f"the exponent is too large (at most {MAX_EXPONENT} in size, with a denominator of "
-                    f"at most {MAX_EXPONENT})", pos, _POWER_LIMITS,
+                    f"at most {MAX_EXPONENT})", pos, _POWER_LIMITS, "limit",
                 )
             if const.is_Rational:
                 rational, radical = _numeric_factor_bits(b)
@@ -724,13 +837,13 @@ class _Parser:
                 if numeric * whole > MAX_NUMBER_BITS:
                     raise self.error(
                         f"this power would compute a number of about {math.ceil(numeric * whole)} bits "
-                        f"(limit {MAX_NUMBER_BITS})", pos, _POWER_LIMITS,
+                        f"(limit {MAX_NUMBER_BITS})", pos, _POWER_LIMITS, "limit",
                     )
                 if denominator > 1 and numeric * denominator > MAX_ROOT_BITS:
                     raise self.error(
                         "this power would take an exact root of a large number "
                         f"({math.ceil(numeric)} bits, degree {denominator}; limit {MAX_ROOT_BITS} "
-                        "bits × degree)", pos, _POWER_LIMITS,
+                        "bits × degree)", pos, _POWER_LIMITS, "limit",
                     )
                 if e.is_number and base.terms > 1 and whole >= 1:
                     expanded = _multinomial(base.terms, whole)
@@ -741,21 +854,90 @@ class _Parser:
         return _Value(self.check_defined(result, pos), terms, base.pos)
 
 
-def _multinomial(terms: int, power: int) -> int:
+def _complex_terms(expr: sp.Expr, complex_atoms: frozenset[sp.Expr], cap: int) -> int:
+    """Terms of ``expr`` expanded with each of ``complex_atoms`` as ``re + i·im`` (capped above ``cap``).
+
+    A function counts two terms plus the terms of its arguments (SymPy splits those too).
+    """
+    if expr in complex_atoms:
+        return 2
+    if not expr.args or not expr.has(*complex_atoms):
+        return 1
+    parts = [_complex_terms(a, complex_atoms, cap) for a in expr.args]
+    if isinstance(expr, sp.Add):
+        return min(sum(parts), cap + 1)
+    if isinstance(expr, sp.Mul):
+        out = 1
+        for k in parts:
+            out = min(out * k, cap + 1)
+        return out
+    if isinstance(expr, sp.Pow) and expr.exp.is_Integer:
+        return _multinomial(parts[0], min(abs(int(expr.exp)), cap + 1), cap)
+    return min(sum(parts) + 2, cap + 1)
+
+
+def _multinomial(terms: int, power: int, cap: int = MAX_EXPANDED_TERMS) -> int:
     """Number of terms of ``(a_1 + … + a_terms) ** power`` expanded (capped)."""
-    if terms > MAX_EXPANDED_TERMS or power > MAX_EXPANDED_TERMS:
-        return MAX_EXPANDED_TERMS + 1
-    return math.comb(terms + power - 1, power)
+    if terms > cap or power > cap:
+        return cap + 1
+    return min(math.comb(terms + power - 1, power), cap + 1)
 
 
 _NUMBER_LIMITS = (
     f"Limits: number literals have at most {MAX_LITERAL_DIGITS} digits and an exponent of at most "
-    f"{MAX_LITERAL_EXPONENT}; exact numbers stay below {MAX_NUMBER_BITS} bits."
+    f"{MAX_LITERAL_EXPONENT}; exact numbers stay below {MAX_NUMBER_BITS} bits, and every constant "
+    f"(e.g. exp(100)) below 2^{MAX_NUMBER_BITS} (about 10^1233) in size."
 )
 _POWER_LIMITS = (
     f"Limits: numeric exponents are at most {MAX_EXPONENT} in size; a power of a number may produce "
     f"at most {MAX_NUMBER_BITS} bits, an exact root at most {MAX_ROOT_BITS} bits × degree."
 )
+
+
+@contextmanager
+def preserved_state() -> Iterator[None]:
+    """Run a block with SymPy's usual settings and restore all global numeric state after it.
+
+    SymPy evaluates numbers with mpmath, which keeps its working precision in a
+    global context (``mpmath.mp.prec``/``dps``).  ``mpmath.workprec`` sets it
+    *before* it computes the matching ``dps``; for an astronomically large
+    precision that computation raises ``OverflowError`` and the precision stays
+    astronomically large, so every later evaluation in the process fails or hangs.
+    This restores the precision (and mpmath's ``trap_complex``/``pretty``) and
+    SymPy's ``global_parameters`` whatever happens in the block, and runs the
+    block with SymPy's defaults (``evaluate=True``, ``distribute=True``,
+    ``exp_is_pow=False``), which the parser relies on.  SymPy's cache is left alone.
+    """
+    mp = mpmath.mp
+    numeric = (mp.prec, mp.dps, mp.trap_complex, mp.pretty)
+    gp = global_parameters
+    flags = (gp.evaluate, gp.distribute, gp.exp_is_pow)
+    defaults = (True, True, False)
+    if flags != defaults:  # assigning clears SymPy's cache: only when needed
+        gp.evaluate, gp.distribute, gp.exp_is_pow = defaults
+    try:
+        yield
+    finally:
+        if (mp.prec, mp.dps) != numeric[:2]:
+            mp.prec = numeric[0]
+            if mp.dps != numeric[1]:  # a state set through dps: dps first, then prec
+                mp.dps = numeric[1]
+                mp.prec = numeric[0]
+        mp.trap_complex, mp.pretty = numeric[2:]
+        if (gp.evaluate, gp.distribute, gp.exp_is_pow) != flags:
+            gp.evaluate, gp.distribute, gp.exp_is_pow = flags
+
+
+def _internal(exc: BaseException, text: str, column: int) -> ParseError:
+    """A SymPy/mpmath/Python failure on ``text``, reported as a :class:`ParseError`."""
+    detail = str(exc).splitlines()[0][:200] if str(exc) else ""
+    return ParseError(
+        f"SymPy could not build or evaluate this expression ({type(exc).__name__}"
+        + (f": {detail}" if detail else "") + ")",
+        text=text, column=column, kind="internal",
+        allowed="This is a limitation of chaplygin; please report it with the expression. "
+        "Rewriting the expression (e.g. smaller constants) may avoid it.",
+    )
 
 
 def parse_expression(
@@ -779,7 +961,10 @@ def parse_expression(
     Raises
     ------
     ParseError
-        With the column of the problem and what is allowed.
+        With the column of the problem and what is allowed; also when SymPy or
+        mpmath fail on the expression (``kind="internal"``).  Nothing else is
+        raised, and mpmath's precision and SymPy's global parameters are the
+        same afterwards (see :func:`preserved_state`).
     """
     if not isinstance(text, str):
         raise ParseError(f"expected a string, got {type(text).__name__}", allowed=SYNTAX)
@@ -788,23 +973,37 @@ def parse_expression(
             f"the expression is {len(text)} characters long (limit {MAX_EXPRESSION_LENGTH})",
             text=text[:80], allowed=f"Limit: {MAX_EXPRESSION_LENGTH} characters per expression.",
         )
-    parser = _Parser(text, names or Names(), velocity_message)
-    try:
-        return parser.parse()
-    except RecursionError:  # pragma: no cover - MAX_DEPTH keeps the recursion shallow
-        raise ParseError("the expression is nested too deeply", text=text, column=0) from None
+    parser: _Parser | None = None
+    with preserved_state():
+        try:
+            parser = _Parser(text, names or Names(), velocity_message)
+            return parser.parse()
+        except SystemFileError:
+            raise
+        except Exception as exc:  # the boundary between user text and SymPy: never a traceback
+            column = parser.tokens[max(parser.i - 1, 0)].pos if parser is not None else 0
+            raise _internal(exc, text, column) from exc
 
 
 def parse_constant(text: str) -> float:
-    """A number given as an expression of constants only (``"pi/4"``, ``"2*sqrt(2)"``)."""
+    """A number given as an expression of constants only (``"pi/4"``, ``"2*sqrt(2)"``).
+
+    Raises
+    ------
+    ParseError
+        As :func:`parse_expression`, and when the value is not a finite real number.
+    """
     expr = parse_expression(text, Names(time=False))
-    try:
-        value = complex(expr.evalf(30))  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        value = complex(math.nan)
+    with preserved_state():
+        try:
+            value = complex(expr.evalf(30))  # type: ignore[arg-type]
+        except (TypeError, ValueError, OverflowError):
+            value = complex(math.nan)
+        except Exception as exc:  # pragma: no cover - constants are bounded by the parser
+            raise _internal(exc, text, 0) from exc
     if value.imag != 0 or not math.isfinite(value.real):
         raise ParseError(
             f"{text!r} is not a finite real number (it is {value})", text=text, column=0,
-            allowed="Give a real number, e.g. 0.5 or \"pi/4\".",
+            allowed="Give a real number, e.g. 0.5 or \"pi/4\".", kind="value",
         )
     return value.real
