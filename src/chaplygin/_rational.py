@@ -245,8 +245,7 @@ def _sum(parts: list[Fraction]) -> Fraction:
     ring = parts[0][0].ring
     groups: dict[PolyElement, PolyElement] = {}
     for n, d in parts:  # add numerators over equal denominators first
-        key = d
-        groups[key] = groups.get(key, ring.zero) + n
+        groups[d] = groups.get(d, ring.zero) + n
     items = list(groups.items())
     d_out, n_out = items[0]
     for d, n in items[1:]:
