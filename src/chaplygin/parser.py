@@ -857,12 +857,21 @@ class _Parser:
 def _complex_terms(expr: sp.Expr, complex_atoms: frozenset[sp.Expr], cap: int) -> int:
     """Terms of ``expr`` expanded with each of ``complex_atoms`` as ``re + i·im`` (capped above ``cap``).
 
-    A function counts two terms plus the terms of its arguments (SymPy splits those too).
+    A function counts two terms plus the terms of its arguments (SymPy splits those too); a
+    function of real arguments that SymPy does not know to be real (``acos(k)``, real only for
+    ``|k| ≤ 1``) counts two.
     """
     if expr in complex_atoms:
         return 2
-    if not expr.args or not expr.has(*complex_atoms):
+    if not expr.args:
         return 1
+    if not expr.has(*complex_atoms):
+        if isinstance(expr, (sp.Add, sp.Mul, sp.Pow)):
+            pass  # its parts may still hold such functions: count them below
+        elif isinstance(expr, sp.Function) and expr.is_extended_real is not True:
+            return 2
+        else:
+            return 1
     parts = [_complex_terms(a, complex_atoms, cap) for a in expr.args]
     if isinstance(expr, sp.Add):
         return min(sum(parts), cap + 1)
