@@ -83,7 +83,7 @@ def multiplier_equations(
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
         try:
-            return _solve_by_reduction(system, model, dyn, list(unknowns))
+            return _solve_by_reduction(system, model, M, F, list(unknowns))
         except TooLarge:
             return _solve_nested(system, dyn, list(unknowns))
 
@@ -91,9 +91,9 @@ def multiplier_equations(
 
 
 def _solve_by_reduction(
-    system: System, model: str, dynamic: sp.Matrix, unknowns: list[sp.Symbol]
+    system: System, model: str, M: sp.Matrix, F: sp.Matrix, unknowns: list[sp.Symbol]
 ) -> dict[sp.Symbol, sp.Expr]:
-    """Solve ``M·x = F`` exactly, without inverting the (n+g) matrix.
+    """Solve ``M·x = F`` (:func:`multiplier_equations`) exactly, without inverting it.
 
     The differentiated constraints give the dependent accelerations,
     ``q̈_dep = B q̈_σ + c``; projecting the dynamic equations on the constraint
@@ -106,10 +106,7 @@ def _solve_by_reduction(
     v = system._vars
     n, g = system.n, system.g
     ind, dep = list(system._ind), list(system._dep)
-    mass = jacobian(dynamic, list(v.xdd))
-    react = jacobian(dynamic, unknowns).extract(dep, list(range(g)))
-    force = -dynamic.xreplace({x: 0 for x in [*v.xdd, *unknowns]})
-    drift = -_differentiated_constraints(system) if g else sp.zeros(0, 1)
+    mass, react, force, drift = M[:n, :n], M[dep, n:], F[:n, :], F[n:, :]
     a_dep = system._A.extract(list(range(g)), dep)
     alg = Algebra([*mass, *react, *force, *a_dep, *system._B, *drift])
     # every quantity is a polynomial matrix over one denominator: X = Xn / dx
