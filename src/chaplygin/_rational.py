@@ -118,6 +118,7 @@ class Algebra:
             if isinstance(g, sp.sin) and sp.cos(g.args[0]) in where
         ]
         self._memo: dict[sp.Expr, Fraction] = {}
+        self._bottoms: dict[PolyElement, sp.Expr] = {}
 
     # ------------------------------------------------------------------ conversion
     def convert(self, expr: sp.Expr) -> Fraction:
@@ -154,11 +155,14 @@ class Algebra:
         top = self._poly_expr(numer)
         if denom == 1:
             return top
-        if len(denom) > _FACTOR_TERMS:
-            return top / self._poly_expr(denom)
-        unit, factors = denom.factor_list()
-        bottom = sp.Mul(*(self._poly_expr(f) ** k for f, k in factors))
-        return top / (sp.Rational(int(unit.numerator), int(unit.denominator)) * bottom)
+        if denom not in self._bottoms:  # solutions often share their denominator
+            if len(denom) > _FACTOR_TERMS:
+                self._bottoms[denom] = self._poly_expr(denom)
+            else:
+                unit, factors = denom.factor_list()
+                self._bottoms[denom] = sp.Rational(int(unit.numerator), int(unit.denominator)) * sp.Mul(
+                    *(self._poly_expr(f) ** k for f, k in factors))
+        return top / self._bottoms[denom]
 
     def _poly_expr(self, p: PolyElement) -> sp.Expr:
         if not p:
