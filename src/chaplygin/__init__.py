@@ -10,7 +10,13 @@ if TYPE_CHECKING:
     from .comparison import Comparison, compare
     from .equations import Equations
     from .equivalence import EquivalenceReport, equivalent
-    from .errors import ChaplyginError, ChaplyginWarning, InputError, ModelError, SystemDefinitionError
+    from .errors import (
+        ChaplyginError,
+        ChaplyginWarning,
+        InputError,
+        ModelError,
+        SystemDefinitionError,
+    )
     from .files import SystemFile, SystemFileError, dumps, load, loads
     from .integrability import IntegrabilityReport
     from .mechanics import from_mechanics

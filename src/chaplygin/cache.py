@@ -32,8 +32,8 @@ import hashlib
 import json
 import os
 import tempfile
-from pathlib import Path
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 __all__ = ["FORMAT", "key", "load", "store", "clear", "directory", "cache_dir",

@@ -144,8 +144,14 @@ class _Steps:
 
     def __enter__(self) -> _Steps:
         if self.console.is_terminal:
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
-                                       TextColumn, TimeElapsedColumn)
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                SpinnerColumn,
+                TextColumn,
+                TimeElapsedColumn,
+            )
 
             self._progress = Progress(
                 SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
@@ -820,8 +826,15 @@ def _run_counter(description: str) -> Iterator[Any]:
     if not console.is_terminal:
         yield lambda done, total: None
         return
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True) as bar:
@@ -948,8 +961,8 @@ def demo(
     force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
 ) -> None:
     """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
-    from .comparison import compare as run_compare
     from . import compare_models, equivalent
+    from .comparison import compare as run_compare
     from .report import STAGES, is_paper_sphere, paper_table, write_report
 
     with _failures():

@@ -38,7 +38,7 @@ import threading
 import warnings
 from dataclasses import dataclass
 from types import ModuleType
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
@@ -48,8 +48,8 @@ from ._ckernel import CompiledModel, Layout
 from ._fast import cse, native, to_sympy
 from ._native import chetaev_matrices
 from ._printing import code
-from .cache import cache_dir
 from ._symbols import TIME
+from .cache import cache_dir
 from .errors import ChaplyginError
 
 if TYPE_CHECKING:

@@ -23,12 +23,19 @@ from sympy.core.function import AppliedUndef
 
 from ._fast import _back, _restore_map, evaluator, gradient, jacobian, native, to_sympy
 from ._native import is_quadratic, linear_split, momenta
-from ._symbols import TIME, Vars, simplify_small, functions_of_time, linear_coefficients, other_undefined
+from ._symbols import (
+    TIME,
+    Vars,
+    functions_of_time,
+    linear_coefficients,
+    other_undefined,
+    simplify_small,
+)
 from .errors import SystemDefinitionError
 
 if TYPE_CHECKING:
-    from .equations import Equations
     from ._native import Native
+    from .equations import Equations
     from .integrability import IntegrabilityReport
     from .simulate import Trajectory
 
