@@ -144,19 +144,7 @@ class _Steps:
 
     def __enter__(self) -> _Steps:
         if self.console.is_terminal:
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                SpinnerColumn,
-                TextColumn,
-                TimeElapsedColumn,
-            )
-
-            self._progress = Progress(
-                SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
-                MofNCompleteColumn(), TimeElapsedColumn(), console=self.console, transient=True,
-            )
+            self._progress = _bar(self.console)
             self._progress.start()
             self._task = self._progress.add_task(self.description, total=self.total)
         return self
@@ -819,13 +807,8 @@ class SweepBackend(str, Enum):
     numpy = "numpy"
 
 
-@contextmanager
-def _run_counter(description: str) -> Iterator[Any]:
-    """A rich bar of finished runs on a terminal (a ``progress(done, total)`` callback); nothing when piped."""
-    console = _stderr()
-    if not console.is_terminal:
-        yield lambda done, total: None
-        return
+def _bar(console: Any, *extra: Any) -> Any:
+    """The command line's rich progress bar (description, bar, n/N, elapsed; then ``extra`` columns)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -833,11 +816,22 @@ def _run_counter(description: str) -> Iterator[Any]:
         SpinnerColumn,
         TextColumn,
         TimeElapsedColumn,
-        TimeRemainingColumn,
     )
 
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), TimeRemainingColumn(), console=console, transient=True) as bar:
+    return Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), *extra, console=console, transient=True)
+
+
+@contextmanager
+def _run_counter(description: str) -> Iterator[Any]:
+    """A rich bar of finished runs on a terminal (a ``progress(done, total)`` callback); nothing when piped."""
+    console = _stderr()
+    if not console.is_terminal:
+        yield lambda done, total: None
+        return
+    from rich.progress import TimeRemainingColumn
+
+    with _bar(console, TimeRemainingColumn()) as bar:
         task = bar.add_task(description, total=None)
         yield lambda done, total: bar.update(task, completed=done, total=total)
 
