@@ -84,6 +84,19 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     cache.store(key(definition, asked, form), value)
 
 
+def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
+    """Warn about the velocities that neither the file's [initial] nor --initial gave (they are 0)."""
+    missing = [k for k in defaulted if k.endswith("'") and k not in given]
+    if missing:
+        import warnings
+
+        from .errors import ChaplyginWarning
+
+        warnings.warn(f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
+                      f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
+                      ChaplyginWarning, stacklevel=3)
+
+
 def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
     """The stored plan, or None."""
     value = cache.load(key(definition, model, form))
@@ -148,14 +161,6 @@ def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str,
         if not np.isfinite(implied) or (given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))):
             return None  # a dependent velocity that violates the constraints: the full path's error
     compiled = CompiledModel(layout, kernel, "c")
-    missing = [k for k in found["defaulted"] if k.endswith("'") and k not in initial]
-    if missing:  # as the full path warns (chaplygin.cli._numbers)
-        import warnings
-
-        from .errors import ChaplyginWarning
-
-        warnings.warn(f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
-                      f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
-                      ChaplyginWarning, stacklevel=3)
+    warn_defaulted(found["defaulted"], initial)  # as the full path does (chaplygin.cli._numbers)
     return integrate(compiled, (0.0, float(t_end)), y0, p, dict(values), rtol=rtol, atol=atol,
                      method="DOP853", samples=samples, max_step=np.inf, g=int(found["g"]))

@@ -251,14 +251,10 @@ def _overrides(values: Optional[list[str]], option: str) -> dict[str, float]:
 
 
 def _numbers(loaded: Any, params: Optional[list[str]], initial: Optional[list[str]]) -> tuple[dict[str, float], dict[str, float]]:
-    from .errors import ChaplyginWarning
+    from ._quick import warn_defaulted
 
     given = _overrides(initial, "--initial")
-    missing = [k for k in getattr(loaded, "defaulted", ()) if k.endswith("'") and k not in given]
-    if missing:
-        warnings.warn(f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
-                      f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
-                      ChaplyginWarning, stacklevel=2)
+    warn_defaulted(getattr(loaded, "defaulted", ()), given)
     return ({**dict(loaded.parameters or {}), **_overrides(params, "--param")},
             {**dict(loaded.initial or {}), **given})
 
