@@ -51,8 +51,11 @@ sys.path.insert(0, str(ROOT / "tests"))  # the random systems of the property te
 
 import peer_rolling_disk  # noqa: E402  (this folder)
 
-from chaplygin import examples  # noqa: E402
-from chaplygin.files import load  # noqa: E402
+from chaplygin import (
+    examples,  # noqa: E402
+    simulate,
+)
+from chaplygin.io.files import load  # noqa: E402
 
 PYTHON = sys.executable
 CLI = [PYTHON, "-m", "chaplygin"]
@@ -203,7 +206,7 @@ def part_long(t_end: float) -> None:
     system = disk.constructor()
     for backend in ("c", "numba"):
         def go() -> object:
-            return system.simulate("chaplygin", t_end, disk.initial, disk.parameters, samples=1001, backend=backend)
+            return simulate(system, "chaplygin", t_end, disk.initial, disk.parameters, samples=1001, backend=backend)
 
         go()  # compile (or load) first
         t = best(go, 3)[0]

@@ -47,7 +47,7 @@ import fuzzgrammar as fg
 import mpmath
 from sympy.core.parameters import global_parameters
 
-from chaplygin.parser import ParseError, parse_constant, parse_expression
+from chaplygin.io.parser import ParseError, parse_constant, parse_expression
 
 FAILURES = ("crash", "hang", "valid refused", "internal", "state")
 EXAMPLES = 5

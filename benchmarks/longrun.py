@@ -17,7 +17,7 @@ Each is integrated to ``--t-end`` with ``backend="numba"`` by
 * DOP853 (the compiled loop) at several tolerances (``atol = rtol/100``) on Voronets' reduced
   equations — the equations the symmetric methods integrate — and once on the Chetaev
   equations with multipliers, whose constraints hold only at acceleration level;
-* the symmetric methods ``midpoint``, ``gauss4``, ``gauss6`` of :mod:`chaplygin.symmetric` at
+* the symmetric methods ``midpoint``, ``gauss4``, ``gauss6`` of :mod:`chaplygin.numeric.symmetric` at
   several steps, model ``"chetaev"`` (Voronets' equations stepped, the multiplier model observed).
 
 Reported per run: wall time (compilation excluded: every path runs once, untimed, first),
@@ -40,7 +40,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))  # this working tree, also when not installed
 
-from chaplygin import examples
+from chaplygin import examples, simulate
 
 DISK = examples.get("rolling-disk")
 OSCILLATOR_START = {"x": 0.0, "y": 1.0, "z": 0.0, "y'": 0.5, "z'": 1.0}
@@ -92,7 +92,7 @@ def options(extra: dict[str, Any]) -> dict[str, Any]:
 def measure(system: Any, model: str, t_end: float, start: dict[str, float],
             params: dict[str, float], extra: dict[str, Any]) -> dict[str, Any]:
     begin = time.perf_counter()
-    tr = system.simulate(model, t_end, start, params, **options(extra))
+    tr = simulate(system, model, t_end, start, params, **options(extra))
     wall = time.perf_counter() - begin
     error = np.abs(tr.energy - tr.energy[0])
     tenth = max(1, len(error) // 10)
@@ -123,7 +123,7 @@ def main() -> None:
             continue
         runs = [r for r in RUNS[name] if r[3] or not args.quick]
         for _label, model, extra, _quick in runs:  # compile (and load) every path first
-            system.simulate(model, 1.0, start, params, **options({**extra, "samples": 11}))
+            simulate(system, model, 1.0, start, params, **options({**extra, "samples": 11}))
         print(f"\n== {name}, t = 0 … {t_end:g} ==", flush=True)
         print(f"  {'method':34s} {'wall [s]':>9s} {'RHS evals':>10s} {'max|ΔE|':>9s} "
               f"{'first 10%':>9s} {'last 10%':>9s} {'residual':>9s}", flush=True)

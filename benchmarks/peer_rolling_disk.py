@@ -27,7 +27,14 @@ import json  # noqa: E402
 import numpy as np  # noqa: E402
 import sympy as sp  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
-from sympy.physics.mechanics import KanesMethod, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia  # noqa: E402
+from sympy.physics.mechanics import (  # noqa: E402
+    KanesMethod,
+    Point,
+    ReferenceFrame,
+    RigidBody,
+    dynamicsymbols,
+    inertia,
+)
 
 #: example:rolling-disk's parameters and default state (a thin disk, A = m r²/4, C = m r²/2)
 PARAMETERS = {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81}

@@ -11,9 +11,9 @@ chaplygin
               the symbolic elimination of the dependent velocities grows very fast)
     codegen   the numerically reduced Voronets model (``reduction="numeric"``) of a
               fresh system: the Chetaev matrices derived in SymEngine
-              (chaplygin._native), generated, cse'd and imported (numpy backend)
+              (chaplygin.core._native), generated, cse'd and imported (numpy backend)
     jit       the same for the numba backend: generated, its ``fill`` built by the
-              C compiler when large (chaplygin._cfill), and numba compiling ``rhs``
+              C compiler when large (chaplygin.numeric._cfill), and numba compiling ``rhs``
               (first call)
     compiled  build + jit: the system derived and compiled to native code
     total     build + codegen: from the system to a right-hand side to integrate
@@ -61,7 +61,7 @@ from sympy.core.cache import clear_cache
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from chaplygin import examples  # noqa: E402
-from chaplygin.codegen import compile_model  # noqa: E402
+from chaplygin.numeric.codegen import compile_model  # noqa: E402
 
 
 class OverBudget(Exception):

@@ -48,9 +48,9 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 from chaplygin import examples
-from chaplygin._symbols import TIME
-from chaplygin.codegen import compile_equations, parameter_vector
-from chaplygin.simulate import simulate
+from chaplygin.core._symbols import TIME
+from chaplygin.numeric.codegen import compile_equations, parameter_vector
+from chaplygin.numeric.simulate import simulate
 
 PARAMS = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
 START = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
@@ -159,7 +159,7 @@ def part_rhs(disk, eqs, y0, p) -> None:
 
     from numba import njit
 
-    from chaplygin._loop import loop_model
+    from chaplygin.numeric._loop import loop_model
 
     module = loop_model(numba_model).module
     generated_rhs, k_eval = module.rhs, module._k_eval
@@ -248,7 +248,7 @@ def part_trajectory(disk, eqs, y0, p, t_end: float) -> None:
     runs("numpy", "simulate(backend='numpy'): SciPy DOP853 stepper", 1)
     runs("numba", "simulate(backend='numba'): compiled DOP853 loop", 3)
     runs("c", "simulate(backend='c'): the loop in C (the default)", 3)
-    from chaplygin._loop import integrate_dop853, loop_model
+    from chaplygin.numeric._loop import integrate_dop853, loop_model
 
     model = loop_model(compile_equations(eqs, "numba"))
     integrate_dop853(model, (0.0, t_end), y0, p, times, rtol=RTOL, atol=ATOL)
@@ -285,8 +285,8 @@ def ensemble_states(n: int, seed: int = 0) -> list[dict[str, float]]:
 
 
 def part_ensemble(disk, eqs, n: int, t_end: float, backends: list[str]) -> None:
-    from chaplygin._loop import default_threads
-    from chaplygin.ensemble import simulate_ensemble
+    from chaplygin.numeric._loop import default_threads
+    from chaplygin.numeric.ensemble import simulate_ensemble
 
     say(f"\n== ensemble: {n} initial states, t = 0 … {t_end:g}, rtol = {RTOL:g} (final states kept) ==")
     layout = compile_equations(eqs, "numpy").layout

@@ -42,7 +42,7 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 # chaplygin's; set before anything imports numba, which reads NUMBA_CACHE_DIR once.
 _WORKER = os.environ.get("PYTEST_XDIST_WORKER")
 if _WORKER and "NUMBA_CACHE_DIR" not in os.environ:
-    from chaplygin.cache import cache_dir  # imports neither numba nor SymPy
+    from chaplygin.numeric.cache import cache_dir  # imports neither numba nor SymPy
 
     os.environ["NUMBA_CACHE_DIR"] = str(cache_dir() / "numba-test-workers" / _WORKER)
 

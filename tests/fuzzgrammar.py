@@ -27,7 +27,7 @@ import math
 from collections.abc import Sequence
 from typing import Protocol, TypeVar
 
-from chaplygin.parser import FUNCTIONS, MAX_DEPTH, Names
+from chaplygin.io.parser import FUNCTIONS, MAX_DEPTH, Names
 
 T = TypeVar("T")
 

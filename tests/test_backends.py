@@ -14,12 +14,12 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin import ChaplyginError, System, examples
-from chaplygin._ckernel import Unavailable, compiler
-from chaplygin._loop import integrate_dop853, loop_model
-from chaplygin._symbols import TIME
-from chaplygin.codegen import compile_equations, compile_model
-from chaplygin.ensemble import simulate_ensemble
-from chaplygin.simulate import _initial_multipliers, initial_state, simulate
+from chaplygin.core._symbols import TIME
+from chaplygin.numeric._ckernel import Unavailable, compiler
+from chaplygin.numeric._loop import integrate_dop853, loop_model
+from chaplygin.numeric.codegen import compile_equations, compile_model
+from chaplygin.numeric.ensemble import simulate_ensemble
+from chaplygin.numeric.simulate import _initial_multipliers, initial_state, simulate
 
 try:
     compiler()
@@ -236,10 +236,10 @@ def test_ensemble_dict_states_equal_array_states(disk):
     assert np.array_equal(from_dicts.samples, from_array.samples) and np.array_equal(from_dicts.y, from_array.y)
     assert np.array_equal(from_dicts.samples[:, 0], Y0)
     # all velocities integrated: the dependent ones (x', y') follow from the constraints (the
-    # preparation itself, chaplygin.ensemble._states: the same for every backend, and it spares
+    # preparation itself, chaplygin.numeric.ensemble._states: the same for every backend, and it spares
     # two more models compiled by numba)
-    from chaplygin.ensemble import _parameter_matrix, _states
-    from chaplygin.simulate import _vakonomic_setup
+    from chaplygin.numeric.ensemble import _parameter_matrix, _states
+    from chaplygin.numeric.simulate import _vakonomic_setup
 
     def prepared(system, model, states, params, constants=None):
         family_c, vak = _vakonomic_setup(system, model, constants, None)

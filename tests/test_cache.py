@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from chaplygin import cache
-from chaplygin.cli import app
+from chaplygin.apps.cli import app
+from chaplygin.numeric import cache
 
 runner = CliRunner()
 KNIFE = """
@@ -47,7 +47,7 @@ def entries(directory: Path) -> list[Path]:
 @pytest.fixture
 def derivations(monkeypatch: pytest.MonkeyPatch) -> list[tuple]:
     """Every derivation ``derive`` does (as its arguments); printing does not count."""
-    import chaplygin.cli as cli
+    import chaplygin.apps.cli as cli
 
     calls: list[tuple] = []
     real = cli._derive

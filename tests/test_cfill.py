@@ -1,4 +1,4 @@
-"""The numba backend's C ``fill`` (chaplygin._cfill): the same numbers as the Python ``fill``,
+"""The numba backend's C ``fill`` (chaplygin.numeric._cfill): the same numbers as the Python ``fill``,
 through every path that calls it, and a clear fallback where no C compiler can build it."""
 
 from __future__ import annotations
@@ -11,12 +11,13 @@ import pytest
 import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from chaplygin import _cfill, codegen, examples
-from chaplygin.codegen import compile_model
-from chaplygin.ensemble import simulate_ensemble
-from chaplygin.simulate import simulate
 from randomsystems import Spec, systems
+
+from chaplygin import examples
+from chaplygin.numeric import _cfill, codegen
+from chaplygin.numeric.codegen import compile_model
+from chaplygin.numeric.ensemble import simulate_ensemble
+from chaplygin.numeric.simulate import simulate
 
 try:
     _cfill.compiler()

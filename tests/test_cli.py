@@ -19,8 +19,9 @@ from sympy.physics.mechanics import dynamicsymbols
 from typer.testing import CliRunner
 
 import chaplygin
-from chaplygin import cli, examples
-from chaplygin.cli import app
+from chaplygin import examples
+from chaplygin.apps import cli
+from chaplygin.apps.cli import app
 
 runner = CliRunner()
 T_ = dynamicsymbols._t
@@ -188,7 +189,7 @@ def test_derive_defaults_to_the_true_motion() -> None:
 
 def test_derive_simplify_gives_the_same_accelerations() -> None:
     """--simplify is a display option: the solved accelerations are the same functions."""
-    from chaplygin.parser import Names, parse_expression
+    from chaplygin.io.parser import Names, parse_expression
 
     docs = [json.loads(run("derive", "example:knife-edge", "-m", "chetaev", "-f", "json", *extra).stdout)
             for extra in ((), ("--simplify",))]
@@ -273,7 +274,7 @@ def test_interrupted_write_leaves_the_previous_file(tmp_path: Path, monkeypatch)
 
 
 def test_interrupted_report_leaves_the_previous_file(tmp_path: Path, monkeypatch) -> None:
-    from chaplygin import report
+    from chaplygin.apps import report
 
     out = tmp_path / "r.html"
     out.write_text("<p>old report</p>")
@@ -303,14 +304,14 @@ def test_interrupted_report_leaves_the_previous_file(tmp_path: Path, monkeypatch
 
 
 def test_a_failed_run_exits_1(tmp_path: Path, monkeypatch) -> None:
-    from chaplygin.simulate import Trajectory
+    from chaplygin.numeric.simulate import Trajectory
 
-    def failing(self, model, t_span, initial, parameters=None, **options):
+    def failing(system, model, t_span, initial, parameters=None, **options):
         z = np.zeros(1)
         return Trajectory(model, "classic", "numpy", z, {"x": z}, {"x'": z}, {}, z, z,
                           status="failed", message="the solution blew up at t = 0.5")
 
-    monkeypatch.setattr(chaplygin.System, "simulate", failing)
+    monkeypatch.setattr("chaplygin.numeric.simulate.simulate", failing)
     monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path / "cache"))  # no run plan answers without System
     out = tmp_path / "run.csv"
     result = run("simulate", "example:knife-edge", "--model", "chaplygin", "--t-end", "1", "--out", str(out))
@@ -385,7 +386,7 @@ def test_demo_replaces_only_its_own_report(tmp_path: Path, monkeypatch) -> None:
 
 # ---------------------------------------------------------------- examples
 def test_examples_list_and_show(tmp_path: Path) -> None:
-    from chaplygin import files
+    from chaplygin.io import files
 
     listing = run("examples", "list")
     assert listing.exit_code == 0

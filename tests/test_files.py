@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 from sympy.physics.mechanics import dynamicsymbols
 from test_parser import watched
 
-from chaplygin import System, equivalent, examples
+from chaplygin import System, equivalent, examples, simulate
 from chaplygin.errors import ChaplyginError
-from chaplygin.files import (
+from chaplygin.io.files import (
     MAX_COORDINATES,
     MAX_FILE_SIZE,
     SystemFile,
@@ -24,7 +24,7 @@ from chaplygin.files import (
     load,
     loads,
 )
-from chaplygin.parser import ParseError
+from chaplygin.io.parser import ParseError
 
 t = dynamicsymbols._t
 
@@ -134,7 +134,7 @@ def test_load_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     big = tmp_path / "big.toml"
     big.write_bytes(b"#" * (MAX_FILE_SIZE + 1))
     with monkeypatch.context() as m:  # refused on its size alone, before its text is read
-        m.setattr("chaplygin.files._loads", lambda *a: pytest.fail("an oversized file was read"))
+        m.setattr("chaplygin.io.files._loads", lambda *a: pytest.fail("an oversized file was read"))
         with pytest.raises(SystemFileError, match=f"larger than {MAX_FILE_SIZE} bytes"):
             load(big)
     with pytest.raises(SystemFileError, match="expected the text of a system file"):
@@ -143,7 +143,7 @@ def test_load_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_simulate_from_a_file() -> None:
     sf = loads(KNIFE)
-    traj = sf.system.simulate("chaplygin", 2.0, sf.initial, sf.parameters, samples=21)
+    traj = simulate(sf.system, "chaplygin", 2.0, sf.initial, sf.parameters, samples=21)
     assert traj.success
     # the blade keeps its heading and speed: a straight line at angle 0.3
     assert np.allclose(traj["y"], np.tan(0.3) * traj["x"], atol=1e-9)
@@ -327,7 +327,7 @@ def test_hostile_name_cannot_reach_generated_code(tmp_path: Path) -> None:
         with pytest.raises(SystemFileError, match="name contains the character"):
             loads(KNIFE.replace('"Knife edge"', json.dumps(name)))
     sf = loads(KNIFE.replace('"Knife edge"', "\"Chaplygin's sleigh {0} %s\""))
-    assert sf.system.simulate("chaplygin", 0.5, sf.initial, sf.parameters, samples=3).success
+    assert simulate(sf.system, "chaplygin", 0.5, sf.initial, sf.parameters, samples=3).success
 
 
 # ---------------------------------------------------------------------------- writing
@@ -444,10 +444,10 @@ def test_catalogue_round_trip(name: str) -> None:
 def test_catalogue_initial_state_simulates(name: str) -> None:
     entry = examples.get(name)
     s = entry.system()
-    from chaplygin.report import default_models
+    from chaplygin.apps.report import default_models
 
     for model in default_models(s):  # the true motion and Lindelöf's (or the multiplier form)
-        traj = s.simulate(model, 20.0, entry.initial, entry.parameters, samples=41)
+        traj = simulate(s, model, 20.0, entry.initial, entry.parameters, samples=41)
         assert traj.success, (model, traj.message)
         if not (s.is_affine or not s.is_scleronomic):  # a moving table feeds energy in
             assert traj.energy_drift() < 1e-6
@@ -505,7 +505,7 @@ def test_huge_constants_name_the_key_and_leave_mpmath_alone() -> None:
 
 
 def test_unexpected_failures_become_file_errors(monkeypatch: pytest.MonkeyPatch) -> None:
-    from chaplygin import files
+    from chaplygin.io import files
 
     def broken(self: object, system: object) -> dict:
         raise OverflowError("int too large to convert to float")

@@ -25,8 +25,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sympy.core.parameters import global_parameters
 
-from chaplygin.files import SystemFileError, loads
-from chaplygin.parser import ParseError, parse_constant, parse_expression
+from chaplygin.io.files import SystemFileError, loads
+from chaplygin.io.parser import ParseError, parse_constant, parse_expression
 
 #: Seconds an input may run before it counts as a hang: far above the milliseconds inputs take.
 HANG = 10.0

@@ -16,8 +16,8 @@ import pytest
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
-from chaplygin import ModelError, System, compare_models, equivalent, examples
-from chaplygin.report import applicable_models
+from chaplygin import ModelError, System, compare_models, equivalent, examples, simulate
+from chaplygin.apps.report import applicable_models
 
 t = dynamicsymbols._t
 ROOT = Path(__file__).resolve().parent.parent
@@ -74,7 +74,7 @@ def test_catalogue_state_simulates_in_every_model(name: str) -> None:
     assert ("chetaev", "classic") in models and ("vakonomic", "classic") in models
     for model, form in models:
         options = {"constants": "match"} if model == "vakonomic" and not s.is_chaplygin else {}
-        tr = s.simulate(model, 20.0, entry.initial, entry.parameters, form=form, samples=41, **options)
+        tr = simulate(s, model, 20.0, entry.initial, entry.parameters, form=form, samples=41, **options)
         assert tr.success, (model, form, tr.message)
         assert np.max(np.abs(tr.constraint_residual)) < 1e-7, (model, form)
         if not s.is_affine:
@@ -98,7 +98,7 @@ def test_knife_edge_true_motion_is_a_uniform_circle() -> None:
     assert sp.simplify(d(v).xreplace(acc).xreplace(s.constraints)) == 0
     k = system("knife_edge", m=1, J=1)
     phi0, w, v0 = 0.3, 0.5, 0.8 / np.cos(0.3)
-    tr = k.simulate("chaplygin", 4.0, {"x": 0, "y": 0, "phi": phi0, "x'": 0.8, "phi'": w}, samples=21)
+    tr = simulate(k, "chaplygin", 4.0, {"x": 0, "y": 0, "phi": phi0, "x'": 0.8, "phi'": w}, samples=21)
     assert np.allclose(tr["phi"], phi0 + w * tr.t, atol=1e-9)
     assert np.allclose(tr["x"], v0 / w * (np.sin(phi0 + w * tr.t) - np.sin(phi0)), atol=1e-8)
     assert np.allclose(tr["y"], -v0 / w * (np.cos(phi0 + w * tr.t) - np.cos(phi0)), atol=1e-8)
@@ -117,12 +117,12 @@ def test_knife_edge_lindelof_runs_away_from_the_blade_direction() -> None:
     assert sp.simplify(comparison.defect[x] + m * d(x) * d(phi) * sp.tan(phi) / sp.cos(phi) ** 2) == 0
     assert sp.simplify(comparison.defect[phi] - m * d(x) ** 2 * sp.tan(phi) / sp.cos(phi) ** 2) == 0
     k = system("knife_edge", m=1, J=4)
-    tr = k.simulate("lindelof", 20.0, {"x": 0, "y": 0, "phi": 0.0, "x'": 0.1, "phi'": 1e-3}, samples=21)
+    tr = simulate(k, "lindelof", 20.0, {"x": 0, "y": 0, "phi": 0.0, "x'": 0.1, "phi'": 1e-3}, samples=21)
     p = tr["x'"] / np.cos(tr["phi"]) ** 2
     assert np.ptp(p) < 1e-9
     rate = 0.1 * np.sqrt(1 / 4)
     assert np.allclose(tr["phi"], 1e-3 / rate * np.sinh(rate * tr.t), rtol=1e-4, atol=1e-9)
-    true = k.simulate("chaplygin", 20.0, {"x": 0, "y": 0, "phi": 0.0, "x'": 0.1, "phi'": 1e-3}, samples=21)
+    true = simulate(k, "chaplygin", 20.0, {"x": 0, "y": 0, "phi": 0.0, "x'": 0.1, "phi'": 1e-3}, samples=21)
     assert np.allclose(true["phi"], 1e-3 * true.t, atol=1e-12)    # the true blade turns uniformly
 
 
@@ -155,7 +155,7 @@ def sleigh_closed_form(v0: float, w0: float, tt: np.ndarray, m: float = 1.0, I: 
 
 def test_sleigh_closed_form_solution() -> None:
     s = system("chaplygin_sleigh", m=1, I=1, a=1)
-    tr = s.simulate("chaplygin", 10.0, {"x": 0, "y": 0, "theta": 0, "x'": 1.0, "theta'": 0.3}, samples=21)
+    tr = simulate(s, "chaplygin", 10.0, {"x": 0, "y": 0, "theta": 0, "x'": 1.0, "theta'": 0.3}, samples=21)
     v = tr["x'"] * np.cos(tr["theta"]) + tr["y'"] * np.sin(tr["theta"])
     cv, cw, heading = sleigh_closed_form(1.0, 0.3, tr.t)
     assert np.allclose(v, cv, atol=1e-9) and np.allclose(tr["theta'"], cw, atol=1e-9)
@@ -167,7 +167,7 @@ def test_sleigh_settles_to_straight_motion() -> None:
     heading to θ0 + (√(J/m)/a)(π/2 − gd(c0))."""
     s = system("chaplygin_sleigh", m=1, I=1, a=1)
     # a gentle start keeps the heading away from θ = π/2, the pole of the split ẏ = tan θ ẋ
-    tr = s.simulate("chaplygin", 60.0, {"x": 0, "y": 0, "theta": 0, "x'": 1.0, "theta'": 0.3}, samples=61)
+    tr = simulate(s, "chaplygin", 60.0, {"x": 0, "y": 0, "theta": 0, "x'": 1.0, "theta'": 0.3}, samples=61)
     assert tr.success and tr.energy_drift() < 1e-9
     assert abs(tr["theta'"][-1]) < 1e-3
     speed = np.hypot(tr["x'"][-1], tr["y'"][-1])
@@ -181,7 +181,7 @@ def test_sleigh_moving_backwards_turns_round() -> None:
     """Straight motion with the centre of mass behind the edge (v < 0) is unstable: v passes
     through 0 and ends at +V.  The multiplier form has no chart pole at θ = π/2."""
     s = system("chaplygin_sleigh", m=1, I=1, a=1)
-    tr = s.simulate("chetaev", 20.0, {"x": 0, "y": 0, "theta": 0, "x'": -1.0, "theta'": 0.1}, samples=41)
+    tr = simulate(s, "chetaev", 20.0, {"x": 0, "y": 0, "theta": 0, "x'": -1.0, "theta'": 0.1}, samples=41)
     assert tr.success
     v = tr["x'"] * np.cos(tr["theta"]) + tr["y'"] * np.sin(tr["theta"])
     cv, _, heading = sleigh_closed_form(-1.0, 0.1, tr.t)
@@ -213,13 +213,13 @@ def test_vertical_disk_rolls_round_a_circle() -> None:
     assert equivalent(s, s.equations("lindelof"), true)
     assert not equivalent(s, s.equations("vakonomic_family", constants=[1, 0]), true)
     n = system("vertical_rolling_disk", m=1, R=0.5, I=0.5, J=0.25)
-    tr = n.simulate("chaplygin", 10.0, {"theta": 0, "phi": 0.2, "x": 0, "y": 0, "theta'": 2.0, "phi'": 0.4},
+    tr = simulate(n, "chaplygin", 10.0, {"theta": 0, "phi": 0.2, "x": 0, "y": 0, "theta'": 2.0, "phi'": 0.4},
                     samples=21)
     rho = 0.5 * 2.0 / 0.4
     assert np.allclose(tr["x"], rho * (np.sin(0.2 + 0.4 * tr.t) - np.sin(0.2)), atol=1e-8)
     assert np.allclose(tr["y"], -rho * (np.cos(0.2 + 0.4 * tr.t) - np.cos(0.2)), atol=1e-8)
     entry = examples.get("vertical-rolling-disk")                  # R θ̇/φ̇ = 1 · 1/0.2 = 5
-    tr = entry.system().simulate("chaplygin", 20.0, entry.initial, entry.parameters, samples=41)
+    tr = simulate(entry.system(), "chaplygin", 20.0, entry.initial, entry.parameters, samples=41)
     assert np.allclose(np.hypot(tr["x"], tr["y"] - 5.0), 5.0)
 
 
@@ -249,7 +249,7 @@ def test_rolling_disk_steady_rolling_relation(theta: float, Omega: float) -> Non
         assert all(abs(at(acc[dd(q)], state)) < 1e-9 for q in (psi, th, phi)), model
     start = {"psi": 0.0, "theta": theta, "phi": 0.0, "x": 0.0, "y": 0.0,
              "psi'": Omega, "theta'": 0.0, "phi'": phid}
-    tr = s.simulate("chaplygin", 5.0, start, DISK, samples=26)
+    tr = simulate(s, "chaplygin", 5.0, start, DISK, samples=26)
     assert np.ptp(tr["theta"]) < 1e-9 and np.ptp(tr["psi'"]) < 1e-9 and np.ptp(tr["phi'"]) < 1e-9
     # the contact point runs round a circle of radius r φ̇/Ω, the centre round one of radius r s/Ω
     rho = DISK["r"] * phid / Omega
@@ -272,7 +272,7 @@ def test_rolling_disk_defect_is_proportional_to_lean_rate() -> None:
     assert defect[th] == 0
     assert sp.simplify(defect[phi] - m * r**2 * d(psi) * d(th) * sp.cos(th)) == 0
     entry = examples.get("rolling-disk")
-    tr = s.simulate("chaplygin", 20.0, entry.initial, entry.parameters, samples=81)
+    tr = simulate(s, "chaplygin", 20.0, entry.initial, entry.parameters, samples=81)
     assert np.max(np.abs(tr["theta"])) < 0.3 and tr.energy_drift() < 1e-8
 
 
@@ -281,7 +281,7 @@ def test_rolling_disk_upright_rolling_and_spinning_are_steady() -> None:
     vertical diameter)."""
     s = system("rolling_disk")
     for start in ({"psi'": 0.0, "phi'": 3.0}, {"psi'": 5.0, "phi'": 0.0}):
-        tr = s.simulate("chaplygin", 2.0, {"psi": 0, "theta": 0, "phi": 0, "x": 0, "y": 0, "theta'": 0, **start},
+        tr = simulate(s, "chaplygin", 2.0, {"psi": 0, "theta": 0, "phi": 0, "x": 0, "y": 0, "theta'": 0, **start},
                         DISK, samples=11)
         assert np.max(np.abs(tr["theta"])) < 1e-12
 
@@ -309,7 +309,7 @@ def test_rolling_disk_upright_stability(body: dict) -> None:
             K = C if model == "chaplygin" else C + m * r**2     # A ψ̇ + K s θ is constant
             start = {"psi": 0, "theta": theta0, "phi": 0, "x": 0, "y": 0, "psi'": -K * spin / A * theta0,
                      "theta'": 0.0, "phi'": spin + K * spin / A * theta0 * np.sin(theta0)}
-            tr = s.simulate(model, 1.5, start, body, samples=31)
+            tr = simulate(s, model, 1.5, start, body, samples=31)
             rate2 = upright_rate_squared(spin, body, model)
             if rate2 > 0:      # a wobble at the linearized frequency
                 assert np.max(np.abs(tr["theta"] - theta0 * np.cos(np.sqrt(rate2) * tr.t))) < 5e-3 * theta0
@@ -348,7 +348,7 @@ def test_turntable_ball_circle_spin_and_moving_energy() -> None:
     entry = examples.get("turntable-ball")
     s = entry.system()
     m, a, W = (entry.parameters[k] for k in ("m", "a", "Omega"))
-    tr = s.simulate("voronets", 20.0, entry.initial, entry.parameters, samples=41)
+    tr = simulate(s, "voronets", 20.0, entry.initial, entry.parameters, samples=41)
     kappa = 2 * W / 7
     r0 = np.array([tr["x"][0], tr["y"][0]])
     v0 = np.array([tr["x'"][0], tr["y'"][0]])
@@ -362,7 +362,7 @@ def test_turntable_ball_circle_spin_and_moving_energy() -> None:
     Lz = m * (tr["x"] * tr["y'"] - tr["y"] * tr["x'"]) + 0.4 * m * a**2 * wz
     assert np.ptp(tr.energy - W * Lz) < 1e-8 and np.ptp(tr.energy) > 0.1
     # the vakonomic motion from the same state is a different motion
-    vak = s.simulate("vakonomic", 20.0, entry.initial, entry.parameters, samples=41, constants="match")
+    vak = simulate(s, "vakonomic", 20.0, entry.initial, entry.parameters, samples=41, constants="match")
     assert np.max(np.hypot(vak["x"] - tr["x"], vak["y"] - tr["y"])) > 1.0
     assert np.max(vak.energy) > 10 * vak.energy[0]                  # the model, not a real ball
 
@@ -402,11 +402,11 @@ def test_chaplygin_ball_conserves_contact_angular_momentum() -> None:
     Lindelöf's ball loses it."""
     s = system("chaplygin_ball", m=1, a=1, A=sp.Rational(3, 10), B=sp.Rational(4, 10), C=sp.Rational(5, 10))
     inertia = np.diag([0.3, 0.4, 0.5])
-    tr = s.simulate("chaplygin", 20.0, BALL_START, samples=41)
+    tr = simulate(s, "chaplygin", 20.0, BALL_START, samples=41)
     assert tr.success and tr.energy_drift() < 1e-9
     K = contact_momentum(tr, inertia, m=1.0, a=1.0)
     assert np.max(np.abs(K - K[0])) < 1e-8
-    lindelof = s.simulate("lindelof", 20.0, BALL_START, samples=41)
+    lindelof = simulate(s, "lindelof", 20.0, BALL_START, samples=41)
     assert lindelof.success and lindelof.energy_drift() < 1e-9
     K = contact_momentum(lindelof, inertia, m=1.0, a=1.0)
     assert np.max(np.abs(K - K[0])) > 1e-2
@@ -420,7 +420,7 @@ def test_chaplygin_ball_with_equal_moments_keeps_its_angular_velocity() -> None:
     """A = B = C: K = (A + m a²) ω − m a² ω_z e_z constant gives ω constant; the centre moves
     uniformly on a straight line (Routh 1905)."""
     s = system("chaplygin_ball", m=1, a=1, A=sp.Rational(1, 4), B=sp.Rational(1, 4), C=sp.Rational(1, 4))
-    tr = s.simulate("chaplygin", 10.0, BALL_START, samples=21)
+    tr = simulate(s, "chaplygin", 10.0, BALL_START, samples=21)
     w = np.array([space_omega(tr, k) for k in range(len(tr.t))])
     assert np.max(np.abs(w - w[0])) < 1e-8
     assert np.ptp(tr["x'"]) < 1e-8 and np.ptp(tr["y'"]) < 1e-8
@@ -454,13 +454,13 @@ def test_heisenberg_motions_in_closed_form() -> None:
     2π/c, the path closes and z has gained the enclosed area π (|v|/c)² (Stokes)."""
     s = system("heisenberg")
     start = {"x": 1.0, "y": 0.5, "z": 0.0, "x'": 0.3, "y'": 1.0}
-    tr = s.simulate("chaplygin", 3.0, start, samples=7)
+    tr = simulate(s, "chaplygin", 3.0, start, samples=7)
     assert np.allclose(tr["x"], 1.0 + 0.3 * tr.t) and np.allclose(tr["y"], 0.5 + tr.t)
     assert np.allclose(tr["z"], (1.0 * 1.0 - 0.5 * 0.3) * tr.t / 2)
     c = 2.0
     speed = np.hypot(0.3, 1.0)
     for model, options in (("vakonomic_family", {"constants": [c]}), ("vakonomic", {"multipliers": [c]})):
-        tr = s.simulate(model, 2 * np.pi / c, start, samples=9, **options)
+        tr = simulate(s, model, 2 * np.pi / c, start, samples=9, **options)
         assert np.allclose([tr["x"][-1], tr["y"][-1]], [1.0, 0.5], atol=1e-8), model
         assert tr["z"][-1] == pytest.approx(np.pi * (speed / c) ** 2, abs=1e-8), model
         centre = np.array([1.0, 0.5]) + np.array([-1.0, 0.3]) / c         # r0 + e_z × v0 / c
@@ -473,7 +473,7 @@ def test_contact_oscillator_conserves_energy() -> None:
     energy is conserved (McLachlan & Perlmutter 2006 use such oscillators as test problems)."""
     s = system("contact_oscillator", eps=sp.Rational(1, 100))
     assert not s.integrability().integrable
-    tr = s.simulate("voronets", 100.0, {"x": 0.0, "y": 1.0, "z": 0.5, "y'": 0.2, "z'": 0.4}, samples=101)
+    tr = simulate(s, "voronets", 100.0, {"x": 0.0, "y": 1.0, "z": 0.5, "y'": 0.2, "z'": 0.4}, samples=101)
     assert tr.success and tr.energy_drift() < 1e-9 and np.max(tr.constraint_residual) < 1e-9
 
 
@@ -492,10 +492,10 @@ def test_contact_oscillator_y_is_a_harmonic_oscillator() -> None:
     curl = sp.Matrix([A[2].diff(y) - A[1].diff(z), A[0].diff(z) - A[2].diff(x), A[1].diff(x) - A[0].diff(y)])
     assert A.dot(curl) == 1
     start = {"x": 0.0, "y": 1.0, "z": 0.5, "y'": 0.2, "z'": 0.4}
-    tr = s.simulate("voronets", 20.0, start, {"epsilon": 0.5}, samples=41)
+    tr = simulate(s, "voronets", 20.0, start, {"epsilon": 0.5}, samples=41)
     assert np.allclose(tr["y"], np.cos(tr.t) + 0.2 * np.sin(tr.t), atol=1e-8)
     assert np.ptp(0.5 * (tr["y'"] ** 2 + tr["y"] ** 2)) < 1e-9 and tr.energy_drift() < 1e-9
-    vak = s.simulate("vakonomic", 20.0, start, {"epsilon": 0.5}, samples=41, constants="match")
+    vak = simulate(s, "vakonomic", 20.0, start, {"epsilon": 0.5}, samples=41, constants="match")
     assert vak.success and np.max(np.abs(vak["z"] - tr["z"])) > 0.1
 
 
@@ -533,7 +533,7 @@ def test_differential_drive_kinematics_and_circle() -> None:
     assert sp.simplify(s.constraints[d(y)] - v * sp.sin(th)) == 0
     assert sp.simplify(s.constraints[d(th)] - r * (d(pr) - d(pl)) / (2 * b)) == 0
     entry = examples.get("differential-drive")
-    tr = s.simulate("voronets", 20.0, entry.initial, entry.parameters, samples=41)
+    tr = simulate(s, "voronets", 20.0, entry.initial, entry.parameters, samples=41)
     p = entry.parameters
     wl, wr = entry.initial["phi_L'"], entry.initial["phi_R'"]
     speed, turn = p["r"] * (wr + wl) / 2, p["r"] * (wr - wl) / (2 * p["b"])
@@ -558,8 +558,8 @@ def test_differential_drive_is_a_chaplygin_system_in_other_coordinates() -> None
     entry = examples.get("differential-drive")
     start = {k: v for k, v in entry.initial.items() if k != "phi_L'"}
     start["theta'"] = entry.parameters["r"] * (entry.initial["phi_R'"] - entry.initial["phi_L'"]) / (2 * entry.parameters["b"])
-    a = s.simulate("voronets", 20.0, entry.initial, entry.parameters, samples=41)
-    b = other.simulate("chaplygin", 20.0, start, entry.parameters, samples=41)
+    a = simulate(s, "voronets", 20.0, entry.initial, entry.parameters, samples=41)
+    b = simulate(other, "chaplygin", 20.0, start, entry.parameters, samples=41)
     assert all(np.allclose(a[q], b[q], atol=1e-9) for q in ("x", "y", "theta", "phi_L", "phi_R"))
 
 
@@ -571,7 +571,7 @@ def test_sleigh_chain_scales_and_conserves_energy(n: int) -> None:
     params = {"m": 1.0, "I": 0.5, "L": 1.0}
     start = {"x": 0.0, "y": 0.0, **{f"theta{i}": 0.1 * i for i in range(n + 1)}, "x'": 1.0, "theta0'": 0.05}
     # the lead heading stays far from θ0 = π/2, the pole of the split ẏ = tan θ0 ẋ
-    tr = s.simulate("voronets", 10.0, start, params, samples=21)
+    tr = simulate(s, "voronets", 10.0, start, params, samples=21)
     assert tr.success and tr.energy_drift() < 1e-9
 
 
@@ -611,7 +611,7 @@ def test_trailer_lines_up_forward_and_jackknifes_backward(forward: bool) -> None
     tan(δ/2) = tan(δ0/2) e^{−(x − x0)/L}: δ → 0 forwards, δ → π backwards."""
     s = system("sleigh_chain", n=1)
     v0 = 1.0 if forward else -1.0
-    tr = s.simulate("chetaev", 5.0, {"x": 0, "y": 0, "theta0": 0, "theta1": 0.5, "x'": v0, "theta0'": 0.0},
+    tr = simulate(s, "chetaev", 5.0, {"x": 0, "y": 0, "theta0": 0, "theta1": 0.5, "x'": v0, "theta0'": 0.0},
                     {"m": 1.0, "I": 0.5, "L": 1.0}, samples=11)
     assert np.max(np.abs(tr["theta0"])) < 1e-12 and np.max(np.abs(tr["y"])) < 1e-12
     assert np.allclose(tr["theta1"], 2 * np.arctan(np.tan(0.25) * np.exp(-tr["x"])), atol=1e-9)
@@ -623,12 +623,12 @@ def test_sleigh_chain_catalogue_lines_up_and_models() -> None:
     vakonomic multiplier form (no Lindelöf equations: T depends on θ1, θ2) is another motion."""
     entry = examples.get("sleigh-chain")
     s = entry.system()
-    true = s.simulate("voronets", 20.0, entry.initial, entry.parameters, samples=41)
-    check = s.simulate("chetaev", 20.0, entry.initial, entry.parameters, samples=41)
+    true = simulate(s, "voronets", 20.0, entry.initial, entry.parameters, samples=41)
+    check = simulate(s, "chetaev", 20.0, entry.initial, entry.parameters, samples=41)
     assert np.allclose(true["x"], check["x"], atol=1e-8) and np.allclose(true["theta1"], check["theta1"], atol=1e-8)
     assert np.max(np.abs(true["theta0"])) < 1e-9 and true.energy_drift() < 1e-9
     assert abs(true["theta1"][-1]) < 1e-3 and abs(true["theta2"][-1]) < 1e-3
     with pytest.raises(ModelError):
         compare_models(s)
-    vak = s.simulate("vakonomic", 20.0, entry.initial, entry.parameters, samples=41, constants="match")
+    vak = simulate(s, "vakonomic", 20.0, entry.initial, entry.parameters, samples=41, constants="match")
     assert vak.success and np.max(np.abs(vak["x"] - true["x"])) > 1.0

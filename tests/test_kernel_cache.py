@@ -2,7 +2,7 @@
 
 Each check runs fresh Python processes on a private cache folder
 (``$CHAPLYGIN_CACHE``) and looks at what they did — libraries built or
-loaded (``chaplygin._ckernel.STATS``), whether SymPy was imported — never at
+loaded (``chaplygin.numeric._ckernel.STATS``), whether SymPy was imported — never at
 how long they took.
 """
 
@@ -19,9 +19,9 @@ import pytest
 
 import chaplygin
 from chaplygin import examples
-from chaplygin._ckernel import Unavailable, compiler
-from chaplygin.simulate import SYMMETRIC_METHODS, choose_backend, simulate
-from chaplygin.symmetric import METHODS
+from chaplygin.numeric._ckernel import Unavailable, compiler
+from chaplygin.numeric.simulate import SYMMETRIC_METHODS, choose_backend, simulate
+from chaplygin.numeric.symmetric import METHODS
 
 try:
     compiler()
@@ -36,16 +36,17 @@ RUN = ["simulate", "example:rolling-disk", "-m", "chaplygin", "-t", "2", "-n", "
 # a process that runs the command line, then reports what it built and imported
 CLI = """
 import json, sys
-from chaplygin import _ckernel
-from chaplygin.cli import main
+from chaplygin.numeric import _ckernel
+from chaplygin.apps.cli import main
 code = main(sys.argv[1:])
 print(json.dumps({"code": code, "stats": _ckernel.STATS, "sympy": "sympy" in sys.modules}))
 """
 # a process that compiles the rolling disk's Chaplygin model for the c backend
 COMPILE = """
 import json
-from chaplygin import _ckernel, examples
-from chaplygin.codegen import compile_model
+from chaplygin.numeric import _ckernel
+from chaplygin import examples
+from chaplygin.numeric.codegen import compile_model
 model = compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
 print(json.dumps({"stats": _ckernel.STATS, "file": model.module.__file__}))
 """
@@ -149,7 +150,7 @@ def test_generated_source_is_the_same_in_every_process(tmp_path):
     script = """
 import hashlib, json
 from chaplygin import examples
-from chaplygin.codegen import _source
+from chaplygin.numeric.codegen import _source
 eqs = examples.rolling_disk().equations("chaplygin")
 print(json.dumps({"digest": hashlib.sha256(_source(eqs, "numba")[1].encode()).hexdigest()}))
 """

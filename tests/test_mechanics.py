@@ -4,11 +4,18 @@ from __future__ import annotations
 
 import pytest
 import sympy as sp
-from sympy.physics.mechanics import Particle, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
+from sympy.physics.mechanics import (
+    Particle,
+    Point,
+    ReferenceFrame,
+    RigidBody,
+    dynamicsymbols,
+    inertia,
+)
+from test_rolling_disk import Mechanics
 
 from chaplygin import SystemDefinitionError, equivalent, examples
-from chaplygin.mechanics import from_mechanics
-from test_rolling_disk import Mechanics
+from chaplygin.io.mechanics import from_mechanics
 
 t = dynamicsymbols._t
 

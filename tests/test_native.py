@@ -18,14 +18,14 @@ import symengine as se
 import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from randomsystems import Spec, matrix, random_state, systems
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
 from chaplygin import System, examples
-from chaplygin._native import chetaev_matrices, is_quadratic, linear_split, momenta
-from chaplygin._printing import code
-from chaplygin._symbols import linear_coefficients
-from randomsystems import Spec, matrix, random_state, systems
+from chaplygin.core._native import chetaev_matrices, is_quadratic, linear_split, momenta
+from chaplygin.core._symbols import linear_coefficients
+from chaplygin.numeric._printing import code
 
 t = dynamicsymbols._t
 
@@ -193,7 +193,7 @@ def test_c_printer(extra: list) -> None:
 def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     """|x| in T and V (SymPy's path: SymEngine cannot differentiate Abs): d|x|/dx = sign(x), not
     unevaluated derivatives of re(x) and im(x), so every compiled path agrees."""
-    from chaplygin.codegen import compile_model
+    from chaplygin.numeric.codegen import compile_model
 
     x, y, th = dynamicsymbols("x y theta")
     m, J, k = sp.symbols("m J k", positive=True)

@@ -22,10 +22,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sympy.physics.mechanics import dynamicsymbols
 
-from chaplygin import parser
 from chaplygin.errors import ChaplyginError
-from chaplygin.files import SystemFileError
-from chaplygin.parser import (
+from chaplygin.io import parser
+from chaplygin.io.files import SystemFileError
+from chaplygin.io.parser import (
     MAX_DEPTH,
     MAX_EXPANDED_TERMS,
     MAX_EXPONENT,
@@ -693,8 +693,8 @@ def test_atheris_fuzz(tmp_path: Path) -> None:
             import sys
             import atheris
 
-            with atheris.instrument_imports(include=["chaplygin.parser"]):
-                from chaplygin import parser
+            with atheris.instrument_imports(include=["chaplygin.io.parser"]):
+                from chaplygin.io import parser
 
             NAMES = parser.Names.build(["m", "a"], ["x", "theta"])
 

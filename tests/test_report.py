@@ -17,8 +17,15 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin import System, examples
-from chaplygin.report import (VERDICTS, PaperLine, is_paper_sphere, mathml, paper_table,
-                              render_report, write_report)
+from chaplygin.apps.report import (
+    VERDICTS,
+    PaperLine,
+    is_paper_sphere,
+    mathml,
+    paper_table,
+    render_report,
+    write_report,
+)
 
 t = dynamicsymbols._t
 SPHERE_START = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
@@ -85,7 +92,7 @@ def test_is_paper_sphere() -> None:
     assert is_paper_sphere(examples.rolling_sphere())
     assert is_paper_sphere(examples.rolling_sphere(forces={"x": sp.Symbol("V_1")}))
     assert not is_paper_sphere(examples.knife_edge())
-    from chaplygin import files
+    from chaplygin.io import files
 
     from_file = files.loads(files.dumps(examples.rolling_sphere(), {"m": 2.0, "a": 0.5}))
     assert is_paper_sphere(from_file.system)      # real, not positive, symbols: still the sphere

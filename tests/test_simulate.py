@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from sympy.physics.mechanics import dynamicsymbols
 
-from chaplygin import ChaplyginError, System, compare, examples
+from chaplygin import ChaplyginError, System, compare, examples, simulate
 
 t = dynamicsymbols._t
 SPHERE_START = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
@@ -22,7 +22,7 @@ def sphere():
 @pytest.fixture(scope="module")
 def sphere_runs(sphere):
     return {
-        model: sphere.simulate(model, 100.0, SPHERE_START, UNIT, samples=501)
+        model: simulate(sphere, model, 100.0, SPHERE_START, UNIT, samples=501)
         for model in ("chetaev", "chaplygin", "lindelof")
     }
 
@@ -81,7 +81,7 @@ def test_rolling_disk_energy_over_t_100(model: str) -> None:
     start = {"psi": 0.0, "theta": 0.2, "phi": 0.0, "x": 0.0, "y": 0.0,
              "psi'": 0.3, "theta'": 0.0, "phi'": 8.0}
     params = {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81}
-    tr = disk.simulate(model, 100.0, start, params, samples=201)
+    tr = simulate(disk, model, 100.0, start, params, samples=201)
     assert tr.success, tr.message
     assert tr.energy_drift() <= 1e-9
     assert np.max(tr.constraint_residual) <= 1e-9
@@ -93,7 +93,7 @@ def test_vertical_disk_closed_form() -> None:
     w_theta, w_phi, theta0, phi0, x0, y0, R = 2.0, 0.7, 0.1, 0.4, 1.0, -2.0, 0.5
     start = {"theta": theta0, "phi": phi0, "x": x0, "y": y0, "theta'": w_theta, "phi'": w_phi}
     for model in ("chetaev", "chaplygin", "lindelof"):
-        tr = disk.simulate(model, 50.0, start, {"m": 1.0, "R": R, "I": 0.3, "J": 0.2}, samples=201)
+        tr = simulate(disk, model, 50.0, start, {"m": 1.0, "R": R, "I": 0.3, "J": 0.2}, samples=201)
         phi = w_phi * tr.t + phi0
         rho = R * w_theta / w_phi
         expected = {"theta": w_theta * tr.t + theta0, "phi": phi,
@@ -104,46 +104,46 @@ def test_vertical_disk_closed_form() -> None:
 
 
 def test_vakonomic_runs_from_the_same_state(sphere) -> None:
-    family = sphere.simulate("vakonomic_family", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
-    multiplier = sphere.simulate("vakonomic", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
+    family = simulate(sphere, "vakonomic_family", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
+    multiplier = simulate(sphere, "vakonomic", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
     for name in family.coordinates:
         assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
     assert set(multiplier.multipliers) == {"mu_1", "mu_2"}
-    matched = sphere.simulate("vakonomic", 1.0, SPHERE_START, UNIT, samples=11, constants="match")
+    matched = simulate(sphere, "vakonomic", 1.0, SPHERE_START, UNIT, samples=11, constants="match")
     assert matched["mu_1"][0] == 0.0 and matched["mu_2"][0] == 0.0
-    given = sphere.simulate("vakonomic", 1.0, SPHERE_START, UNIT, samples=11, multipliers=[0.5, 0.25])
+    given = simulate(sphere, "vakonomic", 1.0, SPHERE_START, UNIT, samples=11, multipliers=[0.5, 0.25])
     assert given["mu_1"][0] == 0.5 and given["mu_2"][0] == 0.25
 
 
 def test_initial_data_errors(sphere) -> None:
     with pytest.raises(ChaplyginError, match="missing theta'"):
-        sphere.simulate("chaplygin", 1.0, {k: v for k, v in SPHERE_START.items() if k != "theta'"}, UNIT)
+        simulate(sphere, "chaplygin", 1.0, {k: v for k, v in SPHERE_START.items() if k != "theta'"}, UNIT)
     with pytest.raises(ChaplyginError, match=r"x' = 5 violates the constraints.*residual"):
-        sphere.simulate("chaplygin", 1.0, {**SPHERE_START, "x'": 5.0}, UNIT)
+        simulate(sphere, "chaplygin", 1.0, {**SPHERE_START, "x'": 5.0}, UNIT)
     with pytest.raises(ChaplyginError, match="no value for a"):
-        sphere.simulate("chaplygin", 1.0, SPHERE_START, {"m": 1.0})
+        simulate(sphere, "chaplygin", 1.0, SPHERE_START, {"m": 1.0})
     with pytest.raises(ChaplyginError, match="'z' is neither a coordinate"):
-        sphere.simulate("chaplygin", 1.0, {**SPHERE_START, "z": 1.0}, UNIT)
+        simulate(sphere, "chaplygin", 1.0, {**SPHERE_START, "z": 1.0}, UNIT)
     with pytest.raises(ChaplyginError, match="unknown backend"):
-        sphere.simulate("chaplygin", 1.0, SPHERE_START, UNIT, backend="fortran")
+        simulate(sphere, "chaplygin", 1.0, SPHERE_START, UNIT, backend="fortran")
     # a consistent dependent velocity is accepted, keyed by the dynamicsymbol
     psi, theta, phi, x, y = sphere.coordinates
     ok = {psi: 0.3, theta: np.pi / 2, phi: 0.0, x: 0.0, y: 0.0, psi.diff(t): 0.0, theta.diff(t): 0.0,
           phi.diff(t): 1.0, x.diff(t): -np.cos(0.3)}
-    assert sphere.simulate("chaplygin", 1.0, ok, UNIT, samples=3).success
+    assert simulate(sphere, "chaplygin", 1.0, ok, UNIT, samples=3).success
 
 
 def test_blow_up_returns_partial_trajectory() -> None:
     x, z = dynamicsymbols("x z")
     s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=x**4)
-    tr = s.simulate("chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101)
+    tr = simulate(s, "chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101)
     assert tr.status == "failed" and tr.message
     assert 0 < len(tr.t) < 101 and tr.t[-1] < 10.0
     assert np.all(np.isfinite(tr["x"]))
 
 
 def test_export_csv_and_npz(sphere, tmp_path) -> None:
-    tr = sphere.simulate("chetaev", 1.0, SPHERE_START, UNIT, samples=11)
+    tr = simulate(sphere, "chetaev", 1.0, SPHERE_START, UNIT, samples=11)
     csv = tr.to_csv(tmp_path / "run.csv")
     header = csv.read_text().splitlines()[0].split(",")
     assert header[:6] == ["t", "psi", "theta", "phi", "x", "y"]
@@ -156,7 +156,7 @@ def test_export_csv_and_npz(sphere, tmp_path) -> None:
 
 
 def test_failed_write_keeps_previous_file(sphere, tmp_path) -> None:
-    tr = sphere.simulate("chaplygin", 1.0, SPHERE_START, UNIT, samples=5)
+    tr = simulate(sphere, "chaplygin", 1.0, SPHERE_START, UNIT, samples=5)
     target = tmp_path / "run.csv"
     target.write_text("previous")
     broken = type(tr)(**{**tr.__dict__, "energy": np.ones(2)})  # wrong length: writing fails
@@ -168,8 +168,8 @@ def test_failed_write_keeps_previous_file(sphere, tmp_path) -> None:
 
 def test_matching_constants_for_the_family(sphere) -> None:
     """constants="match": μ(0) = 0 in the multiplier form equals c = ∂T/∂q̇_dep(0) in the family."""
-    family = sphere.simulate("vakonomic_family", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
-    multiplier = sphere.simulate("vakonomic", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
+    family = simulate(sphere, "vakonomic_family", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
+    multiplier = simulate(sphere, "vakonomic", 5.0, SPHERE_START, UNIT, samples=51, constants="match")
     for name in family.coordinates:
         assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
 

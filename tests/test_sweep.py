@@ -1,4 +1,4 @@
-"""Sweeps (``chaplygin.sweep``, ``chaplygin sweep``): the grid, a 2-worker Dask LocalCluster against a
+"""Sweeps (``chaplygin.apps.sweep``, ``chaplygin sweep``): the grid, a 2-worker Dask LocalCluster against a
 serial run, a worker killed mid-sweep, failed runs kept as rows, resume after an interruption, and
 where the runs go (this process for small sweeps, a cluster for long ones or when asked)."""
 
@@ -23,9 +23,15 @@ dask = pytest.importorskip("dask")
 
 import cloudpickle  # noqa: E402  (a dependency of distributed)
 
-from chaplygin.cli import app  # noqa: E402
+from chaplygin.apps.cli import app  # noqa: E402
+from chaplygin.apps.sweep import (  # noqa: E402
+    SCHEMA,
+    SweepOutputExists,
+    parse_grid,
+    read_results,
+    sweep,
+)
 from chaplygin.errors import ChaplyginError  # noqa: E402
-from chaplygin.sweep import SCHEMA, SweepOutputExists, parse_grid, read_results, sweep  # noqa: E402
 
 runner = CliRunner()
 DISK = "example:vertical-rolling-disk"
@@ -110,8 +116,8 @@ def test_imports_without_the_extra(tmp_path: Path) -> None:
     code = (
         "import sys\n"
         "for m in ('dask', 'distributed', 'pyarrow', 'pyarrow.parquet'): sys.modules[m] = None\n"
-        "import chaplygin, chaplygin.cli, chaplygin.sweep\n"
-        "from chaplygin.sweep import sweep\n"
+        "import chaplygin, chaplygin.apps.cli, chaplygin.apps.sweep\n"
+        "from chaplygin.apps.sweep import sweep\n"
         "try:\n"
         f"    sweep('example:knife-edge', {{'m': '1:2:2'}}, t_end=1, out={str(tmp_path / 'r')!r})\n"
         "except chaplygin.ChaplyginError as exc:\n"
@@ -151,7 +157,7 @@ def test_two_workers_equal_a_serial_run(client, tmp_path: Path) -> None:
         [f for f in files if f.startswith("part-")] == [files[-1]]
     raw = pq.read_table(parallel.path)
     assert raw.num_rows == 9
-    assert SCHEMA in raw.schema.metadata[b"chaplygin.sweep"].decode()
+    assert SCHEMA in raw.schema.metadata[b"chaplygin.apps.sweep"].decode()
 
 
 def test_failed_runs_are_rows(client, tmp_path: Path) -> None:
@@ -208,7 +214,7 @@ class CrashOnRun(distributed.WorkerPlugin):
         self.run_id = run_id
 
     def setup(self, worker) -> None:
-        import chaplygin.sweep as module
+        import chaplygin.apps.sweep as module
 
         self.original = original = module._run_one
         crash_on = self.run_id
@@ -221,7 +227,7 @@ class CrashOnRun(distributed.WorkerPlugin):
         module._run_one = run_one
 
     def teardown(self, worker) -> None:
-        import chaplygin.sweep as module
+        import chaplygin.apps.sweep as module
 
         module._run_one = self.original
 
@@ -284,7 +290,7 @@ def test_resume_runs_only_the_missing_runs(client, tmp_path: Path) -> None:
 
 def test_rows_never_wait_for_the_next_run(tmp_path: Path) -> None:
     """A finished row is written within flush_seconds even when no other run finishes."""
-    from chaplygin.sweep import _Writer
+    from chaplygin.apps.sweep import _Writer
 
     schema = pa.schema([("run_id", pa.int64()), ("status", pa.string())])
     writer = _Writer(tmp_path, schema, flush_seconds=1.0, next_part=0)  # ≫ a busy machine's stall
@@ -354,7 +360,7 @@ def no_cluster(*args, **kwargs):
 
 
 def test_small_grids_run_in_this_process_by_default(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr("chaplygin.sweep._client", no_cluster)
+    monkeypatch.setattr("chaplygin.apps.sweep._client", no_cluster)
     result = sweep(DISK, DISK_GRID, t_end=2.0, out=tmp_path / "auto.parquet", **FAST)
     assert result.where == "in this process" and result.ran == 9
     serial = sweep(DISK, DISK_GRID, t_end=2.0, out=tmp_path / "serial.parquet", scheduler="serial", **FAST)
@@ -375,9 +381,9 @@ def test_long_runs_move_to_a_local_cluster(given: str, client, tmp_path: Path,
                                            monkeypatch: pytest.MonkeyPatch) -> None:
     """With no scheduler, runs measured to take long hand the rest to a LocalCluster (here the
     module's cluster stands in for it), a System object included; the rows are a serial sweep's."""
-    import chaplygin.sweep as module
+    import chaplygin.apps.sweep as module
     from chaplygin import examples
-    from chaplygin.files import SystemFile
+    from chaplygin.io.files import SystemFile
 
     asked: list = []
 
@@ -403,7 +409,7 @@ def test_long_runs_move_to_a_local_cluster(given: str, client, tmp_path: Path,
 
 
 def test_a_machine_of_one_core_never_starts_a_cluster(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    import chaplygin.sweep as module
+    import chaplygin.apps.sweep as module
 
     monkeypatch.setattr(module, "AUTO_CLUSTER_SECONDS", 0.0)
     monkeypatch.setattr(module, "_cores", lambda: 1)

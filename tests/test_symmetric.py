@@ -1,4 +1,4 @@
-"""Symmetric fixed-step methods for the true motion (chaplygin.symmetric, issue 8).
+"""Symmetric fixed-step methods for the true motion (chaplygin.numeric.symmetric, issue 8).
 
 * empirical order of convergence against a closed form (the vertical rolling disk) and against
   a tight DOP853 reference on a nonlinear problem (the rolling disk);
@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from chaplygin import ChaplyginError, examples
-from chaplygin.cli import app
-from chaplygin.codegen import compile_equations, parameter_vector
-from chaplygin.simulate import METHODS
-from chaplygin.symmetric import METHODS as SYMMETRIC
-from chaplygin.symmetric import extrapolation, integrate_symmetric, tableau
+from chaplygin import ChaplyginError, examples, simulate
+from chaplygin.apps.cli import app
+from chaplygin.numeric.codegen import compile_equations, parameter_vector
+from chaplygin.numeric.simulate import METHODS
+from chaplygin.numeric.symmetric import METHODS as SYMMETRIC
+from chaplygin.numeric.symmetric import extrapolation, integrate_symmetric, tableau
 
 DISK = examples.get("rolling-disk")
 OSC_START = {"x": 0.0, "y": 1.0, "z": 0.0, "y'": 0.5, "z'": 1.0}
@@ -93,7 +93,7 @@ def test_order_on_the_vertical_disk_closed_form(method: str) -> None:
     steps = {"midpoint": (16, 32, 64, 128), "gauss4": (8, 16, 32, 64), "gauss6": (8, 16, 32, 64)}[method]
     errors = []
     for n in steps:
-        tr = system.simulate("chetaev", T, start, params, method=method, step=T / n, samples=2)
+        tr = simulate(system, "chetaev", T, start, params, method=method, step=T / n, samples=2)
         assert tr.success, tr.message
         assert f"{n} {method} steps" in tr.message
         errors.append(max(abs(tr[name][-1] - value) for name, value in exact.items()))
@@ -105,12 +105,12 @@ def test_order_on_the_vertical_disk_closed_form(method: str) -> None:
 def test_order_on_the_rolling_disk(disk, method: str) -> None:
     """A nonlinear problem: against DOP853 at rtol = 1e-13 (the same reduced equations)."""
     T = 2.0
-    ref = disk.simulate("voronets", T, DISK.initial, DISK.parameters, rtol=1e-13, atol=1e-14,
+    ref = simulate(disk, "voronets", T, DISK.initial, DISK.parameters, rtol=1e-13, atol=1e-14,
                         samples=2, backend="numba")
     steps = {"midpoint": (40, 80, 160, 320), "gauss4": (20, 40, 80, 160)}[method]
     errors = []
     for n in steps:
-        tr = disk.simulate("voronets", T, DISK.initial, DISK.parameters, method=method, step=T / n,
+        tr = simulate(disk, "voronets", T, DISK.initial, DISK.parameters, method=method, step=T / n,
                            samples=2, backend="numba")
         errors.append(max(abs(tr[name][-1] - ref[name][-1]) for name in (*ref.coordinates, *ref.velocities)))
     orders = _orders(errors)
@@ -139,9 +139,9 @@ def test_reversible_and_numpy_equals_numba(disk) -> None:
 
 # ---------------------------------------------------------------- what a run returns
 def test_chetaev_run_has_multipliers_and_exact_constraints(disk) -> None:
-    sym = disk.simulate("chetaev", 2.0, DISK.initial, DISK.parameters, method="gauss4", step=0.0025,
+    sym = simulate(disk, "chetaev", 2.0, DISK.initial, DISK.parameters, method="gauss4", step=0.0025,
                         samples=21, backend="numba")
-    dop = disk.simulate("chetaev", 2.0, DISK.initial, DISK.parameters, samples=21)
+    dop = simulate(disk, "chetaev", 2.0, DISK.initial, DISK.parameters, samples=21)
     assert sym.success and sym.columns == dop.columns
     assert sym.model == "chetaev" and sym.backend == "numba" and sym.rhs_evaluations > 0
     assert np.max(sym.constraint_residual) < 1e-13
@@ -151,7 +151,7 @@ def test_chetaev_run_has_multipliers_and_exact_constraints(disk) -> None:
 
 
 def test_step_is_fitted_to_the_samples(oscillator) -> None:
-    tr = oscillator.simulate("voronets", 2.0, OSC_START, OSC_PARAMS,
+    tr = simulate(oscillator, "voronets", 2.0, OSC_START, OSC_PARAMS,
                              method="midpoint", step=0.3, samples=3)
     assert "8 midpoint steps of h = 0.25" in tr.message
     assert np.array_equal(tr.t, [0.0, 1.0, 2.0])
@@ -181,9 +181,9 @@ def test_energy_bounded_over_t_1e4_while_dop853_drifts(case: str, disk, oscillat
                              else (oscillator, OSC_START, OSC_PARAMS))
     (method, step), rtol = LONG_RUNS[case]
     T = 1e4
-    sym = system.simulate("chetaev", T, start, params, method=method, step=step, samples=1001,
+    sym = simulate(system, "chetaev", T, start, params, method=method, step=step, samples=1001,
                           backend="numba")
-    dop = system.simulate("voronets", T, start, params, rtol=rtol, atol=rtol / 100, samples=1001,
+    dop = simulate(system, "voronets", T, start, params, rtol=rtol, atol=rtol / 100, samples=1001,
                           backend="numba")
     assert sym.success and dop.success, (sym.message, dop.message)
     assert dop.rhs_evaluations > 0.5 * sym.rhs_evaluations  # comparable (or more) work
@@ -198,7 +198,7 @@ def test_energy_bounded_over_t_1e4_while_dop853_drifts(case: str, disk, oscillat
 
 # ---------------------------------------------------------------- failures and bad input
 def test_newton_failure_returns_partial_trajectory(oscillator) -> None:
-    tr = oscillator.simulate("chetaev", 40.0, OSC_START, OSC_PARAMS, method="midpoint", step=2.0,
+    tr = simulate(oscillator, "chetaev", 40.0, OSC_START, OSC_PARAMS, method="midpoint", step=2.0,
                              samples=21)
     assert tr.status == "failed"
     assert "Newton iteration for the midpoint stages did not converge" in tr.message
@@ -219,7 +219,7 @@ def test_blow_up_is_a_status() -> None:
     t = dynamicsymbols._t
     x, z = dynamicsymbols("x z")
     s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=x**4)
-    tr = s.simulate("chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101, method="midpoint",
+    tr = simulate(s, "chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101, method="midpoint",
                     step=0.01)
     assert tr.status == "failed" and "blew up" in tr.message
     assert 0 < len(tr.t) < 101 and np.all(np.isfinite(tr["x"]))
@@ -238,8 +238,8 @@ def test_a_raising_right_hand_side_is_reported_like_the_dop853_loop() -> None:
     c = sp.Symbol("c")
     s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=-x**2 / c)
     start, params = {"x": 1.0, "z": 0.0, "x'": 1.0}, {"c": 0.0}
-    loop = s.simulate("chaplygin", 1.0, start, params, backend="numba", samples=11)
-    gauss = s.simulate("chaplygin", 1.0, start, params, backend="numba", method="gauss4", step=0.1, samples=11)
+    loop = simulate(s, "chaplygin", 1.0, start, params, backend="numba", samples=11)
+    gauss = simulate(s, "chaplygin", 1.0, start, params, backend="numba", method="gauss4", step=0.1, samples=11)
     for tr in (loop, gauss):
         assert tr.status == "failed"
         assert tr.message == "the right-hand side failed at t = 0: division by zero", tr.message
@@ -247,7 +247,7 @@ def test_a_raising_right_hand_side_is_reported_like_the_dop853_loop() -> None:
 
 def test_bad_input(disk, oscillator) -> None:
     def run(model: str = "chetaev", **kw):
-        return disk.simulate(model, 1.0, DISK.initial, DISK.parameters, **kw)
+        return simulate(disk, model, 1.0, DISK.initial, DISK.parameters, **kw)
 
     with pytest.raises(ChaplyginError, match=r"method 'gauss' is not one of .*midpoint, gauss4, gauss6"):
         run(method="gauss")
@@ -269,7 +269,7 @@ def test_bad_input(disk, oscillator) -> None:
     with pytest.raises(ChaplyginError, match="would take"):
         run(method="gauss4", step=1e-12)
     with pytest.raises(ChaplyginError, match="not a Chaplygin system"):
-        oscillator.simulate("chaplygin", 1.0, OSC_START, OSC_PARAMS, method="gauss4", step=0.1)
+        simulate(oscillator, "chaplygin", 1.0, OSC_START, OSC_PARAMS, method="gauss4", step=0.1)
 
 
 def test_cli(tmp_path) -> None:

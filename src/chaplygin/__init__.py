@@ -1,48 +1,79 @@
-"""chaplygin: equations of motion of nonholonomic systems, in both models of constrained motion."""
+"""chaplygin: equations of motion of nonholonomic systems, in both models of constrained motion.
+
+The package is built in layers, each a folder that imports only the layers below it
+(``docs/architecture.md``): ``core`` (the system description) → ``models`` (the
+registry and the derivations) → ``analysis`` → ``numeric`` (code generation and
+simulation) → ``io`` (files) → ``examples`` (the gallery) → ``apps`` (command line,
+sweeps, reports).  This module is the front door: it re-exports the public names.
+"""
 
 from __future__ import annotations
 
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
+from chaplygin._version import __version__
+
 if TYPE_CHECKING:
-    from . import examples
-    from .comparison import Comparison, compare
-    from .equations import Equations
-    from .equivalence import EquivalenceReport, equivalent
-    from .errors import (
+    from chaplygin import examples
+    from chaplygin.analysis.equivalence import EquivalenceReport, equivalent
+    from chaplygin.analysis.integrability import IntegrabilityReport
+    from chaplygin.analysis.transitions import (
+        Classification,
+        ModelComparison,
+        classify,
+        compare_models,
+    )
+    from chaplygin.core.system import System
+    from chaplygin.errors import (
         ChaplyginError,
         ChaplyginWarning,
         InputError,
         ModelError,
         SystemDefinitionError,
     )
-    from .files import SystemFile, SystemFileError, dumps, load, loads
-    from .integrability import IntegrabilityReport
-    from .mechanics import from_mechanics
-    from .simulate import Trajectory
-    from .system import System
-    from .transitions import Classification, ModelComparison, classify, compare_models
+    from chaplygin.io.files import SystemFile, SystemFileError, dumps, load, loads
+    from chaplygin.io.mechanics import from_mechanics
+    from chaplygin.models.equations import Equations
+    from chaplygin.numeric.comparison import Comparison, compare
+    from chaplygin.numeric.ensemble import Ensemble, simulate_ensemble
+    from chaplygin.numeric.simulate import Trajectory, simulate
 
 #: where each public name lives; imported on first use, so that ``import chaplygin``
 #: (and the command line, whose cached answers need no SymPy) starts fast
 _HOME = {
-    "examples": "", "Comparison": "comparison", "compare": "comparison", "Equations": "equations",
-    "EquivalenceReport": "equivalence", "equivalent": "equivalence",
-    "ChaplyginError": "errors", "ChaplyginWarning": "errors", "InputError": "errors", "ModelError": "errors", "SystemDefinitionError": "errors",
-    "SystemFile": "files", "SystemFileError": "files", "dumps": "files", "load": "files",
-    "loads": "files", "IntegrabilityReport": "integrability", "from_mechanics": "mechanics",
-    "Trajectory": "simulate", "System": "system", "Classification": "transitions",
-    "ModelComparison": "transitions", "classify": "transitions", "compare_models": "transitions",
+    "examples": "chaplygin.examples",
+    "System": "chaplygin.core.system",
+    "Equations": "chaplygin.models.equations",
+    "IntegrabilityReport": "chaplygin.analysis.integrability",
+    "EquivalenceReport": "chaplygin.analysis.equivalence",
+    "equivalent": "chaplygin.analysis.equivalence",
+    "Classification": "chaplygin.analysis.transitions",
+    "ModelComparison": "chaplygin.analysis.transitions",
+    "classify": "chaplygin.analysis.transitions",
+    "compare_models": "chaplygin.analysis.transitions",
+    "simulate": "chaplygin.numeric.simulate",
+    "Trajectory": "chaplygin.numeric.simulate",
+    "simulate_ensemble": "chaplygin.numeric.ensemble",
+    "Ensemble": "chaplygin.numeric.ensemble",
+    "compare": "chaplygin.numeric.comparison",
+    "Comparison": "chaplygin.numeric.comparison",
+    "from_mechanics": "chaplygin.io.mechanics",
+    "SystemFile": "chaplygin.io.files",
+    "SystemFileError": "chaplygin.io.files",
+    "dumps": "chaplygin.io.files",
+    "load": "chaplygin.io.files",
+    "loads": "chaplygin.io.files",
+    **{name: "chaplygin.errors" for name in (
+        "ChaplyginError", "ChaplyginWarning", "InputError", "ModelError", "SystemDefinitionError")},
 }
 
 
 def __getattr__(name: str) -> Any:
     if name not in _HOME:
         raise AttributeError(f"module 'chaplygin' has no attribute {name!r}")
-    home = _HOME[name]
-    value = import_module(f".{home or name}", __name__)
-    value = value if not home else getattr(value, name)
+    module = import_module(_HOME[name])
+    value = module if module.__name__ == f"chaplygin.{name}" else getattr(module, name)
     globals()[name] = value
     return value
 
@@ -54,6 +85,9 @@ def __dir__() -> list[str]:
 __all__ = [
     "System",
     "Equations",
+    "simulate",
+    "simulate_ensemble",
+    "Ensemble",
     "equivalent",
     "EquivalenceReport",
     "IntegrabilityReport",
@@ -76,6 +110,5 @@ __all__ = [
     "SystemFile",
     "SystemFileError",
     "Comparison",
+    "__version__",
 ]
-
-__version__ = "0.1.0"

@@ -22,9 +22,9 @@ from typing import NamedTuple
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
-from ._symbols import TIME
-from .errors import ChaplyginError
-from .system import System
+from chaplygin.core._symbols import TIME
+from chaplygin.core.system import System
+from chaplygin.errors import ChaplyginError
 
 __all__ = [
     "chaplygin_sleigh",
@@ -501,8 +501,8 @@ class ExampleEntry(NamedTuple):
         return self.constructor()
 
     def dumps(self) -> str:
-        """The example as a system file (TOML, see :mod:`chaplygin.files`)."""
-        from .files import dumps
+        """The example as a system file (TOML, see :mod:`chaplygin.io.files`)."""
+        from chaplygin.io.files import dumps
 
         return dumps(self.constructor(), self.parameters, self.initial)
 

@@ -1,0 +1,221 @@
+"""Integrability of linear velocity constraints: conditions (28), (33) and Frobenius.
+
+* Condition (28), form B: ``∂B_βγ/∂q_σ − ∂B_βσ/∂q_γ = 0``.  For a Chaplygin
+  system it is necessary and sufficient; when B depends on the dependent
+  coordinates it is neither.
+* Condition (33), form A: ``∂A_βk/∂q_s − ∂A_βs/∂q_k = 0`` — the constraint
+  1-forms are closed.  Sufficient, not necessary (integrating factors).
+* **Frobenius**: the distribution annihilated by ``ω_β = Σ_s A_βs dq_s`` (plus
+  ``A_β0 dt`` for rheonomic/affine constraints) is integrable iff it is closed
+  under Lie brackets.  It is spanned by ``X_σ = ∂_σ + Σ_β B_βσ ∂_{ε+β}`` (and
+  ``X_0 = ∂_t + Σ_β B_β0 ∂_{ε+β}``); the brackets have no independent
+  components, so the test is that their dependent components
+  ``D_σ B_βγ − D_γ B_βσ`` (and ``∂_t B_βσ + Σ_α B_α0 ∂B_βσ/∂q_{ε+α} − D_σ B_β0``)
+  vanish — exactly the terms ``W_βσ`` of Voronets' equations.  This is
+  equivalent to ``dω_β ∧ ω_1 ∧ … ∧ ω_g = 0``.
+
+When the constraints are integrable, :func:`analyze` looks for the finite
+relations ``f_β(q, t) = const`` (potentials of B, or integrating factors for a
+single constraint) and returns only relations it has verified.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+from typing import TYPE_CHECKING
+
+import sympy as sp
+from sympy.physics.vector.printing import vsstrrepr
+
+from chaplygin.core._sampling import vanishes
+from chaplygin.core._symbols import TIME, simplify_small
+from chaplygin.models.reduced import Reduction
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+
+__all__ = ["IntegrabilityReport", "Condition", "analyze"]
+
+
+@dataclass
+class Condition:
+    """The verdict of one integrability test.
+
+    Attributes
+    ----------
+    name : str
+        ``"(28)"``, ``"(33)"`` or ``"Frobenius"``.
+    holds : bool
+        Whether every component vanishes.
+    failures : list of (str, sympy.Expr)
+        The non-vanishing components, labelled in the paper's indices.
+    note : str
+        What the test means for this system.
+    """
+
+    name: str
+    holds: bool
+    failures: list[tuple[str, sp.Expr]] = field(default_factory=list)
+    note: str = ""
+
+    def __str__(self) -> str:
+        verdict = "holds" if self.holds else "fails"
+        text = f"{self.name}: {verdict}"
+        if self.failures:
+            label, expr = self.failures[0]
+            more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
+            text += f" — {label} = {vsstrrepr(expr)}{more}"
+        return text + (f". {self.note}" if self.note else "")
+
+
+@dataclass
+class IntegrabilityReport:
+    """Integrability verdicts for the constraints of a system.
+
+    ``integrable`` is the Frobenius verdict (the true test).  ``relations``
+    holds finite relations ``f(q, t)`` that stay constant along every motion,
+    when they were found; each was verified.
+    """
+
+    system_name: str
+    condition_28: Condition
+    condition_33: Condition
+    frobenius: Condition
+    relations: list[sp.Expr] = field(default_factory=list)
+
+    @property
+    def integrable(self) -> bool:
+        return self.frobenius.holds
+
+    def __str__(self) -> str:
+        head = "integrable (holonomic)" if self.integrable else "not integrable (nonholonomic)"
+        lines = [
+            f"Constraints of {self.system_name}: {head}, by the Frobenius test.",
+            f"  {self.condition_28}",
+            f"  {self.condition_33}",
+            f"  {self.frobenius}",
+        ]
+        if self.integrable:
+            if self.relations:
+                lines.append("  Finite relations (each = constant):")
+                lines += [f"    {vsstrrepr(r)}" for r in self.relations]
+            else:
+                lines.append("  No finite relation was found in closed form.")
+        return "\n".join(lines)
+
+
+def _name(system: System, i: int) -> str:
+    return system.coordinates[i].func.__name__
+
+
+def analyze(system: System) -> IntegrabilityReport:
+    """Run conditions (28), (33) and the Frobenius test on ``system``'s constraints."""
+    s, v = system, system._vars
+    ind, dep = s._ind, s._dep
+    user = s.to_user
+
+    fail28 = []
+    for b, (k, c) in ((b, kc) for b in range(s.g) for kc in combinations(range(len(ind)), 2)):
+        e = sp.diff(s._B[b, c], v.x[ind[k]]) - sp.diff(s._B[b, k], v.x[ind[c]])
+        if not vanishes(e):
+            label = f"∂B[{_name(s, dep[b])}, {_name(s, ind[c])}]/∂{_name(s, ind[k])} − ∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂{_name(s, ind[c])}"
+            fail28.append((label, user(simplify_small(sp.cancel(e)))))
+    if not s.is_chaplygin:
+        note28 = "B depends on the dependent coordinates, so (28) does not decide integrability here."
+    elif s.is_affine or any(e.has(TIME) for e in s._B):
+        note28 = "The constraints are affine or time-dependent: (28) covers only their velocity terms."
+    else:
+        note28 = "For a Chaplygin system it decides integrability."
+    c28 = Condition("(28)", not fail28, fail28, note28)
+
+    fail33 = []
+    for b in range(s.g):
+        for k, j in combinations(range(s.n), 2):
+            e = sp.diff(s._A[b, j], v.x[k]) - sp.diff(s._A[b, k], v.x[j])
+            if not vanishes(e):
+                label = f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
+                fail33.append((label, user(simplify_small(sp.cancel(e)))))
+    c33 = Condition(
+        "(33)", not fail33, fail33,
+        "Closed constraint forms; sufficient for integrability, not necessary.",
+    )
+
+    from chaplygin.models.reduced import bracket_terms
+
+    W = bracket_terms(s)
+    r = Reduction(s)
+    fail_f = []
+    for b in range(s.g):
+        for k in range(len(ind)):
+            w = W[b][k]
+            for c in range(len(ind)):
+                if c > k:
+                    e = sp.diff(w, r.ind_xd[c])
+                    if not vanishes(e):
+                        label = f"[X_{_name(s, ind[k])}, X_{_name(s, ind[c])}] along ∂{_name(s, dep[b])}"
+                        fail_f.append((label, user(simplify_small(sp.cancel(e)))))
+            e0 = w.xreplace({x: 0 for x in r.ind_xd})
+            if not vanishes(e0):
+                label = f"[X_t, X_{_name(s, ind[k])}] along ∂{_name(s, dep[b])}"
+                fail_f.append((label, user(simplify_small(sp.cancel(-e0)))))
+    cf = Condition(
+        "Frobenius", not fail_f, fail_f,
+        "Lie brackets of the constraint distribution (equivalent to dω ∧ ω_1 ∧ … ∧ ω_g = 0).",
+    )
+    relations = [user(f) for f in _finite_relations(s)] if cf.holds else []
+    return IntegrabilityReport(s.name, c28, c33, cf, relations)
+
+
+# ---------------------------------------------------------------- finite relations
+def _potential(grad: list[sp.Expr], variables: list[sp.Symbol]) -> sp.Expr | None:
+    """``f`` with ``∂f/∂x_k = grad[k]`` (line integral along the axes), verified."""
+    f = sp.S.Zero
+    for k, x in enumerate(variables):
+        rest = sp.cancel(grad[k] - sp.diff(f, x))
+        if rest == 0:
+            continue
+        term = sp.integrate(rest, x)
+        if term.has(sp.Integral):
+            return None
+        f += term
+    ok = all(vanishes(sp.diff(f, x) - gk) for x, gk in zip(variables, grad))
+    return sp.simplify(f) if ok else None
+
+
+def _finite_relations(s: System) -> list[sp.Expr]:
+    """Verified finite relations ``f(q, t) = const`` of integrable constraints."""
+    v = s._vars
+    ind_x = [v.x[i] for i in s._ind]
+    dep_x = [v.x[i] for i in s._dep]
+    timed = any(e.has(TIME) for e in (*s._B, *s._B0)) or s.is_affine
+    extra = [TIME] if timed else []
+    if not any(e.has(*dep_x) for e in (*s._B, *s._B0)):
+        # Chaplygin-type constraints: q_{ε+β} − Φ_β(q_σ, t) with ∇Φ_β = (B_β, B_β0).
+        out = []
+        for b in range(s.g):
+            grad = list(s._B.row(b)) + ([s._B0[b]] if timed else [])
+            phi = _potential(grad, ind_x + extra)
+            if phi is None:
+                return []
+            out.append(dep_x[b] - phi)
+        return out
+    if s.g != 1:
+        return []
+    # One constraint: search a few integrating factors μ for ω = Σ A_s dq_s + A_0 dt.
+    coeffs = list(s._A.row(0)) + ([s._A0[0]] if timed else [])
+    variables = list(v.x) + extra
+    nonzero = [c for c in coeffs if c != 0]
+    candidates = [sp.S.One] + [1 / c for c in nonzero] + [1 / c**2 for c in nonzero]
+    candidates += [1 / (c1 * c2) for c1, c2 in combinations(nonzero, 2)]
+    for mu in candidates:
+        form = [sp.cancel(mu * c) for c in coeffs]
+        closed = all(
+            vanishes(sp.diff(form[j], variables[k]) - sp.diff(form[k], variables[j]))
+            for k, j in combinations(range(len(variables)), 2)
+        )
+        if closed:
+            f = _potential(form, variables)
+            if f is not None:
+                return [f]
+    return []

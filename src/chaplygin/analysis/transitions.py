@@ -1,0 +1,214 @@
+"""The paper's transitions between the two models, and a classifier for hand-derived equations.
+
+For a Chaplygin system, Chaplygin's equations (15) and Lindelöf's (22) differ
+by the **Lindelöf defect**::
+
+    (15) − (22) = Σ_β (∂T/∂q̇_{ε+β})~ W_βσ ,   W_βσ = Σ_γ (∂B_βγ/∂q_σ − ∂B_βσ/∂q_γ) q̇_γ (+ affine terms)
+
+All models coincide (Chetaev ≡ Lindelöf ≡ vakonomic with c = 0) when every
+``W_βσ`` vanishes — condition (28) for homogeneous scleronomic constraints.  The
+defect can vanish although (28) fails (the vertical rolling disk): then
+Lindelöf's equations happen to give the true motion.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import sympy as sp
+from sympy.physics.vector.printing import vsstrrepr
+
+from chaplygin.analysis.equivalence import EquationsLike, _Linear, _States
+from chaplygin.core._sampling import vanishes
+from chaplygin.core._symbols import simplify_small
+from chaplygin.errors import ChaplyginError, ModelError
+from chaplygin.models.reduced import Reduction, bracket_terms, lindelof_defect
+from chaplygin.models.vakonomic import family_obstructions
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+
+__all__ = ["ModelComparison", "compare_models", "Classification", "classify"]
+
+
+@dataclass
+class ModelComparison:
+    """How the Chetaev and vakonomic models relate for one system.
+
+    Attributes
+    ----------
+    coincide : bool
+        Every ``W_βσ`` vanishes (condition (28) and, for affine or rheonomic
+        constraints, its time terms): Chetaev ≡ Lindelöf ≡ vakonomic(c = 0).
+    defect : dict
+        The Lindelöf defect, (15) minus (22), by independent coordinate.
+    defect_vanishes : bool
+        The defect is identically zero: Lindelöf's equations are right here.
+    """
+
+    system_name: str
+    coincide: bool
+    condition_28: bool
+    defect: dict[sp.Expr, sp.Expr]
+    defect_vanishes: bool
+
+    @property
+    def verdict(self) -> str:
+        """``"coincide"``, ``"lindelof_right_here"`` or ``"differ"``."""
+        if self.coincide:
+            return "coincide"
+        return "lindelof_right_here" if self.defect_vanishes else "differ"
+
+    def __str__(self) -> str:
+        head = {
+            "coincide": "the models coincide: Chaplygin ≡ Lindelöf ≡ every vakonomic motion "
+            "(any c), since the brackets W_βσ vanish (condition (28)).",
+            "lindelof_right_here": "condition (28) fails, but the Lindelöf defect vanishes: "
+            "Lindelöf's equations happen to be right here.",
+            "differ": "the models differ: Chaplygin's equations (15) = Lindelöf's (22) + the defect below.",
+        }[self.verdict]
+        lines = [f"{self.system_name}: {head}"]
+        if self.verdict == "differ":
+            lines += [f"  {vsstrrepr(q)}: {vsstrrepr(d)}" for q, d in self.defect.items()]
+        return "\n".join(lines)
+
+
+def _require_family(system: System) -> None:
+    problems = family_obstructions(system)
+    if problems:
+        raise ModelError(
+            f"{system.name} has no Lindelöf equations or reduced vakonomic family ("
+            + "; ".join(problems)
+            + "); compare the multiplier forms, model='chetaev' and model='vakonomic'."
+        )
+
+
+def compare_models(system: System) -> ModelComparison:
+    """Which models coincide for ``system``, and the Lindelöf defect (15) − (22)."""
+    _require_family(system)
+    r = Reduction(system)
+    W = bracket_terms(system)
+    coincide = all(vanishes(w) for row in W for w in row)
+    c28 = all(vanishes(sp.diff(w, xd)) for row in W for w in row for xd in r.ind_xd)
+    defect = lindelof_defect(system, r)
+    zero = [vanishes(d) for d in defect]
+    shown = {
+        system.independent[k]: system.to_user(sp.S.Zero if z else simplify_small(sp.expand(d)))
+        for k, (d, z) in enumerate(zip(defect, zero))
+    }
+    return ModelComparison(system.name, coincide, c28, shown, all(zero))
+
+
+@dataclass
+class Classification:
+    """Which model a set of equations belongs to (see :func:`classify`).
+
+    Attributes
+    ----------
+    verdict : str
+        ``"chetaev"`` (the true, nonholonomic motion), ``"lindelof"``
+        (constraints substituted into T: Lindelöf's equations (22)),
+        ``"vakonomic"`` (a member of the reduced vakonomic family, constants in
+        :attr:`constants`) or ``"none"``.
+    constants : dict
+        ``c_β`` of the vakonomic member (empty otherwise).
+    residuals : dict
+        Largest relative difference from each candidate model.
+    """
+
+    verdict: str
+    constants: dict[str, float] = field(default_factory=dict)
+    residuals: dict[str, float] = field(default_factory=dict)
+    note: str = ""
+
+    def __str__(self) -> str:
+        text = {
+            "chetaev": "the true (Chetaev) motion",
+            "lindelof": "Lindelöf's equations (22): the constraints were substituted into T "
+            "before Lagrange's equations (vakonomic motion with c = 0), not the true motion",
+            "vakonomic": "a vakonomic motion with "
+            + ", ".join(f"{k} = {v:.6g}" for k, v in self.constants.items()),
+            "none": "none of the models (Chetaev, Lindelöf, vakonomic family)",
+        }[self.verdict]
+        residuals = ", ".join(f"{k}: {v:.2g}" for k, v in self.residuals.items())
+        return f"{text}{'; ' + self.note if self.note else ''} (relative differences: {residuals})"
+
+
+def classify(
+    system: System,
+    equations: EquationsLike,
+    *,
+    parameters: Mapping[Any, float] | None = None,
+    samples: int = 16,
+    tolerance: float = 1e-8,
+    seed: int = 0,
+) -> Classification:
+    """Say which model ``equations`` describe: Chetaev, Lindelöf, a vakonomic member, or none.
+
+    The equations (as accepted by :func:`~chaplygin.equivalent`) are evaluated
+    at random admissible states beside the Chetaev accelerations and, for
+    Chaplygin systems, the reduced vakonomic family, which is affine in the
+    constants ``c_β``; the constants that fit best are found by least squares.
+    """
+    user = _Linear(system, equations, "equations")
+    if user.extra_state:
+        raise ChaplyginError(
+            "equations: they carry state multipliers (a multiplier appears differentiated); "
+            "eliminate them first, or compare with chaplygin.equivalent(..., multipliers=...)."
+        )
+    reps = [user, _Linear(system, system.equations("chetaev"), "chetaev")]
+    family = None
+    if not family_obstructions(system):
+        family = _Linear(system, system.equations("vakonomic_family"), "vakonomic family")
+        reps.append(family)
+    states = _States(system, reps, parameters=parameters, multipliers=None, seed=seed)
+    consts = family.constants if family else []
+    rows, rhs, diffs_true, diffs_lindelof, used = [], [], [], [], 0
+    for _ in range(20 * samples):
+        if used == samples:
+            break
+        _, values = states.draw()
+        a_user, a_true = user.accelerations(values), reps[1].accelerations(values)
+        if a_user is None or a_true is None:
+            continue
+        scale = np.maximum(1.0, np.abs(a_user))  # every residual is relative to this
+        diffs_true.append(np.max(np.abs(a_user - a_true) / scale))
+        if family is not None:
+            values.update({c: 0.0 for c in consts})
+            a_l = family.accelerations(values)
+            if a_l is None:
+                continue
+            diffs_lindelof.append(np.max(np.abs(a_user - a_l) / scale))
+            columns = []
+            for c in consts:
+                values[c] = 1.0
+                columns.append(family.accelerations(values) - a_l)
+                values[c] = 0.0
+            rows.append(np.array(columns).T / scale[:, None])
+            rhs.append((a_user - a_l) / scale)
+        used += 1
+    if used == 0:
+        raise ChaplyginError("no random admissible state gave finite values for the equations.")
+    residuals = {"chetaev": float(max(diffs_true))}
+    note = ""
+    if family is not None:
+        residuals["lindelof"] = float(max(diffs_lindelof))
+        G, y = np.vstack(rows), np.concatenate(rhs)
+        c, *_ = np.linalg.lstsq(G, y, rcond=None)
+        residuals["vakonomic_family"] = float(np.max(np.abs(G @ c - y)))
+    else:
+        note = "the vakonomic family does not reduce for this system, so only Chetaev was tried"
+    if residuals["chetaev"] <= tolerance:
+        if residuals.get("lindelof", 1.0) <= tolerance:
+            note = "Lindelöf's equations happen to coincide with the true motion here"
+        return Classification("chetaev", residuals=residuals, note=note)
+    if residuals.get("lindelof", 1.0) <= tolerance:
+        return Classification("lindelof", residuals=residuals, note=note)
+    if residuals.get("vakonomic_family", 1.0) <= tolerance:
+        return Classification(
+            "vakonomic", {s.name: float(v) for s, v in zip(consts, c)}, residuals, note
+        )
+    return Classification("none", residuals=residuals, note=note)

@@ -1,0 +1,1060 @@
+"""The ``chaplygin`` command line (typer + rich).
+
+Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo`` and
+``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.io.files`) or
+``example:NAME`` for a built-in example.
+
+Exit status: 0 on success; 1 on a bad file, a failed run or a refused overwrite (a message on
+stderr, never a traceback); 2 on wrong usage (typer's own: unknown option, missing or invalid
+argument).  Long work shows rich progress on a terminal and nothing when the output is piped.
+An existing output is never replaced without ``--force`` (``demo`` replaces its own report);
+every output is written through a temporary file and renamed, so an interrupted run leaves the
+previous file intact.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Optional
+
+import typer
+from rich.console import Console
+
+from chaplygin.errors import ChaplyginError
+from chaplygin.models import registry
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+    from chaplygin.models.equations import Equations
+    from chaplygin.numeric.comparison import Comparison
+
+__all__ = ["app", "main", "file_syntax", "derive_json", "check_json"]
+
+app = typer.Typer(
+    name="chaplygin",
+    help="Equations of motion of nonholonomic systems: derive, check, simulate, compare, report.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+examples_app = typer.Typer(help="The built-in examples: list them, or print one as a system file.",
+                           no_args_is_help=True)
+app.add_typer(examples_app, name="examples")
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        from chaplygin._version import __version__
+
+        _emit(f"chaplygin {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
+    """Equations of motion of nonholonomic systems: derive, check, simulate, compare, report."""
+
+DEMO_GENERATOR = "chaplygin demo"
+DEMO_REPORT = Path("demo") / "report.html"
+FILE_HELP = "A TOML system file, or example:NAME for a built-in example (see `chaplygin examples list`)."
+
+
+def _model_name(text: str) -> str:
+    """``--model``: any model of the registry (:mod:`chaplygin.models.registry`)."""
+    if text not in registry.MODELS:
+        raise typer.BadParameter(f"{text!r} is not a model; choose from {', '.join(registry.names())}.")
+    return text
+
+
+class Form(str, Enum):
+    classic = "classic"
+    new = "new"
+
+
+class DeriveFormat(str, Enum):
+    text = "text"
+    latex = "latex"
+    json = "json"
+
+
+class CheckFormat(str, Enum):
+    text = "text"
+    json = "json"
+
+
+class Backend(str, Enum):
+    auto = "auto"
+    numpy = "numpy"
+    numba = "numba"
+    c = "c"
+    jax = "jax"
+
+
+BACKEND_HELP = ("Generated-code backend; auto (default): c (generated C, built once and cached) where a C "
+                "compiler is found, else numpy. The summary line says which ran.")
+
+
+class FigureFormat(str, Enum):
+    svg = "svg"
+    png = "png"
+    pdf = "pdf"
+
+
+class OutputExists(ChaplyginError):
+    """An output exists and ``--force`` was not given."""
+
+
+# ====================================================================== consoles, progress, errors
+def _stdout() -> Console:
+    return Console(file=sys.stdout, soft_wrap=True, highlight=False, emoji=False)
+
+
+def _stderr() -> Console:
+    return Console(file=sys.stderr, soft_wrap=True, highlight=False, emoji=False)
+
+
+def _emit(text: str) -> None:
+    """A command's result on stdout, exactly as given (no markup, emoji codes or wrapping)."""
+    sys.stdout.write(text if text.endswith("\n") else text + "\n")
+    sys.stdout.flush()
+
+
+class _Steps:
+    """A rich progress bar over named steps on a terminal; nothing at all when piped."""
+
+    def __init__(self, total: int, description: str, console: Console | None = None) -> None:
+        self.console = console or _stderr()
+        self.total = total
+        self.description = description
+        self.done = -1  # steps finished; the first step() starts step 0
+        self._progress: Any = None
+        self._task: Any = None
+
+    def __enter__(self) -> _Steps:
+        if self.console.is_terminal:
+            self._progress = _bar(self.console)
+            self._progress.start()
+            self._task = self._progress.add_task(self.description, total=self.total)
+        return self
+
+    def step(self, description: str) -> None:
+        """Start the next step; the previous one counts as done."""
+        self.done += 1
+        if self._progress is not None:
+            self._progress.update(self._task, description=description,
+                                  completed=min(self.done, self.total))
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, completed=self.total)
+            self._progress.stop()
+
+
+@contextmanager
+def _failures() -> Iterator[None]:
+    """Turn errors into a message on stderr and exit status 1 (no traceback); warnings are
+    printed on stderr as ``warning: …`` lines, each once."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            with _errors():
+                yield
+        finally:
+            seen: set[str] = set()
+            for w in caught:
+                text = str(w.message)
+                if text not in seen:
+                    seen.add(text)
+                    _stderr().print(f"warning: {text}", markup=False)
+
+
+@contextmanager
+def _errors() -> Iterator[None]:
+    try:
+        yield
+    except (typer.Exit, typer.Abort, typer.BadParameter):
+        raise
+    except KeyboardInterrupt:
+        _stderr().print("interrupted: no output was left half-written.", markup=False)
+        raise typer.Exit(130) from None
+    except ChaplyginError as exc:
+        _stderr().print(f"error: {exc}", markup=False)
+        raise typer.Exit(1) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        _stderr().print(f"error: {where}{exc.strerror or exc}", markup=False)
+        raise typer.Exit(1) from None
+    except Exception as exc:  # noqa: BLE001 - a bug or an input nobody foresaw: still no traceback
+        if os.environ.get("CHAPLYGIN_DEBUG"):
+            raise
+        _stderr().print(
+            f"error: unexpected {type(exc).__name__}: {exc} (set CHAPLYGIN_DEBUG=1 for the traceback)",
+            markup=False,
+        )
+        raise typer.Exit(1) from None
+
+
+def _refuse_existing(paths: Sequence[Path], force: bool) -> None:
+    existing = [p for p in paths if p.exists()]
+    for p in existing:
+        if p.is_dir():
+            raise OutputExists(f"{p} is a directory; give a file name.")
+    if existing and not force:
+        names = ", ".join(str(p) for p in existing)
+        raise OutputExists(f"{names} already exist{'s' if len(existing) == 1 else ''}; "
+                           "pass --force to overwrite.")
+
+
+# ====================================================================== loading
+def _example(name: str) -> Any:
+    """The catalogue entry ``name`` as a :class:`chaplygin.io.files.SystemFile`."""
+    from chaplygin import examples
+    from chaplygin.io.files import SystemFile
+
+    entry = examples.get(name)
+    system = entry.constructor()
+    return SystemFile(system, dict(entry.parameters), dict(entry.initial), system.name, f"example:{name}")
+
+
+def _load(spec: str) -> Any:
+    """A system file, or ``example:NAME``."""
+    if spec.startswith("example:"):
+        return _example(spec[len("example:"):])
+    from chaplygin.io import files
+
+    return files.load(spec)
+
+
+def _overrides(values: Optional[list[str]], option: str) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in values or []:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep or not key.strip():
+                raise ValueError
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise typer.BadParameter(f"{item!r}: expected NAME=NUMBER, e.g. m=1.5", param_hint=option) from None
+    return out
+
+
+def _numbers(loaded: Any, params: Optional[list[str]], initial: Optional[list[str]]) -> tuple[dict[str, float], dict[str, float]]:
+    from chaplygin.apps._quick import warn_defaulted
+
+    given = _overrides(initial, "--initial")
+    warn_defaulted(getattr(loaded, "defaulted", ()), given)
+    return ({**dict(loaded.parameters or {}), **_overrides(params, "--param")},
+            {**dict(loaded.initial or {}), **given})
+
+
+def _created(path: Path) -> str | None:
+    """Words for the missing folders above ``path`` (which writing it will create), or None."""
+    folder = path.absolute().parent
+    missing = [p for p in (folder, *folder.parents) if not p.exists()]
+    if not missing:
+        return None
+    return f"the folder {folder}" + (f" (and {len(missing) - 1} above it)" if len(missing) > 1 else "")
+
+
+def _tolerance(value: float, option: str) -> float:
+    import math
+
+    if not (math.isfinite(value) and value > 0):
+        raise typer.BadParameter(f"{value:g}: give a positive finite tolerance, e.g. 1e-10.", param_hint=option)
+    return value
+
+
+# ====================================================================== printing in the file syntax
+def _file_printer() -> Any:
+    from sympy.physics.vector.printing import VectorStrPrinter
+
+    class FilePrinter(VectorStrPrinter):
+        """``x'``, ``x''`` for derivatives, ``**`` for powers, the file syntax's function names."""
+
+        def _print_Abs(self, e: Any) -> str:
+            return f"abs({self._print(e.args[0])})"
+
+        def _print_Exp1(self, e: Any) -> str:
+            return "exp(1)"
+
+    return FilePrinter()
+
+
+def file_syntax(expr: Any) -> str:
+    """An expression as a string in the system-file syntax (``x'`` velocities, ``**`` powers)."""
+    return _file_printer().doprint(expr)
+
+
+def _names(items: Sequence[Any]) -> list[str]:
+    return [file_syntax(q) for q in items]
+
+
+def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[str, Any]:
+    """The JSON document of ``chaplygin derive --format json`` (schema ``chaplygin.derive/1``)."""
+    return _Derivation.of(eqs, accelerations).json_doc()
+
+
+@dataclass
+class _Derivation:
+    """What ``derive`` derived, apart from how it is printed: the system's names as strings
+    (``head``: the keys of the JSON document before its equations) and the expressions."""
+
+    head: dict[str, Any]
+    equations: list[Any]  # sympy.Eq(expression, 0) each
+    accelerations: dict[Any, Any] | None
+
+    @classmethod
+    def of(cls, eqs: Equations, accelerations: dict[Any, Any] | None) -> _Derivation:
+        s = eqs.system
+        head = {
+            "system": s.name,
+            "model": eqs.model,
+            "form": eqs.form,
+            "title": eqs.title,
+            "coordinates": _names(s.coordinates),
+            "independent": _names(s.independent),
+            "dependent": _names(s.dependent),
+            "parameters": [p.name for p in s.parameters],
+            "constraints": {file_syntax(k): file_syntax(v) for k, v in s.constraints.items()},
+            "unknowns": _names(eqs.unknowns),
+            "multipliers": _names(eqs.multipliers),
+            "constants": [c.name for c in eqs.constants],
+        }
+        return cls(head, list(eqs.equations), None if accelerations is None else dict(accelerations))
+
+    def to_data(self) -> dict[str, Any] | None:
+        """A JSON value for the derivation cache (None if the expressions cannot be stored)."""
+        from chaplygin.numeric.cache import expressions_to_data
+
+        pairs = list((self.accelerations or {}).items())
+        exprs = expressions_to_data([*self.equations, *(x for pair in pairs for x in pair)])
+        if exprs is None:
+            return None
+        return {"head": self.head, "expressions": exprs, "equations": len(self.equations),
+                "accelerations": None if self.accelerations is None else len(pairs)}
+
+    @classmethod
+    def from_data(cls, data: Any) -> _Derivation | None:
+        """The derivation stored by :meth:`to_data`; None for anything else."""
+        from chaplygin.numeric.cache import expressions_from_data
+
+        try:
+            exprs = expressions_from_data(data["expressions"])
+            n, k = data["equations"], data["accelerations"]
+            if not isinstance(data["head"], dict) or len(exprs) != n + 2 * (k or 0):
+                return None
+            pairs = exprs[n:]
+            acc = None if k is None else dict(zip(pairs[0::2], pairs[1::2]))
+            return cls(data["head"], exprs[:n], acc)
+        except (KeyError, TypeError, ValueError):
+            return None
+
+    def json_doc(self) -> dict[str, Any]:
+        acc = self.accelerations
+        return {
+            "schema": "chaplygin.derive/1",
+            **self.head,
+            "equations": [file_syntax(e.lhs) for e in self.equations],
+            "accelerations": None if acc is None else {file_syntax(k): file_syntax(v) for k, v in acc.items()},
+        }
+
+    def render(self, fmt: DeriveFormat) -> str:
+        """What ``derive --format fmt`` prints."""
+        head, acc = self.head, self.accelerations
+        if fmt is DeriveFormat.json:
+            return json.dumps(self.json_doc(), indent=2, ensure_ascii=False)
+        if fmt is DeriveFormat.latex:
+            from sympy.physics.vector.printing import vlatex
+
+            rows = r" \\ ".join(vlatex(e) for e in self.equations)  # as Equations.latex()
+            lines = [f"% {head['title']} - {head['system']}",
+                     r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"]
+            if acc is not None:
+                rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
+                lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+            return "\n".join(lines)
+        lines = [f"{head['title']} - {head['system']}"]
+        lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
+        if acc is not None:
+            lines.append("Solved:")
+            lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+        return "\n".join(lines)
+
+
+# ====================================================================== derive
+@app.command()
+def derive(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    model: Optional[str] = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."),
+    fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
+    accelerations: bool = typer.Option(True, "--accelerations/--no-accelerations",
+                                       help="Also solve for the accelerations (and multipliers)."),
+    no_cache: bool = typer.Option(False, "--no-cache",
+                                  help="Derive anew: neither read nor write the derivation cache."),
+    simplify: bool = typer.Option(False, "--simplify",
+                                  help="Also pass each solved acceleration through SymPy's simplify "
+                                       "(slow; the default result is already an exact, cancelled normal form)."),
+) -> None:
+    """Derive the equations of motion of one model and print them.
+
+    The derivation is kept in the derivation cache (see `chaplygin.numeric.cache`), keyed by the
+    file's contents, the model, the form, whether the accelerations are solved and the library
+    version, not by the output format: asking again, in any format, prints it without deriving.
+    """
+    from chaplygin.numeric import cache
+
+    with _failures():
+        source = _definition(file)
+        if no_cache or source is None:
+            _emit(_derive(file, model, form, accelerations, simplify).render(fmt))
+            return
+        asked = model if model is not None else "true-motion"  # the entry names the model
+        request = ("derive", source, asked, form.value) + (("simplified",) if simplify else ())
+        out_key = cache.key(*request, str(accelerations), "printed as", fmt.value)
+        printed = cache.load(out_key)  # the same request printed before: no SymPy at all
+        if isinstance(printed, str):
+            _emit(printed)
+            return
+        keys = [cache.key(*request, "accelerations" if solved else "equations")
+                for solved in ((True,) if accelerations else (False, True))]
+        found = next((d for d in map(_Derivation.from_data, map(cache.load, keys)) if d is not None), None)
+        if found is None:
+            found = _derive(file, model, form, accelerations, simplify)
+            data = found.to_data()
+            if data is not None:
+                cache.store(keys[0], data)
+        if not accelerations:
+            found.accelerations = None  # an entry with them serves a request without
+        text = found.render(fmt)
+        cache.store(out_key, text)
+        _emit(text)
+
+
+def _definition(spec: str) -> bytes | None:
+    """What a derivation from ``spec`` depends on: a file's bytes, or an example's name."""
+    if spec.startswith("example:"):  # examples change only with the library version
+        name = spec[len("example:"):]  # normalised as examples._normalise does, without SymPy
+        return f"example:{name.strip().lower().replace('_', '-').replace(' ', '-')}".encode()
+    try:
+        return Path(spec).read_bytes()
+    except OSError:
+        return None  # _load reports the problem
+
+
+def _derive(file: str, model: Optional[str], form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
+    """Derive (the only place ``derive`` does symbolic work beyond printing); no ``model``: the true motion."""
+    loaded = _load(file)
+    system = loaded.system
+    model = model or registry.true_motion(system)
+    with _Steps(2 if accelerations else 1, f"deriving {model}/{form.value}") as steps:
+        steps.step(f"deriving the {model} equations")
+        eqs = system.equations(model, form.value)
+        eqs.equations  # noqa: B018 - computed here, under the progress display
+        acc = None
+        if accelerations:
+            steps.step("solving for the accelerations" + (" and simplifying" if simplify else ""))
+            acc = eqs.solve(simplify=simplify)
+    return _Derivation.of(eqs, acc)
+
+
+# ====================================================================== check
+def check_json(system: System) -> dict[str, Any]:
+    """The JSON document of ``chaplygin check --format json`` (schema ``chaplygin.check/1``)."""
+    from chaplygin.analysis.transitions import compare_models
+    from chaplygin.apps.report import applicable_models
+
+    rep = system.integrability()
+
+    def condition(c: Any) -> dict[str, Any]:
+        return {"holds": c.holds, "note": c.note,
+                "failures": [{"component": label, "value": file_syntax(e)} for label, e in c.failures]}
+
+    models, reasons = applicable_models(system)
+    try:
+        cmp = compare_models(system)
+        comparison: dict[str, Any] | None = {
+            "verdict": cmp.verdict, "coincide": cmp.coincide, "condition_28": cmp.condition_28,
+            "defect_vanishes": cmp.defect_vanishes,
+            "defect": {file_syntax(q): file_syntax(d) for q, d in cmp.defect.items()},
+        }
+        why_not = None
+    except ChaplyginError as exc:
+        comparison, why_not = None, str(exc)
+    return {
+        "schema": "chaplygin.check/1",
+        "system": system.name,
+        "coordinates": _names(system.coordinates),
+        "independent": _names(system.independent),
+        "dependent": _names(system.dependent),
+        "constraint_form": system.constraint_form,
+        "affine": system.is_affine,
+        "scleronomic": system.is_scleronomic,
+        "integrability": {
+            "integrable": rep.integrable,
+            "condition_28": condition(rep.condition_28),
+            "condition_33": condition(rep.condition_33),
+            "frobenius": condition(rep.frobenius),
+            "relations": [file_syntax(r) for r in rep.relations],
+        },
+        "chaplygin_system": {"is_chaplygin": system.is_chaplygin,
+                             "obstructions": list(system.chaplygin_obstructions)},
+        "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
+        "comparison": comparison,
+        "comparison_unavailable": why_not,
+    }
+
+
+@app.command()
+def check(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    fmt: CheckFormat = typer.Option(CheckFormat.text, "--format", "-f", help="Output format."),
+) -> None:
+    """Integrability of the constraints, Chaplygin-system test, and how the two models relate."""
+    with _failures():
+        loaded = _load(file)
+        with _Steps(1, "checking"):
+            doc = check_json(loaded.system)
+        if fmt is CheckFormat.json:
+            _emit(json.dumps(doc, indent=2, ensure_ascii=False))
+            return
+        system = loaded.system
+        integ = doc["integrability"]
+        lines = [f"{system.name}: {system.n} coordinates ({', '.join(doc['coordinates'])}), "
+                 f"{system.g} constraint(s); dependent: {', '.join(doc['dependent']) or 'none'}",
+                 "Constraints: " + ("integrable (holonomic)" if integ["integrable"] else
+                                    "not integrable (nonholonomic)") + ", by the Frobenius test."]
+        for key, name in (("condition_28", "(28)"), ("condition_33", "(33)"), ("frobenius", "Frobenius")):
+            c = integ[key]
+            line = f"  {name}: {'holds' if c['holds'] else 'fails'}"
+            if c["failures"]:
+                first = c["failures"][0]
+                more = len(c["failures"]) - 1
+                line += f" - {first['component']} = {first['value']}" + (f" (and {more} more)" if more else "")
+            lines.append(f"{line}. {c['note']}")
+        if integ["integrable"]:
+            lines.append("  Finite relations (each = constant): " + (", ".join(integ["relations"]) or "none found"))
+        chap = doc["chaplygin_system"]
+        lines.append("Chaplygin system: yes (T, U, forces and B free of the dependent coordinates)"
+                     if chap["is_chaplygin"] else
+                     "Chaplygin system: no - " + "; ".join(chap["obstructions"]))
+        lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
+        if doc["comparison"] is not None:
+            from chaplygin.analysis.transitions import compare_models
+
+            lines.append(str(compare_models(system)))
+        else:
+            lines.append(f"Chetaev vs Lindelöf: not compared - {doc['comparison_unavailable']}")
+        _emit("\n".join(lines))
+
+
+# ====================================================================== simulate
+def _model_spec(text: str) -> tuple[str, str]:
+    name, _, form = text.strip().partition("/")
+    form = form or "classic"
+    if name not in registry.MODELS or form not in registry.MODELS[name].forms:
+        choices = ", ".join(f"{m.name}[/{'|'.join(m.forms)}]" if len(m.forms) > 1 else m.name
+                            for m in registry.MODELS.values())
+        raise typer.BadParameter(f"{text!r} is not a model; choose from {choices}.", param_hint="--models")
+    return name, form
+
+
+def _constants(text: Optional[str]) -> Any:
+    if text is None:
+        return None
+    if text.strip() == "match":
+        return "match"
+    try:
+        return [float(c) for c in text.split(",")]
+    except ValueError:
+        raise typer.BadParameter(f"{text!r}: expected numbers separated by commas, or 'match'.",
+                                 param_hint="--constants") from None
+
+
+def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
+    return (f"{label} [{'auto: ' if auto else ''}{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
+            f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; energy drift {tr.energy_drift():.3g}, "
+            f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}")
+
+
+@app.command()
+def simulate(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    model: Optional[str] = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the run starts at t = 0)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz (missing folders are created)."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
+    samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
+    backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
+    constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
+    method: str = typer.Option("DOP853", "--method", help="Integrator: DOP853 (adaptive, the default), RK45, RK23, Radau, BDF, LSODA; or, for the true motion (chetaev, chaplygin, voronets), a symmetric fixed-step method that keeps the energy error bounded: midpoint, gauss4, gauss6 (needs --step)."),
+    step: Optional[float] = typer.Option(None, "--step", help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used)."),
+    rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the adaptive integrators (positive)."),
+    atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."),
+) -> None:
+    """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
+    from chaplygin.numeric.simulate import METHODS, SYMMETRIC_METHODS
+
+    suffix = out.suffix.lower()
+    if suffix not in (".csv", ".npz"):
+        raise typer.BadParameter(f"{out}: the output must end in .csv or .npz.", param_hint="--out")
+    if method not in METHODS:
+        raise typer.BadParameter(f"{method!r} is not a method; choose from {', '.join(METHODS)}.",
+                                 param_hint="--method")
+    if method in SYMMETRIC_METHODS and step is None:
+        raise typer.BadParameter(f"method {method} takes a fixed step: give --step, e.g. --step 0.01.",
+                                 param_hint="--step")
+    c = _constants(constants)
+    rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
+    _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
+    with _failures():
+        _refuse_existing([out], force)
+        from chaplygin.apps import _quick
+
+        definition = _definition(file)
+        # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
+        asked = model if model is not None else _quick.TRUE_MOTION
+        tr = _quick.run(definition, asked, form.value, t_end, samples, backend.value, method, c, step,
+                        _overrides(param, "--param"), _overrides(initial, "--initial"), rtol, atol)
+        created = None
+        if tr is None:
+            loaded = _load(file)
+            params, start = _numbers(loaded, param, initial)
+            system = loaded.system
+            model = model or registry.true_motion(system)
+        else:
+            model = tr.model
+        label = model if form is Form.classic else f"{model}/{form.value}"
+        with _Steps(3, f"simulating {label}") as steps:
+            if tr is None:
+                steps.step(f"deriving {label}")
+                if not registry.get(model).constants:  # (the family is derived with its constants)
+                    system.equations(model, form.value)
+                steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
+                options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value,
+                                           "method": method, "rtol": rtol, "atol": atol}
+                if c is not None:
+                    options["constants"] = c
+                if step is not None:
+                    options["step"] = step
+                from chaplygin.numeric.simulate import simulate as run
+
+                tr = run(system, model, t_end, start, params, **options)
+                _quick.remember(definition, asked, form.value, loaded, tr)
+            steps.step(f"writing {out}")
+            created = _created(out)
+            (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
+        _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
+        if created is not None:
+            _emit(f"created {created}: it did not exist")
+        if not tr.success:
+            raise ChaplyginError(f"the run failed: {tr.message}; {out} holds the trajectory up to then.")
+
+
+# ====================================================================== compare
+def _comparison_outputs(directory: Path, labels: Sequence[str], figure_format: str, with_path: bool) -> list[Path]:
+    from chaplygin.numeric.comparison import FIGURES
+
+    files = [directory / "summary.txt", directory / "summary.json"]
+    files += [directory / f"{_safe(label)}.csv" for label in labels]
+    files += [directory / f"{k}.{figure_format}" for k in FIGURES if with_path or k != "paths"]
+    return files
+
+
+def _safe(label: str) -> str:
+    return label.replace("/", "-")
+
+
+def _comparison_json(comparison: Comparison) -> dict[str, Any]:
+    import numpy as np
+
+    rows = {}
+    for label, tr in comparison.trajectories.items():
+        d = comparison.distance(label)
+        k = int(np.argmax(d)) if len(d) else 0
+        rows[label] = {
+            "status": tr.status, "message": tr.message, "backend": tr.backend,
+            "samples": int(len(tr.t)), "t_end": float(tr.t[-1]) if len(tr.t) else None,
+            "max_distance": float(d[k]) if len(d) else None,
+            "at_t": float(tr.t[k]) if len(d) else None,
+            "final_distance": float(d[-1]) if len(d) else None,
+            "energy_drift": tr.energy_drift(),
+            "max_constraint_residual": float(np.max(tr.constraint_residual, initial=0.0)),
+        }
+    return {"schema": "chaplygin.compare/1", "system": comparison.system_name,
+            "reference": comparison.reference, "path": list(comparison.path or []), "models": rows,
+            "notes": list(comparison.notes)}
+
+
+def _print_comparison(comparison: Comparison) -> None:
+    from rich.table import Table
+
+    doc = _comparison_json(comparison)
+    what = f"path ({', '.join(doc['path'])})" if doc["path"] else "coordinates"
+    table = Table(title=f"{comparison.system_name}: compared with {comparison.reference} from the same initial state")
+    for col in ("model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"):
+        table.add_column(col, justify="left" if col in ("model", "status") else "right")
+    for label, row in doc["models"].items():
+        table.add_row(label, f"{row['max_distance']:.6g}", f"{row['at_t']:.4g}",
+                      f"{row['energy_drift']:.3g}", f"{row['max_constraint_residual']:.3g}", row["status"])
+    out = _stdout()
+    if out.is_terminal:
+        out.print(table)
+        for note in comparison.notes:
+            out.print(f"note: {note}", markup=False)
+    else:
+        _emit(comparison.summary())
+
+
+@app.command()
+def compare(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output directory (created if missing)."),
+    models: Optional[str] = typer.Option(None, "--models", help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's."),
+    samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
+    backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
+    figure_format: FigureFormat = typer.Option(FigureFormat.svg, "--figure-format", help="Format of the figures."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
+    rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
+    atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
+) -> None:
+    """Simulate several models from one initial state: summary table, trajectories and figures.
+
+    A reduced model whose solved constraints have a pole on the path is replaced by the
+    same motion with multipliers (chetaev; vakonomic for the family), with a warning and a note.
+    """
+    specs = [_model_spec(m) for m in models.split(",")] if models else None
+    rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
+    _overrides(param, "--param"), _overrides(initial, "--initial")
+    with _failures():
+        if out.exists() and not out.is_dir():
+            raise OutputExists(f"{out} exists and is not a directory.")
+        loaded = _load(file)
+        params, start = _numbers(loaded, param, initial)
+        system = loaded.system
+        from chaplygin.apps.report import default_models
+        from chaplygin.numeric.comparison import Comparison, _default_path
+        from chaplygin.numeric.comparison import compare as run_compare
+
+        chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else default_models(system)
+        _refuse_existing(_comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None), force)
+        with _Steps(len(chosen) + 2, "comparing") as steps:
+            runs, notes = {}, []
+            for label in chosen:
+                steps.step(f"simulating {label}")
+                part = run_compare(system, [label], t_end, start, params, samples=samples, backend=backend.value,
+                                   rtol=rtol, atol=atol)
+                runs.update(part.trajectories)
+                notes += part.notes
+            comparison = Comparison(system.name, runs, chosen[0], part.path, notes)
+            steps.step("writing trajectories and summary")
+            created = _created(out / "summary.txt")
+            _write_comparison(comparison, out)
+            steps.step("drawing figures")
+            written = comparison.save_figures(out, fmt=figure_format.value)
+        _print_comparison(comparison)
+        _emit(f"wrote {out}/: summary.txt, summary.json, "
+                        + ", ".join(f"{_safe(k)}.csv" for k in runs) + ", "
+                        + ", ".join(p.name for p in written))
+        if created is not None:
+            _emit(f"created {created}: it did not exist")
+        failed = [k for k, tr in runs.items() if not tr.success]
+        if failed:
+            raise ChaplyginError("failed: " + "; ".join(f"{k}: {runs[k].message}" for k in failed))
+
+
+def _write_comparison(comparison: Comparison, directory: Path) -> None:
+    from chaplygin.numeric.simulate import _atomic_write
+
+    directory.mkdir(parents=True, exist_ok=True)
+    for label, tr in comparison.trajectories.items():
+        tr.to_csv(directory / f"{_safe(label)}.csv")
+    summary = comparison.summary() + "\n"
+    _atomic_write(directory / "summary.txt", lambda fh: fh.write(summary.encode("utf-8")), text=False)
+    doc = json.dumps(_comparison_json(comparison), indent=2, ensure_ascii=False) + "\n"
+    _atomic_write(directory / "summary.json", lambda fh: fh.write(doc.encode("utf-8")), text=False)
+
+
+# ====================================================================== sweep
+class SweepBackend(str, Enum):
+    numba = "numba"
+    numpy = "numpy"
+
+
+def _bar(console: Any, *extra: Any) -> Any:
+    """The command line's rich progress bar (description, bar, n/N, elapsed; then ``extra`` columns)."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    return Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), *extra, console=console, transient=True)
+
+
+@contextmanager
+def _run_counter(description: str) -> Iterator[Any]:
+    """A rich bar of finished runs on a terminal (a ``progress(done, total)`` callback); nothing when piped."""
+    console = _stderr()
+    if not console.is_terminal:
+        yield lambda done, total: None
+        return
+    from rich.progress import TimeRemainingColumn
+
+    with _bar(console, TimeRemainingColumn()) as bar:
+        task = bar.add_task(description, total=None)
+        yield lambda done, total: bar.update(task, completed=done, total=total)
+
+
+@app.command()
+def sweep(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    grid: list[str] = typer.Option(..., "--grid", "-g", help="NAME=START:STOP:COUNT (or NAME=V1,V2,…): a parameter, coordinate or independent velocity to sweep; several make the Cartesian product."),
+    t_end: float = typer.Option(..., "--t-end", "-t", help="End time of every run (from t = 0)."),
+    out: Path = typer.Option(..., "--out", "-o", help="The results: a Parquet dataset directory, e.g. results.parquet."),
+    model: str = typer.Option("chetaev", "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
+    samples: int = typer.Option(201, "--samples", "-n", min=2, help="Samples per run, where the energy drift and the constraint residual are measured."),
+    backend: SweepBackend = typer.Option(SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."),
+    constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md)."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of a LocalCluster; giving it asks for one (default: one per core)."),
+    chunk_size: Optional[int] = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
+    resume: bool = typer.Option(False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
+) -> None:
+    """Simulate a model over a grid of parameters and initial values; one Parquet row per run.
+
+    Small sweeps run in this process; long ones, or when asked (--scheduler, --workers), on Dask.
+    The summary says where the runs ran.
+    """
+    from chaplygin.apps.sweep import parse_grid
+
+    axes: dict[str, Any] = {}
+    for item in grid:
+        try:
+            name, values = parse_grid(item)
+        except ChaplyginError as exc:
+            raise typer.BadParameter(str(exc).removeprefix("--grid "), param_hint="--grid") from None
+        if name in axes:
+            raise typer.BadParameter(f"{name!r} is given twice; each name is one axis.", param_hint="--grid")
+        axes[name] = values
+    if resume and force:
+        raise typer.BadParameter("--resume keeps the runs there and --force deletes them: give one.",
+                                 param_hint="--resume/--force")
+    c = _constants(constants)
+    fixed_params, fixed_initial = _overrides(param, "--param"), _overrides(initial, "--initial")
+    with _failures():
+        from chaplygin.apps.sweep import read_results
+        from chaplygin.apps.sweep import sweep as run_sweep
+
+        label = model if form is Form.classic else f"{model}/{form.value}"
+        try:
+            with _run_counter(f"sweeping {label} [{backend.value}]") as progress:
+                result = run_sweep(
+                    file, axes, t_end=t_end, out=out, model=model, form=form.value,
+                    parameters=fixed_params, initial=fixed_initial, scheduler=scheduler, workers=workers,
+                    resume=resume, force=force, backend=backend.value, samples=samples, constants=c,
+                    chunk_size=chunk_size, progress=progress,
+                )
+        except KeyboardInterrupt:
+            _stderr().print(f"interrupted: the finished runs are saved in {out}; run the same command "
+                            "with --resume to finish the sweep.", markup=False)
+            raise typer.Exit(130) from None
+        _emit(f"{label}: {result.summary()}")
+        if result.failed:
+            table = read_results(out, ["status", "message"]).to_pylist()
+            first = [r for r in table if r["status"] != "success"][:3]
+            _stderr().print("failed runs (status 'failed' in the results), e.g.:\n" + "\n".join(
+                f"  run {r['run_id']}: {r['message']}" for r in first), markup=False)
+
+
+# ====================================================================== report
+def _report_progress(steps: _Steps) -> Any:
+    return lambda stage: steps.step(f"report: {stage}")
+
+
+@app.command()
+def report(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
+    models: Optional[str] = typer.Option(None, "--models", help="Models to simulate and compare (comma-separated), the reference first."),
+    t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
+    samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
+    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
+) -> None:
+    """Write one self-contained HTML report: system, integrability, equations, simulations."""
+    from chaplygin.apps.report import STAGES, write_report
+
+    specs = [_model_spec(m) for m in models.split(",")] if models else None
+    _overrides(param, "--param"), _overrides(initial, "--initial")
+    with _failures():
+        _refuse_existing([out], force)
+        loaded = _load(file)
+        params, start = _numbers(loaded, param, initial)
+        chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
+        created = _created(out)
+        with _Steps(len(STAGES), "report") as steps:
+            write_report(loaded, out, models=chosen, t_end=t_end, samples=samples,
+                         backend=backend.value, parameters=params, initial=start,
+                         progress=_report_progress(steps))
+        _emit(f"wrote {out}")
+        if created is not None:
+            _emit(f"created {created}: it did not exist")
+
+
+# ====================================================================== demo
+def _is_demo_report(path: Path) -> bool:
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return False
+    return f'<meta name="generator" content="{DEMO_GENERATOR}">' in head
+
+
+@app.command()
+def demo(
+    out: Path = typer.Option(DEMO_REPORT, "--out", "-o", help="Where the report goes (a previous demo report there is replaced)."),
+    t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
+    force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
+) -> None:
+    """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
+    from chaplygin import compare_models, equivalent
+    from chaplygin.apps.report import STAGES, is_paper_sphere, paper_table, write_report
+    from chaplygin.numeric.comparison import compare as run_compare
+
+    with _failures():
+        if out.exists() and not force and not _is_demo_report(out):
+            raise OutputExists(f"{out} exists and is not a chaplygin demo report; pass --force to overwrite.")
+        loaded = _load("example:rolling-sphere")
+        system = loaded.system
+        params, start = loaded.parameters, loaded.initial
+        with _Steps(8 + len(STAGES), "demo") as steps:
+            steps.step("deriving Chetaev, Chaplygin (15), (40), Lindelöf (22), (39)")
+            chetaev = system.equations("chetaev")
+            chap, chap_new = system.equations("chaplygin"), system.equations("chaplygin", "new")
+            lind, lind_new = system.equations("lindelof"), system.equations("lindelof", "new")
+            steps.step("checking the true motion")
+            true_ok = [equivalent(system, chap, chetaev), equivalent(system, chap_new, chetaev)]
+            steps.step("checking Lindelöf's equations")
+            lind_ok = equivalent(system, lind, lind_new, symbolic=False)
+            lind_vs_true = equivalent(system, lind, chap, symbolic=False)
+            steps.step("integrability")
+            integrable = system.integrability().integrable
+            steps.step("comparing the models")
+            relation = compare_models(system)
+            steps.step("simulating both models from the same initial state")
+            comparison = run_compare(system, ["chaplygin", "lindelof"], t_end, start, params, samples=401)
+            steps.step("the paper's printed equations (49)-(62)")
+            table = paper_table() if is_paper_sphere(system) else None
+            steps.step("writing the report")
+            write_report(loaded, out, comparison=comparison, paper=table if table is not None else False,
+                         parameters=params, initial=start, generator=DEMO_GENERATOR,
+                         progress=_report_progress(steps))
+
+        def speed_change(tr: Any) -> float:
+            import numpy as np
+
+            return float(max(np.ptp(tr["x'"]), np.ptp(tr["y'"])))
+
+        dist = comparison.distance("lindelof")
+        true_tr, lind_tr = comparison.trajectories["chaplygin"], comparison.trajectories["lindelof"]
+        k = int(dist.argmax())
+        state = ", ".join(f"{k_}={v:g}" for k_, v in start.items())
+        lines = [
+            f"{system.name} - the seed paper's §4 example (Liang & Chen 2000)",
+            f"  constraints (41)-(42): {'integrable' if integrable else 'not integrable (nonholonomic)'} by the Frobenius test; condition (28) {'holds' if relation.condition_28 else 'fails'}",
+            f"  true motion:  Chaplygin (15) = new form (40) = Chetaev multipliers (6): "
+            f"{'yes' if all(true_ok) else 'NO'} ({true_ok[0].method})",
+            f"  vakonomic:    Lindelöf (22) = new form (39): {'yes' if lind_ok else 'NO'}",
+            f"  the models {'coincide' if relation.verdict == 'coincide' else 'differ'}: "
+            f"Lindelöf (22) vs Chaplygin (15): {'equivalent' if lind_vs_true else 'not equivalent'} "
+            f"(largest relative difference {lind_vs_true.max_residual:.2g}); verdict {relation.verdict!r}",
+            f"  simulated t in [0, {t_end:g}] from {state} (m={params.get('m', 1):g}, a={params.get('a', 1):g}):",
+            f"    Lindelöf's centre drifts from the true path: {dist[-1]:.4g} at t = {true_tr.t[-1]:g} "
+            f"(largest {dist[k]:.4g}, at t = {true_tr.t[k]:g})",
+            f"    the centre's velocity changes by {speed_change(true_tr):.2g} in the true motion "
+            f"(uniform straight line, Routh §243), by {speed_change(lind_tr):.2g} in Lindelöf's",
+            f"    energy drift: true {true_tr.energy_drift():.2g}, Lindelöf {lind_tr.energy_drift():.2g}",
+        ]
+        if table is not None:
+            lines.append(f"  {table.summary()}")
+        lines.append(f"  report: {out}")
+        _emit(chap.pretty() + "\n")  # Chaplygin's equations (15) of the sphere, readable
+        _emit("\n".join(lines))
+        if not (all(true_ok) and lind_ok and true_tr.success and lind_tr.success):
+            raise ChaplyginError("the demo's checks failed; see above.")
+
+
+# ====================================================================== examples
+def _first_sentence(text: str) -> str:
+    end = text.find(". ")
+    return text if end < 0 else text[: end + 1]
+
+
+@examples_app.command("list")
+def examples_list(
+    long: bool = typer.Option(False, "--long", "-l", help="Full descriptions."),
+) -> None:
+    """List the built-in examples (use them as FILE: example:NAME)."""
+    from chaplygin import examples
+
+    with _failures():
+        table = examples.catalogue()
+        width = max(len(n) for n in table)
+        lines = [f"{name:<{width}}  {entry.description if long else _first_sentence(entry.description)}"
+                 for name, entry in table.items()]
+        _emit("\n".join(lines))
+
+
+@examples_app.command("show")
+def examples_show(name: str = typer.Argument(..., metavar="NAME", help="The example's name (see `chaplygin examples list`).")) -> None:
+    """Print an example as a TOML system file (`chaplygin examples show NAME > mine.toml`)."""
+    from chaplygin import examples
+
+    try:
+        entry = examples.get(name)
+    except ChaplyginError as exc:
+        raise typer.BadParameter(str(exc), param_hint="NAME") from None
+    with _failures():
+        text = entry.dumps()
+        sys.stdout.write(text if text.endswith("\n") else text + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    try:
+        app(args=argv, prog_name="chaplygin")
+    except SystemExit as exc:
+        code = exc.code
+        if code is None:
+            return 0
+        return code if isinstance(code, int) else 1
+    return 0

@@ -1,0 +1,851 @@
+"""One self-contained HTML report per system.
+
+:func:`write_report` writes a single HTML file, with no script and nothing fetched over the
+network, that holds
+
+* the system as given: coordinates, kinetic energy, V or U, forces, the constraints in both
+  forms (A, eq. (1), and B, eq. (2)), parameters and initial state;
+* the integrability verdict: conditions (28) and (33), the Frobenius test, finite relations;
+* whether it is a Chaplygin system, and how the Chetaev and vakonomic models relate
+  (:func:`~chaplygin.compare_models`);
+* the equations of every model that applies, as MathML (rendered natively by browsers);
+* the models simulated from the same initial state: a summary table, figures as inline SVG,
+  energy drift and constraint drift;
+* for the paper's sphere, the paper's printed equations (49)-(62) beside the derived ones,
+  line by line: agree, differ by a transcription error, or differ in substance
+  (:func:`paper_table`).
+
+Math is rendered with SymPy's MathML presentation printer, extended to print time
+derivatives of coordinates with dots.
+"""
+
+from __future__ import annotations
+
+import html
+import io
+import os
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from html.entities import html5 as _HTML5
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import sympy as sp
+from sympy.core.function import AppliedUndef
+from sympy.printing.mathml import MathMLPresentationPrinter
+
+from chaplygin.core._symbols import TIME
+from chaplygin.errors import ChaplyginError
+from chaplygin.models import registry
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+    from chaplygin.numeric.comparison import Comparison
+
+__all__ = [
+    "write_report",
+    "render_report",
+    "mathml",
+    "applicable_models",
+    "default_models",
+    "is_paper_sphere",
+    "paper_table",
+    "PaperLine",
+    "PaperTable",
+    "VERDICTS",
+    "GENERATOR",
+    "STAGES",
+]
+
+#: ``<meta name="generator">`` of every report; the demo recognises its own output by it.
+GENERATOR = "chaplygin report"
+
+#: The stages :func:`render_report` goes through, in order (for progress display).
+STAGES = ("system", "integrability", "equations", "simulation", "figures", "paper")
+
+#: Verdicts of :func:`paper_table`.
+VERDICTS = ("agree", "transcription error", "differs in substance")
+
+
+# ====================================================================== MathML
+class _Printer(MathMLPresentationPrinter):
+    """SymPy's presentation MathML with ``q(t)`` printed as ``q`` and ``q̇``, ``q̈`` with dots."""
+
+    _DOTS = {1: "\u02d9", 2: "\u00a8"}
+
+    def _print_AppliedUndef(self, e: Any) -> Any:
+        if e.args == (TIME,):
+            return self._print(sp.Symbol(e.func.__name__))
+        return self._print_Function(e)
+
+    @staticmethod
+    def _dotted(e: Any) -> bool:
+        return (isinstance(e, sp.Derivative) and isinstance(e.expr, AppliedUndef)
+                and e.expr.args == (TIME,) and set(e.variables) == {TIME})
+
+    def parenthesize(self, item: Any, level: int, strict: bool = False) -> Any:
+        if self._dotted(item):  # a dotted symbol is an atom, not a product d/dt · q
+            return self._print(item)
+        return super().parenthesize(item, level, strict)
+
+    def _print_Derivative(self, e: Any) -> Any:
+        if self._dotted(e):
+            order = len(e.variables)
+            base = self._print(e.expr)
+            if order in self._DOTS:
+                over = self.dom.createElement("mover")  # (accent="true" hides the dot of φ in Chromium)
+                over.appendChild(base)
+                dot = self.dom.createElement("mo")
+                dot.appendChild(self.dom.createTextNode(self._DOTS[order]))
+                over.appendChild(dot)
+                return over
+            sup = self.dom.createElement("msup")
+            sup.appendChild(base)
+            primes = self.dom.createElement("mo")
+            primes.appendChild(self.dom.createTextNode("\u2032" * order))
+            sup.appendChild(primes)
+            return sup
+        return super()._print_Derivative(e)
+
+
+_ENTITY = re.compile(r"&([A-Za-z][A-Za-z0-9]*);")
+
+
+def _plain_entities(text: str) -> str:
+    """Named entities (``&InvisibleTimes;``) as characters, so the markup is also valid XML."""
+
+    def repl(match: re.Match[str]) -> str:
+        char = _HTML5.get(match.group(1) + ";")
+        if char is None or char in "<>&\"'":
+            return match.group(0)
+        return char
+
+    return _ENTITY.sub(repl, text)
+
+
+def mathml(expr: Any, *, display: str = "inline") -> str:
+    """``<math>`` markup for a SymPy expression or equation, dots for time derivatives."""
+    if isinstance(expr, bool) or not isinstance(expr, (sp.Basic, int, float)):
+        raise TypeError(f"mathml: expected a SymPy object or a number, got {type(expr).__name__}")
+    if not isinstance(expr, sp.Basic):
+        expr = sp.Integer(expr) if isinstance(expr, int) else sp.Float(expr)
+    body = _Printer({"order": None}).doprint(expr)
+    body = _plain_entities(body).replace("<mo>-</mo>", "<mo>\u2212</mo>")
+    return f'<math xmlns="http://www.w3.org/1998/Math/MathML" display="{display}">{body}</math>'
+
+
+
+def _block(expr: Any) -> str:
+    return f'<div class="eq">{mathml(expr, display="block")}</div>'
+
+
+def _cell(expr: Any) -> str:
+    """Math in a table cell: inline, left-aligned, scrolling when wider than the cell."""
+    return f'<div class="eq">{mathml(expr)}</div>'
+
+
+def _esc(text: Any) -> str:
+    """Escaped for text and for double-quoted attributes (apostrophes stay readable)."""
+    return html.escape(str(text), quote=False).replace('"', "&quot;")
+
+
+# ====================================================================== models
+#: Every (model, form) a report may show, in the registry's order (the family in its
+#: classic form: the new one adds nothing a reader of the report needs)
+_ALL_MODELS: tuple[tuple[str, str], ...] = tuple(
+    (m.name, form) for m in registry.MODELS.values() for form in m.forms if not (m.constants and form == "new")
+)
+
+
+def applicable_models(system: System) -> tuple[list[tuple[str, str]], dict[str, str]]:
+    """The (model, form) pairs that apply to ``system``, and why the others do not.
+
+    Voronets' equations are listed only for systems that are not Chaplygin systems:
+    for a Chaplygin system they are Chaplygin's equations (15).
+    """
+    true = registry.true_motion(system)
+    out: list[tuple[str, str]] = []
+    reasons: dict[str, str] = {}
+    for model, form in _ALL_MODELS:
+        entry = registry.MODELS[model]
+        why = entry.obstruction(system)
+        if why is not None:
+            reasons[model] = ("the vakonomic multipliers do not integrate: " if entry.family else "") + why
+            continue
+        if entry.reduced and entry.is_true_motion and model != true:
+            reasons[model] = "a Chaplygin system: Voronets' equations are Chaplygin's (15)"
+            continue
+        out.append((model, form))
+    return out, reasons
+
+
+def default_models(system: System) -> list[str]:
+    """The models a comparison runs by default: the true motion first, then Lindelöf's."""
+    true = registry.true_motion(system)
+    if registry.MODELS["lindelof"].obstruction(system) is None:
+        return [true, "lindelof"]
+    return [true, "chetaev"]
+
+
+# ====================================================================== the paper's sphere
+@dataclass
+class PaperLine:
+    """One printed equation of the paper's §4 beside the derived expression.
+
+    Attributes
+    ----------
+    number : str
+        The paper's equation number, ``"(49)"`` … ``"(62)"``.
+    what : str
+        What the line is.
+    ocr : str
+        The line as it stands in the OCR'd seed text (LaTeX).
+    printed : sympy.Expr
+        The printed line typed as it stands, errors included.
+    restored : sympy.Expr or None
+        The printed line with the marks lost or misread in transcription restored
+        (``repairs``); ``None`` when nothing needs restoring.
+    repairs : list of str
+        Each restoration, in words.
+    derived : sympy.Expr
+        The expression chaplygin derives.
+    verdict : str
+        One of :data:`VERDICTS`: the printed line equals the derived one (``"agree"``), or the
+        restored one does (``"transcription error"``), or neither (``"differs in substance"``).
+    """
+
+    number: str
+    what: str
+    ocr: str
+    printed: sp.Expr
+    restored: sp.Expr | None
+    repairs: list[str]
+    derived: sp.Expr
+    verdict: str = ""
+
+    def judge(self) -> str:
+        """Compare printed, then restored, with derived; set and return :attr:`verdict`."""
+        if _same(self.printed, self.derived):
+            self.verdict = VERDICTS[0]
+        elif self.restored is not None and _same(self.restored, self.derived):
+            self.verdict = VERDICTS[1]
+        else:
+            self.verdict = VERDICTS[2]
+        return self.verdict
+
+
+def _same(a: sp.Expr, b: sp.Expr) -> bool:
+    """``a − b`` vanishes identically (random numeric points first: a difference is cheap to see)."""
+    diff = sp.expand(a - b)
+    if diff == 0:
+        return True
+    atoms = sorted(diff.atoms(sp.Derivative), key=lambda e: -len(e.variables))
+    atoms += sorted(diff.atoms(AppliedUndef), key=str) + sorted(diff.free_symbols - {TIME}, key=str)
+    rng = np.random.default_rng(49)
+    for _ in range(4):
+        point = {x: sp.Float(v) for x, v in zip(atoms, rng.uniform(0.3, 1.3, size=len(atoms)))}
+        value = complex(diff.xreplace(point).evalf())
+        if abs(value) > 1e-9:
+            return False
+    # Polynomials in sines and cosines: exact in exponentials, without simplify's search.
+    if sp.expand(diff.rewrite(sp.exp)) == 0:
+        return True
+    return sp.simplify(diff) == 0
+
+
+@dataclass
+class PaperTable:
+    """The lines of :func:`paper_table` and the whole-set classification."""
+
+    lines: list[PaperLine]
+    sets: list[tuple[str, str, str]] = field(default_factory=list)  # (equations, reading, verdict)
+
+    def counts(self) -> dict[str, int]:
+        return {v: sum(line.verdict == v for line in self.lines) for v in VERDICTS}
+
+    def summary(self) -> str:
+        c = self.counts()
+        return (
+            f"the paper's printed (49)-(62): {c['agree']} agree, {c['transcription error']} "
+            f"differ by a transcription error, {c['differs in substance']} differ in substance"
+        )
+
+
+def paper_table(classify_sets: bool = True) -> PaperTable:
+    """The paper's printed equations (49)-(62), typed by hand, beside chaplygin's derivation.
+
+    The printed forms are read from the OCR'd seed text with ``\\psi`` = ψ (precession),
+    ``\\theta`` = θ (nutation), ``\\varphi`` = φ (spin).  Forces are those of the paper's
+    (44)-(46): applied moments ``M_ψ, M_θ, M_φ`` on the angles and a horizontal force
+    ``(V_1, V_2)`` on the centre; the OCR prints the moments as ``m_3^0`` and ``m_N^0``.
+
+    With ``classify_sets``, each group of three equations of motion, restored and with the
+    forces set to zero, is also given to :func:`chaplygin.classify`.
+    """
+    from chaplygin import examples
+    from chaplygin.analysis.transitions import classify, compare_models
+
+    free = examples.rolling_sphere()
+    psi, theta, phi, x, y = free.coordinates
+    m, a = free.parameter("m"), free.parameter("a")
+    M_psi, M_theta, M_phi, V1, V2 = sp.symbols("M_psi M_theta M_phi V_1 V_2", real=True)
+    m30, mN0 = sp.Symbol("m_3^0"), sp.Symbol("m_N^0")
+    forced = examples.rolling_sphere(
+        m, a, forces={"psi": M_psi, "theta": M_theta, "phi": M_phi, "x": V1, "y": V2}
+    )
+
+    d = lambda q: q.diff(TIME)  # noqa: E731
+    dd = lambda q: q.diff(TIME, 2)  # noqa: E731
+    s, c = sp.sin(theta), sp.cos(theta)
+    sp_, cp = sp.sin(psi), sp.cos(psi)
+    R = sp.Rational
+
+    lagrange = [e.lhs for e in free.equations("lindelof").equations]          # E_σ(T̃)
+    chaplygin_free = [e.lhs for e in free.equations("chaplygin").equations]
+    # The forces enter only F of M·x = F: −Q̃_σ = −(F_forced − F_free).  (Displaying the forced
+    # equations themselves would cost seconds of tidying for the same expressions.)
+    minus_forces = [sp.expand(g - f) for f, g in
+                    zip(forced.equations("chaplygin").forcing, free.equations("chaplygin").forcing)]
+    chaplygin_forced = [e + q for e, q in zip(chaplygin_free, minus_forces)]
+    lindelof_forced = [e + q for e, q in zip(lagrange, minus_forces)]
+    defect = list(compare_models(free).defect.values())
+    momenta = [free.kinetic_energy.diff(d(q)).subs(free.constraints) for q in (x, y)]
+
+    # ---- the printed lines, as they stand, and restored
+    p49 = R(2, 5) * m * a**2 * (d(psi) + d(phi) * c - d(theta) * s)
+    r49 = R(2, 5) * m * a**2 * (dd(psi) + dd(phi) * c - d(theta) * d(phi) * s)
+    p50 = m * a**2 * (R(7, 5) * dd(theta) + d(phi) ** 2 * s * c + R(2, 5) * d(phi) * s)
+    r50 = m * a**2 * (R(7, 5) * dd(theta) - d(phi) ** 2 * s * c + R(2, 5) * d(phi) * d(psi) * s)
+    p51 = m * a**2 * (d(phi) * s**2 + 2 * d(theta) * s * c + R(2, 5) * d(psi) + R(2, 5) * d(phi) * c
+                      - R(2, 5) * d(theta) * s)
+    r51 = m * a**2 * (dd(phi) * s**2 + 2 * d(theta) * d(phi) * s * c + R(2, 5) * dd(phi)
+                      + R(2, 5) * dd(psi) * c - R(2, 5) * d(theta) * d(psi) * s)
+    rep49 = ["second dots lost: ψ̈, φ̈ printed as ψ̇, φ̇",
+             "factor φ̇ of θ̇ φ̇ sin θ lost"]
+    rep50 = ["ψ̇ lost: its dot sits on “sin” (\\dot{\\sin})",
+             "sign of φ̇² sin θ cos θ misprinted as +: the paper's own (61) = (50) + (58) holds "
+             "only with −"]
+    rep51 = ["second dot lost: φ̈ sin²θ",
+             "factor φ̇ lost in 2 θ̇ φ̇ sin θ cos θ",
+             "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ",
+             "factor ψ̇ lost in (2/5) θ̇ ψ̇ sin θ"]
+    force_psi = ["m_3^0 is the applied moment M_ψ of (44)"]
+    force_theta = ["m_N^0 is the applied moment M_θ of (45)",
+                   "θ printed for ψ in V₁ sin ψ − V₂ cos ψ"]
+    force_phi = ["m_3^0 here is the applied moment M_φ of (46)",
+                 "θ printed for ψ in V₁ cos ψ + V₂ sin ψ"]
+    f_theta_p, f_theta_r = -mN0 - a * (V1 * s - V2 * c), -M_theta - a * (V1 * sp_ - V2 * cp)
+    f_phi_p, f_phi_r = -m30 + a * s * (V1 * c + V2 * s), -M_phi + a * s * (V1 * cp + V2 * sp_)
+
+    def products(X: sp.Expr, Y: sp.Expr) -> sp.Expr:
+        """``m a X · a Y − m a Y · a X`` as printed: unevaluated, so it does not collapse to 0."""
+        first = sp.Mul(m, a, X, a, Y, evaluate=False)
+        return sp.Add(first, sp.Mul(-1, m, a, Y, a, X, evaluate=False), evaluate=False)
+
+    X_p, Y_p = d(theta) * s - d(phi) * s * c, d(theta) * c + d(phi) * s * s
+    X_r, Y_r = d(theta) * sp_ - d(phi) * s * cp, d(theta) * cp + d(phi) * s * sp_
+    p61 = R(7, 5) * m * a**2 * (dd(theta) + d(phi) * s) + f_theta_p
+    r61 = R(7, 5) * m * a**2 * (dd(theta) + d(phi) * d(psi) * s) + f_theta_r
+    p62 = m * a**2 * (d(phi) * s**2 + R(2, 5) * d(psi) + R(2, 5) * d(phi) * c + d(theta) * s * c
+                      - R(7, 5) * d(theta) * s) + f_phi_p
+    r62 = m * a**2 * (dd(phi) * s**2 + R(2, 5) * dd(phi) + R(2, 5) * dd(psi) * c
+                      + d(theta) * d(phi) * s * c - R(7, 5) * d(theta) * d(psi) * s) + f_phi_r
+
+    body50 = (r"ma^2 \left[\frac{7}{5}\ddot{\theta} + \dot{\varphi}^2 \sin \theta \cos \theta"
+              r" + \frac{2}{5}\dot{\varphi} \dot{\sin} \theta \right]")
+    body51 = (r"ma^2 \left[\dot{\varphi} \sin^2 \theta + 2\dot{\theta} \sin \theta \cos \theta"
+              r" + \frac{2}{5}\dot{\psi} + \frac{2}{5}\dot{\varphi} \cos \theta"
+              r" - \frac{2}{5}\dot{\theta} \sin \theta \right]")
+    body49 = r"\frac{2}{5}ma^2 (\dot{\psi} + \dot{\varphi} \cos \theta - \dot{\theta} \sin \theta)"
+    E = "Lagrange's operator on T̃ (48)"
+    L = "Lindelöf's (geodesic) equation (22) with the reduced forces Q̃ of (44)-(46)"
+    C = "Chaplygin's (true) equation (15) with the forces of (44)-(46)"
+    W = "the non-holonomic term of (15) (the Lindelöf defect)"
+    lines = [
+        PaperLine("(49)", f"{E}, ψ", body49, p49, r49, rep49, lagrange[0]),
+        PaperLine("(50)", f"{E}, θ", body50, p50, r50, rep50, lagrange[1]),
+        PaperLine("(51)", f"{E}, φ", body51, p51, r51, rep51, lagrange[2]),
+        PaperLine("(52)", f"{L}, ψ", body49 + r" - m_3^0", p49 - m30, r49 - M_psi,
+                  rep49 + force_psi, lindelof_forced[0]),
+        PaperLine("(53)", f"{L}, θ", body50 + r" - m_N^0 - a(V_1 \sin \theta - V_2 \cos \theta)",
+                  p50 + f_theta_p, r50 + f_theta_r, rep50 + force_theta, lindelof_forced[1]),
+        PaperLine("(54)", f"{L}, φ", body51 + r" - m_3^0 + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
+                  p51 + f_phi_p, r51 + f_phi_r, rep51 + force_phi, lindelof_forced[2]),
+        PaperLine("(55)", "∂T/∂ẋ = m ẋ with the constraint (41)",
+                  r"-ma(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)",
+                  -m * a * X_p, m * a * X_r,
+                  ["θ printed for ψ in sin ψ, cos ψ",
+                   "leading sign misprinted: (41) gives m ẋ = m a (θ̇ sin ψ − φ̇ sin θ cos ψ), "
+                   "the sign the paper's (57) uses"],
+                  momenta[0]),
+        PaperLine("(56)", "∂T/∂ẏ = m ẏ with the constraint (42)",
+                  r"-ma(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)",
+                  -m * a * Y_p, -m * a * Y_r, ["θ printed for ψ in cos ψ, sin ψ"], momenta[1]),
+        PaperLine("(57)", f"{W}, σ = ψ",
+                  r"ma(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)"
+                  r" a(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)"
+                  r" - ma(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)"
+                  r" a(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)",
+                  products(X_p, Y_p), products(X_r, Y_r),
+                  ["θ printed for ψ (immaterial: the two products cancel)"], defect[0]),
+        PaperLine("(58)", f"{W}, σ = θ",
+                  r"ma^2 \dot{\varphi} \sin \theta (\dot{\theta} + \dot{\varphi} \cos \theta)",
+                  m * a**2 * d(phi) * s * (d(theta) + d(phi) * c),
+                  m * a**2 * d(phi) * s * (d(psi) + d(phi) * c), ["θ̇ printed for ψ̇"], defect[1]),
+        PaperLine("(59)", f"{W}, σ = φ",
+                  r"-ma^2 \dot{\theta} \sin \theta (\dot{\theta} + \dot{\varphi} \cos \theta)",
+                  -m * a**2 * d(theta) * s * (d(theta) + d(phi) * c),
+                  -m * a**2 * d(theta) * s * (d(psi) + d(phi) * c), ["θ̇ printed for ψ̇"], defect[2]),
+        PaperLine("(60)", f"{C}, ψ", body49 + r" - m_3^0", p49 - m30, r49 - M_psi,
+                  rep49 + force_psi, chaplygin_forced[0]),
+        PaperLine("(61)", f"{C}, θ",
+                  r"\frac{7}{5}ma^2 (\ddot{\theta} + \dot{\varphi} \sin \theta) - m_N^0"
+                  r" - a(V_1 \sin \theta - V_2 \cos \theta)",
+                  p61, r61, ["factor ψ̇ lost in φ̇ ψ̇ sin θ"] + force_theta, chaplygin_forced[1]),
+        PaperLine("(62)", f"{C}, φ",
+                  r"ma^2 \left[\dot{\varphi} \sin^2 \theta + \frac{2}{5}\dot{\psi}"
+                  r" + \frac{2}{5}\dot{\varphi} \cos \theta + \dot{\theta} \sin \theta \cos \theta"
+                  r" - \frac{7}{5}\dot{\theta} \sin \theta \right] - m_3^0"
+                  r" + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
+                  p62, r62,
+                  ["second dot lost: φ̈ sin²θ",
+                   "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ",
+                   "factor φ̇ lost in θ̇ φ̇ sin θ cos θ",
+                   "factor ψ̇ lost in (7/5) θ̇ ψ̇ sin θ"] + force_phi,
+                  chaplygin_forced[2]),
+    ]
+    for line in lines:
+        line.judge()
+    table = PaperTable(lines)
+    if classify_sets:
+        unforced = {M_psi: 0, M_theta: 0, M_phi: 0, V1: 0, V2: 0, m30: 0, mN0: 0}
+        for label, group in (("(52)-(54)", lines[3:6]), ("(60)-(62)", lines[11:14])):
+            for reading in ("printed", "restored"):
+                exprs = [getattr(line, reading).xreplace(unforced) for line in group]
+                try:
+                    verdict = str(classify(free, exprs))
+                except ChaplyginError as exc:
+                    verdict = f"not equations of motion of the sphere: {exc}"
+                table.sets.append((label, reading, verdict))
+    return table
+
+
+def is_paper_sphere(system: System) -> bool:
+    """True when ``system`` is the paper's sphere: same coordinates, kinetic energy (47) and
+    constraints (41)-(42) as :func:`chaplygin.examples.rolling_sphere` (forces may differ)."""
+    from chaplygin import examples
+
+    names = [q.func.__name__ for q in system.coordinates]
+    if names != ["psi", "theta", "phi", "x", "y"] or [_name(q) for q in system.dependent] != ["x", "y"]:
+        return False
+    ref = examples.rolling_sphere()
+    rename: dict[sp.Basic, sp.Basic] = {p: ref.parameter(p.name) for p in system.parameters
+                                        if p.name in ("m", "a")}
+    rename.update(zip(system.coordinates, ref.coordinates))
+
+    def same(u: sp.Expr, v: sp.Expr) -> bool:
+        return _same(u.xreplace(rename), v)
+
+    if not same(system.kinetic_energy, ref.kinetic_energy):
+        return False
+    ours = {k.xreplace(rename): v for k, v in system.constraints.items()}
+    return all(same(ours[k], v) for k, v in ref.constraints.items())
+
+
+# ====================================================================== inputs
+@dataclass
+class _Source:
+    system: System
+    parameters: dict[str, float]
+    initial: dict[str, float]
+    name: str
+    source: str
+
+
+def _source(obj: Any, parameters: Mapping[str, float] | None, initial: Mapping[str, float] | None) -> _Source:
+    from chaplygin.core.system import System
+
+    if isinstance(obj, System):
+        return _Source(obj, dict(parameters or {}), dict(initial or {}), obj.name, "")
+    system = getattr(obj, "system", None)
+    if not isinstance(system, System):
+        raise ChaplyginError(
+            f"write_report: expected a System or a system file (chaplygin.io.files.SystemFile), "
+            f"got {type(obj).__name__}."
+        )
+    params = {**(getattr(obj, "parameters", None) or {}), **(parameters or {})}
+    start = {**(getattr(obj, "initial", None) or {}), **(initial or {})}
+    return _Source(system, params, start, getattr(obj, "name", "") or system.name,
+                   str(getattr(obj, "source", "") or ""))
+
+
+# ====================================================================== figures
+def _svg(fig: Any) -> str:
+    """A matplotlib figure as inline ``<svg>`` markup (no XML prolog, deterministic ids)."""
+    import matplotlib
+
+    buf = io.StringIO()
+    with matplotlib.rc_context({"svg.hashsalt": "chaplygin", "svg.fonttype": "path"}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    text = buf.getvalue()
+    start = text.find("<svg")
+    return text[start:] if start >= 0 else text
+
+
+# ====================================================================== HTML
+_CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 72rem;
+       margin: 2rem auto; padding: 0 1rem; line-height: 1.45; color: #1b1b1b; }
+h1 { font-size: 1.6rem; } h2 { border-bottom: 1px solid #ccc; margin-top: 2.5rem; }
+table { border-collapse: collapse; margin: 0.8rem 0; }
+th, td { border: 1px solid #d0d0d0; padding: 0.3rem 0.55rem; vertical-align: top; text-align: left; }
+th { background: #f3f3f3; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+.eq { overflow-x: auto; padding: 0.15rem 0; }
+math { font-size: 1.08em; }
+td .eq math { math-style: normal; }
+.figure { margin: 1rem 0; overflow-x: auto; }
+.figure svg { max-width: 100%; height: auto; }
+code, pre { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.85em; }
+pre { background: #f7f7f7; padding: 0.6rem; overflow-x: auto; }
+.verdict { font-weight: 600; }
+td .verdict { white-space: nowrap; }
+table.paper { width: 100%; table-layout: fixed; }
+table.paper td { overflow-wrap: anywhere; }
+.agree { color: #17652b; } .transcription { color: #8a5a00; } .substance { color: #a8141c; }
+.holds { color: #17652b; } .fails { color: #a8141c; }
+.note { color: #555; font-size: 0.92em; }
+.warning { color: #8a4b00; border-left: 3px solid #d08a00; padding-left: 0.5em; }
+td.ocr code { white-space: pre-wrap; word-break: break-word; }
+"""
+
+_VERDICT_CLASS = {VERDICTS[0]: "agree", VERDICTS[1]: "transcription", VERDICTS[2]: "substance"}
+
+
+def _name(q: Any) -> str:
+    return q.func.__name__
+
+
+def _system_section(src: _Source) -> str:
+    s = src.system
+    out = ['<section id="system"><h2>The system as given</h2>']
+    if src.source:
+        out.append(f"<p>Source: <code>{_esc(src.source)}</code></p>")
+    coords = ", ".join(mathml(q) for q in s.coordinates)
+    out.append(
+        f"<p>Coordinates ({s.n}): {coords}; independent: "
+        f"{', '.join(mathml(q) for q in s.independent)}; dependent: "
+        f"{', '.join(mathml(q) for q in s.dependent) or 'none'} "
+        f"(n = {s.n}, g = {s.g}, ε = {s.epsilon}).</p>"
+    )
+    out.append("<p>Kinetic energy:</p>" + _block(sp.Eq(sp.Symbol("T"), s.kinetic_energy, evaluate=False)))
+    if s.potential_energy is not None:
+        out.append("<p>Potential energy:</p>" + _block(sp.Eq(sp.Symbol("V"), s.potential_energy, evaluate=False)))
+    elif s.force_function != 0:
+        out.append("<p>Force function:</p>" + _block(sp.Eq(sp.Symbol("U"), s.force_function, evaluate=False)))
+    else:
+        out.append("<p>No potential: V = U = 0.</p>")
+    if s.forces:
+        out.append("<p>Generalized forces:</p>")
+        out += [_block(sp.Eq(sp.Symbol(f"Q_{_name(q)}"), f, evaluate=False)) for q, f in s.forces.items()]
+    kind = "affine" if s.is_affine else "homogeneous"
+    out.append(f"<p>Constraints ({s.g}, linear, {kind}; given in form {s.constraint_form}), "
+               "solved, form B (eq. (2)):</p>")
+    out += [_block(sp.Eq(k, v, evaluate=False)) for k, v in s.constraints.items()]
+    out.append("<p>Implicit, form A (eq. (1)):</p>")
+    out += [_block(sp.Eq(e, 0, evaluate=False)) for e in s.implicit_constraints]
+    out.append("<p>Reduced kinetic energy (the constraints substituted into T):</p>"
+               + _block(sp.Eq(sp.Symbol("T̃"), s.reduced_kinetic_energy, evaluate=False)))
+    if src.parameters or src.initial:
+        out.append("<table><tr><th>parameter / initial value</th><th>value</th></tr>")
+        out += [f'<tr><td>{mathml(sp.Symbol(k))}</td><td class="num">{v:.10g}</td></tr>'
+                for k, v in src.parameters.items()]
+        for k, v in src.initial.items():
+            label = (mathml(sp.Function(k[:-1])(TIME).diff(TIME)) if k.endswith("'")
+                     else mathml(sp.Symbol(k)))
+            out.append(f'<tr><td>{label}(0)</td><td class="num">{v:.10g}</td></tr>')
+        out.append("</table>")
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def _condition_rows(cond: Any) -> str:
+    cls = "holds" if cond.holds else "fails"
+    shown = cond.failures[:6]
+    fails = "".join(f"<li>{_esc(label)} = {mathml(expr)}</li>" for label, expr in shown)
+    if len(cond.failures) > len(shown):
+        fails += f"<li>… and {len(cond.failures) - len(shown)} more</li>"
+    return (f'<tr><td>{_esc(cond.name)}</td><td class="{cls}">{"holds" if cond.holds else "fails"}</td>'
+            f"<td>{'<ul>' + fails + '</ul>' if fails else ''}"
+            f'<span class="note">{_esc(cond.note)}</span></td></tr>')
+
+
+def _integrability_section(system: System) -> tuple[str, str]:
+    report = system.integrability()
+    verdict = ("integrable (holonomic)" if report.integrable else "not integrable (nonholonomic)")
+    out = ['<section id="integrability"><h2>Integrability of the constraints</h2>',
+           f'<p class="verdict {"holds" if report.integrable else "fails"}">The constraints are '
+           f"{verdict}, by the Frobenius test.</p>",
+           "<table><tr><th>test</th><th>verdict</th><th>non-vanishing components</th></tr>",
+           _condition_rows(report.condition_28), _condition_rows(report.condition_33),
+           _condition_rows(report.frobenius), "</table>"]
+    if report.integrable:
+        if report.relations:
+            out.append("<p>Finite relations (each constant along every motion):</p>")
+            out += [_block(r) for r in report.relations]
+        else:
+            out.append("<p>No finite relation was found in closed form.</p>")
+    out.append("</section>")
+    return "\n".join(out), verdict
+
+
+def _models_section(system: System) -> tuple[str, str]:
+    from chaplygin.analysis.transitions import compare_models
+
+    out = ['<section id="models"><h2>Chaplygin system and the two models</h2>']
+    if system.is_chaplygin:
+        out.append("<p>A <b>Chaplygin system</b>: T, U, the forces and the constraint coefficients B "
+                   "are free of the dependent coordinates.</p>")
+    else:
+        out.append("<p><b>Not a Chaplygin system</b>: "
+                   + _esc("; ".join(system.chaplygin_obstructions)) + ".</p>")
+    try:
+        comparison = compare_models(system)
+    except ChaplyginError as exc:
+        out.append(f'<p class="note">No Lindelöf comparison: {_esc(exc)}</p></section>')
+        return "\n".join(out), "no Lindelöf comparison"
+    head = str(comparison).splitlines()[0]
+    out.append(f'<p class="verdict">Verdict: <code>{_esc(comparison.verdict)}</code> — {_esc(head)}</p>')
+    out.append(f"<p>Condition (28): {'holds' if comparison.condition_28 else 'fails'}; "
+               f"the Lindelöf defect (15) − (22) {'vanishes.' if comparison.defect_vanishes else 'is:'}</p>")
+    if not comparison.defect_vanishes:
+        out += [_block(sp.Eq(sp.Symbol(f"Δ_{_name(q)}"), e, evaluate=False))
+                for q, e in comparison.defect.items()]
+    out.append("</section>")
+    return "\n".join(out), comparison.verdict
+
+
+def _equations_section(system: System) -> str:
+    models, reasons = applicable_models(system)
+    out = ['<section id="equations"><h2>Equations of motion</h2>',
+           '<p class="note">Every equation reads “expression = 0”; dots are time derivatives; '
+           "λ are the Chetaev multipliers, μ the vakonomic ones, c the constants of the "
+           "vakonomic family.</p>"]
+    for model, form in models:
+        try:
+            eqs = system.equations(model, form)
+        except ChaplyginError as exc:
+            reasons[f"{model}/{form}"] = str(exc)
+            continue
+        out.append(f'<h3 id="eq-{model}-{form}">{_esc(eqs.title)}</h3>')
+        out += [_block(e) for e in eqs.equations]
+    if reasons:
+        out.append("<p>Not shown:</p><ul>")
+        out += [f"<li><code>{_esc(k)}</code>: {_esc(v)}</li>" for k, v in reasons.items()]
+        out.append("</ul>")
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def _simulation_rows(comparison: Comparison) -> str:
+    rows = []
+    for label, tr in comparison.trajectories.items():
+        dist = comparison.distance(label)
+        k = int(np.argmax(dist)) if len(dist) else 0
+        dmax = f"{dist[k]:.6g}" if len(dist) else "–"
+        at = f"{tr.t[k]:.4g}" if len(dist) else "–"
+        rows.append(
+            f'<tr><td><code>{_esc(label)}</code></td><td class="num">{dmax}</td><td class="num">{at}</td>'
+            f'<td class="num">{tr.energy_drift():.3g}</td>'
+            f'<td class="num">{np.max(tr.constraint_residual, initial=0.0):.3g}</td>'
+            f'<td class="num">{(tr.constraint_residual[-1] if len(tr.t) else float("nan")):.3g}</td>'
+            f"<td>{_esc(tr.status)}{': ' + _esc(tr.message) if not tr.success else ''}</td></tr>"
+        )
+    return "\n".join(rows)
+
+
+def _simulation_section(comparison: Comparison | None, note: str, stage: Callable[[str], None]) -> str:
+    out = ['<section id="simulation"><h2>The models from the same initial state</h2>']
+    if comparison is None:
+        out.append(f'<p class="note">{_esc(note)}</p></section>')
+        stage("figures")
+        return "\n".join(out)
+    ref = comparison.trajectories[comparison.reference]
+    what = (f"the path of ({', '.join(comparison.path)})" if comparison.path else "all coordinates")
+    out.append(f"<p>{len(comparison.trajectories)} model(s) from t = {ref.t[0]:g} to {ref.t[-1]:g}, "
+               f"{len(ref.t)} samples; distance: {_esc(what)}, from <code>{_esc(comparison.reference)}</code>.</p>")
+    out.append("<table><tr><th>model</th><th>max distance</th><th>at t</th><th>energy drift</th>"
+               "<th>max constraint residual</th><th>final residual</th><th>status</th></tr>")
+    out.append(_simulation_rows(comparison))
+    out.append("</table>")
+    out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
+    out.append('<p class="note">Energy drift: max |E − E(0)| / max(1, |E(0)|), E = T − U; it is an '
+               "invariant for scleronomic homogeneous constraints. Constraint residual: "
+               "max_β |Σ A_βs q̇_s + A_β0| (the reduced models satisfy the constraints exactly).</p>")
+    stage("figures")
+    from chaplygin.numeric.comparison import FIGURES
+
+    for kind in FIGURES:
+        if kind == "paths" and not comparison.path:
+            continue
+        fig = comparison.figure(kind)
+        out.append(f'<div class="figure" id="figure-{kind}">{_svg(fig)}</div>')
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def _paper_section(table: PaperTable) -> str:
+    out = ['<section id="paper"><h2>The paper\'s printed equations (49)-(62)</h2>',
+           "<p>The seed paper's §4 equations as they stand in the OCR'd text, typed by hand with "
+           "their errors, beside chaplygin's derivation. <b>agree</b>: the printed line is the "
+           "derived one. <b>transcription error</b>: it becomes the derived one once the marks "
+           "lost or misread in printing or transcription are restored (listed). <b>differs in "
+           "substance</b>: no such restoration explains the difference. Printed symbols: "
+           "\\psi = ψ, \\theta = θ, \\varphi = φ; forces of (44)-(46): moments M_ψ, M_θ, M_φ on "
+           "the angles and (V₁, V₂) on the centre.</p>",
+           f"<p class=\"verdict\">{_esc(table.summary())}.</p>",
+           '<table class="paper"><colgroup><col style="width:9%"><col style="width:38%">'
+           '<col style="width:31%"><col style="width:22%"></colgroup>'
+           "<tr><th>eq.</th><th>as printed (OCR text; typed as it stands; restored)</th>"
+           "<th>derived by chaplygin</th><th>verdict and restorations</th></tr>"]
+    for line in table.lines:
+        cls = _VERDICT_CLASS[line.verdict]
+        restored = ""
+        if line.verdict != VERDICTS[0] and line.restored is not None:
+            restored = f'<p class="note">restored:</p>{_cell(line.restored)}'
+        repairs = "".join(f"<li>{_esc(r)}</li>" for r in line.repairs)
+        out.append(
+            f'<tr id="paper-{line.number.strip("()")}"><td>{_esc(line.number)}<br>'
+            f'<span class="note">{_esc(line.what)}</span></td>'
+            f'<td class="ocr"><code>{_esc(line.ocr)}</code>{_cell(line.printed)}{restored}</td>'
+            f"<td>{_cell(line.derived)}</td>"
+            f'<td><span class="verdict {cls}">{_esc(line.verdict)}</span>'
+            f'{"<ul>" + repairs + "</ul>" if repairs else ""}</td></tr>'
+        )
+    out.append("</table>")
+    if table.sets:
+        out.append("<p>Each group of three, forces set to zero, given to <code>chaplygin.classify</code>:</p><ul>")
+        out += [f"<li>{_esc(label)} {_esc(reading)}: {_esc(verdict)}</li>"
+                for label, reading, verdict in table.sets]
+        out.append("</ul>")
+    out.append("</section>")
+    return "\n".join(out)
+
+
+def render_report(
+    source: Any,
+    *,
+    models: Sequence[str] | None = None,
+    t_end: float = 20.0,
+    samples: int = 401,
+    backend: str = "numpy",
+    parameters: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    comparison: Comparison | None = None,
+    paper: bool | PaperTable | None = None,
+    progress: Callable[[str], None] | None = None,
+    generator: str = GENERATOR,
+) -> str:
+    """The report as one HTML string (see :func:`write_report` for the arguments)."""
+    from chaplygin._version import __version__
+    from chaplygin.numeric.comparison import compare
+
+    src = _source(source, parameters, initial)
+    system = src.system
+    stage = progress or (lambda _name: None)
+
+    stage("system")
+    parts = [_system_section(src)]
+    stage("integrability")
+    integ, integ_verdict = _integrability_section(system)
+    parts.append(integ)
+    models_html, model_verdict = _models_section(system)
+    parts.append(models_html)
+    stage("equations")
+    parts.append(_equations_section(system))
+    stage("simulation")
+    note = ""
+    if comparison is None:
+        missing = [p.name for p in system.parameters if p.name not in src.parameters]
+        if missing or not src.initial:
+            note = ("Not simulated: no " + ("numbers for the parameters " + ", ".join(missing) if missing
+                                            else "initial state") + " were given.")
+        else:
+            comparison = compare(system, list(models or default_models(system)), float(t_end),
+                                 src.initial, src.parameters, samples=samples, backend=backend)
+    parts.append(_simulation_section(comparison, note, stage))
+    stage("paper")
+    if paper is None:
+        paper = is_paper_sphere(system)
+    if paper is not False:
+        parts.append(_paper_section(paper if isinstance(paper, PaperTable) else paper_table()))
+
+    title = f"{src.name} — chaplygin report"
+    summary = (f"Constraints {integ_verdict}; models: {model_verdict}.")
+    return "\n".join([
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f'<meta name="generator" content="{_esc(generator)}">',
+        f'<meta name="chaplygin-version" content="{_esc(__version__)}">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{_esc(src.name)}</h1>",
+        f'<p class="verdict">{_esc(summary)}</p>',
+        '<nav><a href="#system">system</a> · <a href="#integrability">integrability</a> · '
+        '<a href="#models">models</a> · <a href="#equations">equations</a> · '
+        '<a href="#simulation">simulation</a>'
+        + (' · <a href="#paper">the paper\'s equations</a>' if paper is not False else "") + "</nav>",
+        *parts,
+        f'<footer><p class="note">Written by chaplygin {_esc(__version__)}. Equation numbers '
+        "refer to Liang Li-fu and Chen Wei-dong, <i>The complementary property of Lindelöf's "
+        "work and Chaplygin's work</i>, Applied Mathematics and Mechanics 21(8), 2000.</p></footer>",
+        "</body></html>",
+        "",
+    ])
+
+
+def write_report(
+    source: Any,
+    path: str | os.PathLike[str],
+    **options: Any,
+) -> Path:
+    """Write the HTML report of a system to ``path`` (atomically) and return the path.
+
+    Parameters
+    ----------
+    source : System or SystemFile
+        A :class:`~chaplygin.System`, or a loaded system file (anything with ``system``,
+        ``parameters``, ``initial``, ``name`` and ``source`` attributes, such as
+        :class:`chaplygin.io.files.SystemFile`), whose parameters and initial state feed the
+        simulation.
+    path : path-like
+        The HTML file.  It is written through a temporary file and renamed, so an interrupted
+        run leaves an earlier file intact.  An existing file is replaced.
+    models : sequence of str, optional
+        Models to simulate and compare, the reference first (default: the true motion and
+        Lindelöf's equations, see :func:`default_models`).
+    t_end, samples, backend
+        Simulation time span ``(0, t_end)``, number of samples and backend.
+    parameters, initial : mapping, optional
+        Override or supply the numbers of the source.  Without them no simulation is run.
+    comparison : Comparison, optional
+        A comparison already run (then no simulation is run here).
+    paper : bool or PaperTable, optional
+        Include the table of the paper's printed equations (default: when the system is the
+        paper's sphere, :func:`is_paper_sphere`); a :func:`paper_table` already computed is
+        used as it is.
+    progress : callable, optional
+        Called with the name of each stage (:data:`STAGES`) as it starts.
+    """
+    from chaplygin.numeric.simulate import _atomic_write
+
+    text = render_report(source, **options)
+    data = text.encode("utf-8")
+
+    def write(fh: Any) -> None:
+        for start in range(0, len(data), 1 << 16):
+            fh.write(data[start : start + (1 << 16)])
+
+    return _atomic_write(path, write, text=False)

@@ -1,0 +1,161 @@
+"""SymEngine fast path for the hot symbolic work: differentiation and common subexpressions.
+
+Everything the user sees stays SymPy; only derivatives and the common
+subexpressions of generated code are computed in SymEngine (about 30× faster
+than SymPy, whose assumption queries dominate). Each call
+converts its input once and its results once.  Symbols with assumptions (a
+``positive=True`` mass, say) come back from SymEngine without them, so they
+are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from typing import Any
+
+import sympy as sp
+
+try:  # the import line names the converter; no user text ever reaches it
+    from symengine import DenseMatrix as _se_matrix
+    from symengine import Lambdify as _se_lambdify
+    from symengine import Symbol as _se_symbol
+    from symengine import cse as _se_cse
+    from symengine import sympify as _to_symengine
+
+    HAVE_SYMENGINE = True
+except ImportError:  # pragma: no cover - symengine is a dependency
+    HAVE_SYMENGINE = False
+
+__all__ = ["HAVE_SYMENGINE", "cse", "evaluator", "gradient", "jacobian", "native", "to_sympy", "total_derivative"]
+
+
+def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
+    out = {}
+    for e in exprs:
+        for s in e.free_symbols:
+            if type(s) is sp.Symbol and s.assumptions0:
+                out[sp.Symbol(s.name)] = s
+    return out
+
+
+_UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of their derivatives
+
+
+def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
+    if not HAVE_SYMENGINE or any(e.has(*_UNSAFE) for e in exprs):
+        return None
+    try:
+        return [_to_symengine(e) for e in exprs]
+    except (RuntimeError, NotImplementedError, TypeError, AttributeError):
+        return None
+
+
+def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp.Expr]:
+    out = [v._sympy_() for v in values]
+    return [e.xreplace(restore) for e in out] if restore else out
+
+
+def _real(exprs: Sequence[sp.Expr]) -> tuple[dict[sp.Symbol, sp.Symbol], dict[sp.Symbol, sp.Symbol]]:
+    """Real stand-ins for the symbols of ``exprs`` without assumptions (the internal ones, ``t``), and back.
+
+    SymPy differentiates ``Abs``, ``sign``, ``re`` and ``im`` of real arguments in closed form
+    (``d|x|/dx = sign(x)``); of a symbol it knows nothing about it leaves unevaluated
+    derivatives of ``re`` and ``im`` that nothing can evaluate or print.
+    """
+    plain = {s for e in exprs for s in e.free_symbols if isinstance(s, sp.Symbol) and s.is_real is None}
+    real = {s: sp.Dummy(s.name, real=True) for s in plain}
+    return real, {v: k for k, v in real.items()}
+
+
+def _sympy_jacobian(exprs: list[sp.Expr], variables: list[sp.Symbol]) -> sp.Matrix:
+    real, back = _real(exprs + variables)
+    return sp.Matrix(exprs).xreplace(real).jacobian([real.get(v, v) for v in variables]).xreplace(back)
+
+
+def jacobian(exprs: Sequence[sp.Expr], variables: Sequence[sp.Symbol]) -> sp.Matrix:
+    """``∂ exprs_i / ∂ variables_j`` as a SymPy matrix."""
+    exprs, variables = list(exprs), list(variables)
+    fast = _convert(exprs + variables)
+    if fast is None:
+        return _sympy_jacobian(exprs, variables)
+    fe, fv = fast[: len(exprs)], fast[len(exprs) :]
+    flat = _back([e.diff(x) for e in fe for x in fv], _restore_map(exprs))
+    return sp.Matrix(len(exprs), len(variables), flat)
+
+
+def gradient(expr: sp.Expr, variables: Sequence[sp.Symbol]) -> list[sp.Expr]:
+    """``[∂ expr / ∂ v for v in variables]``."""
+    return list(jacobian([expr], variables))
+
+
+def total_derivative(
+    expr: sp.Expr, pairs: Sequence[tuple[sp.Symbol, sp.Expr]], time: sp.Symbol
+) -> sp.Expr:
+    """``∂_t F + Σ ∂F/∂x · ẋ`` for the given ``(x, ẋ)`` pairs."""
+    pairs = [(x, xd) for x, xd in pairs if xd != 0]
+    fast = _convert([expr, time, *(x for x, _ in pairs), *(xd for _, xd in pairs)])
+    if fast is None:
+        grad = _sympy_jacobian([expr], [time, *(x for x, _ in pairs)])
+        return grad[0] + sp.Add(*(g * xd for g, (_, xd) in zip(list(grad)[1:], pairs)))
+    k = len(pairs)
+    f, ft, fx, fxd = fast[0], fast[1], fast[2 : 2 + k], fast[2 + k :]
+    result = f.diff(ft)
+    for x, xd in zip(fx, fxd):
+        result += f.diff(x) * xd
+    restore = _restore_map([expr, *(xd for _, xd in pairs)])
+    return _back([result], restore)[0]
+
+
+def to_sympy(value: Any) -> sp.Basic:
+    """A SymPy or SymEngine expression or a number as SymPy's (strict: text is refused, never parsed)."""
+    return sp.sympify(value, strict=True)
+
+
+def native(exprs: Sequence[Any]) -> list[Any] | None:
+    """``exprs`` (SymPy, SymEngine or numbers, never text) as SymEngine expressions; None if SymEngine cannot."""
+    if any(isinstance(e, str) for e in exprs):
+        raise TypeError("native() converts expressions, not text")
+    sympy = [e for e in exprs if isinstance(e, sp.Basic)]
+    converted = _convert(sympy) if sympy else []
+    if converted is None:
+        return None
+    it = iter(converted)
+    return [next(it) if isinstance(e, sp.Basic) else _to_symengine(e) for e in exprs]
+
+
+def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]], list[Any]]:
+    """Common subexpressions of ``exprs``: ``(replacements, reduced)`` as :func:`sympy.cse` returns.
+
+    The new symbols are ``prefix0, prefix1, …`` in order of definition.  With
+    SymEngine (expressions it can represent, SymPy's or its own) the results
+    are SymEngine expressions, printed by :mod:`chaplygin.numeric._printing` without
+    converting them back; otherwise SymPy's elimination (with its cheap
+    "basic" optimisations) gives SymPy expressions.
+    """
+    fast = native(exprs)
+    # SymEngine names its symbols x0, x1, …: a clash with the input's names takes SymPy's cse
+    if fast is None or any(re.fullmatch(r"x\d+", str(s)) for e in fast for s in e.free_symbols):
+        return sp.cse([to_sympy(e) for e in exprs], symbols=sp.numbered_symbols(prefix),
+                      optimizations="basic")
+    pairs, reduced = _se_cse(fast)
+    rename = {s: _se_symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}
+    # one substitution of the whole list (a matrix): per expression, the map is converted each time
+    done = list(_se_matrix([v for _, v in pairs] + list(reduced)).xreplace(rename)) if rename else list(reduced)
+    return list(zip(rename.values(), done[: len(pairs)])), done[len(pairs) :]
+
+
+def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None:
+    """A function of a sample ``(len(args),)`` returning the complex values of ``exprs``.
+
+    SymEngine's ``Lambdify`` (no code generation, so it is cheap to build); None
+    when SymEngine cannot represent the expressions.  Singular points give
+    ``inf``/``nan``.
+    """
+    fast = native(list(args) + list(exprs))
+    if fast is None:
+        return None
+    try:
+        return _se_lambdify(fast[: len(args)], fast[len(args) :], real=False)
+    except (RuntimeError, NotImplementedError, TypeError):
+        return None

@@ -1,0 +1,114 @@
+"""Private symbol layer: dynamicsymbols on the outside, plain symbols inside.
+
+The user writes coordinates as ``sympy.physics.mechanics.dynamicsymbols``
+(functions of ``t``).  Differentiating with respect to ``q(t)`` and
+``Derivative(q(t), t)`` is slow in SymPy, so every derivation works on plain
+dummy symbols ``q``, ``qd`` (velocity) and ``qdd`` (acceleration) and converts
+back only for what the user sees.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+
+TIME: sp.Symbol = dynamicsymbols._t
+
+
+@dataclass(frozen=True)
+class Vars:
+    """Plain-symbol stand-ins for functions of time and their derivatives.
+
+    ``funcs[i]`` is a dynamicsymbol; ``x[i]``, ``xd[i]``, ``xdd[i]`` stand for
+    it and its first and second time derivatives.
+    """
+
+    funcs: tuple[sp.Expr, ...]
+    x: tuple[sp.Symbol, ...] = field(init=False)
+    xd: tuple[sp.Symbol, ...] = field(init=False)
+    xdd: tuple[sp.Symbol, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        names = [f.func.__name__ for f in self.funcs]
+        object.__setattr__(self, "x", tuple(sp.Dummy(n) for n in names))
+        object.__setattr__(self, "xd", tuple(sp.Dummy(n + "_d") for n in names))
+        object.__setattr__(self, "xdd", tuple(sp.Dummy(n + "_dd") for n in names))
+
+    def to_symbols(self) -> dict[sp.Expr, sp.Symbol]:
+        """Map ``f, f', f''`` to the plain symbols (use with ``xreplace``)."""
+        out: dict[sp.Expr, sp.Symbol] = {}
+        for f, x, xd, xdd in zip(self.funcs, self.x, self.xd, self.xdd):
+            out[f.diff(TIME, 2)] = xdd
+            out[f.diff(TIME)] = xd
+            out[f] = x
+        return out
+
+    def to_functions(self) -> dict[sp.Symbol, sp.Expr]:
+        """Map the plain symbols back to ``f, f', f''``."""
+        return {v: k for k, v in self.to_symbols().items()}
+
+
+def total_derivative(
+    expr: sp.Expr,
+    pairs: Iterable[tuple[sp.Symbol, sp.Expr]],
+) -> sp.Expr:
+    """Total time derivative ``∂_t F + Σ ∂F/∂x · ẋ`` for the given ``(x, ẋ)`` pairs."""
+    from chaplygin.core._fast import total_derivative as fast
+
+    pairs = [(x, xd) for x, xd in pairs if expr.has(x)]
+    if not pairs and not expr.has(TIME):
+        return sp.S.Zero
+    return fast(expr, pairs, TIME)
+
+
+def linear_coefficients(
+    expr: sp.Expr, variables: Sequence[sp.Symbol]
+) -> tuple[list[sp.Expr], sp.Expr] | None:
+    """Split ``expr = Σ c_i v_i + c_0`` with the ``c`` free of ``variables``.
+
+    Returns ``None`` when ``expr`` is not affine in ``variables``.
+    """
+    from chaplygin.core._fast import gradient
+
+    coeffs = gradient(expr, variables) if variables else []
+    if variables and any(c.has(*variables) for c in coeffs):
+        expr = sp.expand(expr)
+        coeffs = gradient(expr, variables)
+        if any(c.has(*variables) for c in coeffs):
+            return None
+    rest = expr.xreplace({v: 0 for v in variables})
+    return [sp.factor_terms(c) for c in coeffs], sp.factor_terms(rest)
+
+
+def functions_of_time(expr: sp.Expr) -> set[sp.Expr]:
+    """Undefined functions of ``t`` inside ``expr`` (``f(t)`` objects)."""
+    from sympy.core.function import AppliedUndef
+
+    return {f for f in expr.atoms(AppliedUndef) if f.args == (TIME,)}
+
+
+def other_undefined(expr: sp.Expr) -> set[sp.Expr]:
+    """Undefined functions whose argument is not exactly ``t``."""
+    from sympy.core.function import AppliedUndef
+
+    return {f for f in expr.atoms(AppliedUndef) if f.args != (TIME,)}
+
+
+_TRIGSIMP_MAX_OPS = 120  # larger expressions are only factored, to keep display fast
+
+
+def simplify_small(expr: sp.Expr) -> sp.Expr:
+    """``factor_terms``, after ``trigsimp`` for small expressions with squared sines or cosines.
+
+    ``trigsimp`` is slow; it only pays off where ``sin² + cos² = 1`` can apply.
+    """
+    squares = any(
+        isinstance(p.base, (sp.sin, sp.cos)) and p.exp.is_number and abs(p.exp) >= 2
+        for p in expr.atoms(sp.Pow)
+    )
+    if squares and sp.count_ops(expr) <= _TRIGSIMP_MAX_OPS:
+        expr = sp.trigsimp(expr)
+    return sp.factor_terms(expr)

@@ -1,0 +1,849 @@
+"""System files: a mechanical system, its parameter values and an initial state, in TOML.
+
+::
+
+    name = "Knife edge"
+    coordinates = ["x", "y", "phi"]
+
+    [parameters]            # every parameter, with a default value
+    m = 1.0
+    J = 0.5
+
+    [energy]
+    T = "m/2*(x'^2 + y'^2) + J/2*phi'^2"
+    V = "0"                 # or U = "..." (force function); both optional
+
+    [forces]                # optional non-potential forces: coordinate = "Q"
+    phi = "-0.1*phi'"
+
+    [constraints]           # solved: dependent velocity = expression
+    "y'" = "tan(phi)*x'"
+    # or: implicit = ["sin(phi)*x' - cos(phi)*y'"] with dependent = ["y"]
+
+    [initial]               # coordinates and independent velocities (missing ones are 0)
+    phi = 0.3
+    "x'" = 1.0
+
+:func:`load` and :func:`loads` read a file into a :class:`SystemFile`,
+:func:`dumps` writes one.  Expressions are read by :mod:`chaplygin.io.parser`,
+never evaluated as code; every problem is a :class:`SystemFileError` that names
+the key, shows the text with a caret and says what is allowed.  The format is
+described in ``docs/system-files.md``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import os
+import re
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+from sympy.core.function import AppliedUndef
+from sympy.printing.str import StrPrinter
+
+from chaplygin.core._symbols import TIME
+from chaplygin.core.system import System
+from chaplygin.errors import SystemDefinitionError
+from chaplygin.io.parser import (
+    RESERVED,
+    Names,
+    ParseError,
+    SystemFileError,
+    check_name,
+    parse_constant,
+    parse_expression,
+    preserved_state,
+)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = [
+    "MAX_COORDINATES",
+    "MAX_FILE_SIZE",
+    "MAX_PARAMETERS",
+    "MAX_SYSTEM_NAME_LENGTH",
+    "SECTIONS",
+    "ParseError",
+    "SystemFile",
+    "SystemFileError",
+    "dumps",
+    "load",
+    "loads",
+]
+
+#: Largest file, in characters (and bytes for :func:`load`).
+MAX_FILE_SIZE = 1_000_000
+#: Most coordinates in one system.
+MAX_COORDINATES = 32
+#: Most parameters in one system.
+MAX_PARAMETERS = 256
+#: Longest system name.
+MAX_SYSTEM_NAME_LENGTH = 200
+
+#: The top-level keys and tables of a system file.
+SECTIONS = ("name", "coordinates", "parameters", "energy", "forces", "constraints", "initial")
+_ENERGY_KEYS = ("T", "V", "U")
+_IMPLICIT_KEYS = ("implicit", "dependent")
+_FEW_CHOICES = 500  # below this many choices of dependent coordinates, System's own check is quick
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+\Z")
+_TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)\s*$")
+_TOML_EOF = re.compile(r"\(at end of document\)\s*$")
+
+
+@dataclass
+class SystemFile:
+    """A system read from a file, with its default parameter values and initial state.
+
+    Attributes
+    ----------
+    system : System
+        The mechanical system; its parameters are real SymPy symbols.
+    parameters : dict of str → float
+        The ``[parameters]`` defaults, by name (exactly the system's parameters).
+    initial : dict of str → float
+        The initial state: every coordinate, then the velocities of the
+        independent coordinates (``"theta'"``), in that order; values missing
+        from ``[initial]`` are 0.
+    name : str
+        The system's name (``name = ...``, else the file's stem, else ``"system"``).
+    source : str
+        The path it was read from, or ``"<string>"``.
+    defaulted : tuple of str
+        The keys of :attr:`initial` that ``[initial]`` did not give (set to 0).
+    """
+
+    system: System
+    parameters: dict[str, float]
+    initial: dict[str, float]
+    name: str
+    source: str
+    defaulted: tuple[str, ...] = ()
+
+    def dumps(self) -> str:
+        """This file written back as TOML (see :func:`dumps`)."""
+        return dumps(self.system, self.parameters, self.initial)
+
+
+# ---------------------------------------------------------------------------- reading
+def load(path: str | os.PathLike[str]) -> SystemFile:
+    """Read a system file.
+
+    Raises
+    ------
+    SystemFileError
+        If the file cannot be read, is not valid TOML, or describes an invalid system.
+    """
+    source = os.fspath(path)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_FILE_SIZE + 1)
+    except OSError as exc:
+        raise SystemFileError(f"cannot read the file: {exc.strerror or exc}", source=source) from None
+    if len(raw) > MAX_FILE_SIZE:
+        raise SystemFileError(
+            f"the file is larger than {MAX_FILE_SIZE} bytes", source=source,
+            allowed=f"Limit: {MAX_FILE_SIZE} bytes per system file.",
+        )
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SystemFileError(
+            f"the file is not UTF-8 text (byte {exc.start})", source=source,
+            allowed="System files are TOML, encoded in UTF-8.",
+        ) from None
+    return _loads(text, source, Path(source).stem)
+
+
+def loads(text: str, *, source: str = "<string>") -> SystemFile:
+    """Read a system file from a string (see :func:`load`); ``source`` names it in messages."""
+    return _loads(text, source, None)
+
+
+def _loads(text: str, source: str, default_name: str | None) -> SystemFile:
+    if not isinstance(text, str):
+        raise SystemFileError(f"expected the text of a system file, got {type(text).__name__}", source=source)
+    if len(text) > MAX_FILE_SIZE:
+        raise SystemFileError(
+            f"the file is {len(text)} characters long (limit {MAX_FILE_SIZE})", source=source,
+            allowed=f"Limit: {MAX_FILE_SIZE} characters per system file.",
+        )
+    text = text.removeprefix("\ufeff")
+    reader: _Reader | None = None
+    with preserved_state():  # mpmath's precision and SymPy's flags are the same afterwards
+        try:
+            data = _parse_toml(text, source)
+            reader = _Reader(data, source, default_name)
+            return reader.read()
+        except SystemFileError:
+            raise
+        except Exception as exc:  # the boundary between user files and SymPy: never a traceback
+            key, value = (reader.where, reader.text) if reader is not None else (None, None)
+            raise SystemFileError(
+                f"chaplygin could not read this ({type(exc).__name__}: {str(exc)[:200]})", source=source,
+                key=key, text=value,
+                allowed="This is a limitation of chaplygin; please report it with the file.",
+            ) from exc
+
+
+def _parse_toml(text: str, source: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        m = _TOML_POSITION.search(message)
+        reason = "invalid TOML: " + (message[: m.start()] if m else _TOML_EOF.sub("", message)).strip()
+        lines = text.split("\n")
+        if m:
+            line, col = int(m.group(1)), int(m.group(2)) - 1
+        else:
+            line, col = len(lines), len(lines[-1]) if lines else 0
+        shown = lines[line - 1] if 0 < line <= len(lines) else ""
+        hint = "System files are TOML: key = value lines and [table] headers."
+        if "'" in shown.split("=", 1)[0] and not shown.lstrip().startswith(('"', "[")):
+            hint = "Keys with a prime must be quoted: \"x'\" = \"...\"."
+        raise SystemFileError(
+            reason, source=source, line=line, text=shown, column=col, allowed=hint
+        ) from None
+    except RecursionError:
+        raise SystemFileError(
+            "invalid TOML: values are nested too deeply", source=source,
+            allowed="System files use flat tables, lists of strings and numbers.",
+        ) from None
+    except ValueError as exc:  # e.g. an integer with too many digits
+        raise SystemFileError(f"invalid TOML: {exc}", source=source) from None
+
+
+def _key(section: str | None, key: str | None = None) -> str:
+    """How a key is shown in messages: ``[constraints] "x'"``, ``coordinates``."""
+    if key is None:
+        return str(section)
+    shown = key if _BARE_KEY.match(key) else json.dumps(key, ensure_ascii=False)
+    return f"[{section}] {shown}" if section else shown
+
+
+def _unknown(key: str, allowed: tuple[str, ...] | list[str], where: str) -> str:
+    close = difflib.get_close_matches(key, list(allowed), n=1)
+    return f"unknown key {json.dumps(key, ensure_ascii=False)} in {where}" + (
+        f" (did you mean {close[0]!r}?)" if close else ""
+    )
+
+
+class _Reader:
+    def __init__(self, data: dict[str, Any], source: str, default_name: str | None) -> None:
+        self.data = data
+        self.source = source
+        self.default_name = default_name
+        # the key and text being read, for errors that escape from SymPy (see _loads)
+        self.where: str | None = None
+        self.text: str | None = None
+
+    def error(self, reason: str, key: str | None = None, **fields: Any) -> SystemFileError:
+        return SystemFileError(reason, source=self.source, key=key, **fields)
+
+    def table(self, name: str, required: bool = False) -> dict[str, Any]:
+        value = self.data.get(name)
+        if value is None:
+            if required:
+                raise self.error(
+                    f"the [{name}] table is missing", allowed=_SECTION_HELP[name],
+                )
+            return {}
+        if not isinstance(value, dict):
+            raise self.error(
+                f"{name} must be a table ([{name}] with key = value lines), got {_describe(value)}",
+                name, allowed=_SECTION_HELP[name],
+            )
+        return value
+
+    def read(self) -> SystemFile:
+        for key in self.data:
+            if key not in SECTIONS:
+                raise self.error(
+                    _unknown(key, SECTIONS, "the file"), _key(None, key),
+                    allowed="Allowed top-level keys and tables: " + ", ".join(SECTIONS) + ".",
+                )
+        name = self.read_name()
+        coordinates = self.read_coordinates()
+        parameters = self.read_parameters(coordinates)
+        names = Names.build(parameters, coordinates)
+        kwargs = self.read_energy(names)
+        kwargs["forces"] = self.read_forces(names) or None
+        constraints, dependent = self.read_constraints(names)
+        system = self.build(names, constraints, dependent, name, kwargs)
+        used = {p.name for p in system.parameters}
+        unused = [p for p in parameters if p not in used]
+        if unused:
+            raise self.error(
+                f"{unused[0]} is not used in any expression of the system",
+                _key("parameters", unused[0]),
+                allowed="Every parameter in [parameters] must appear in the energy, forces or constraints; "
+                "remove the unused ones.",
+            )
+        initial = self.read_initial(system)
+        given = self.table("initial")
+        return SystemFile(system, parameters, initial, name, self.source,
+                          tuple(k for k in initial if k not in given))
+
+    # ------------------------------------------------------------ sections
+    def read_name(self) -> str:
+        if "name" not in self.data:
+            return self.default_name or "system"
+        name = self.data["name"]
+        allowed = (
+            f"name is a string of at most {MAX_SYSTEM_NAME_LENGTH} printable characters, "
+            'without double quotes " or backslashes \\.'
+        )
+        if not isinstance(name, str):
+            raise self.error(f"name must be a string, got {_describe(name)}", "name", allowed=allowed)
+        if not name.strip():
+            raise self.error("name is empty", "name", allowed=allowed)
+        if len(name) > MAX_SYSTEM_NAME_LENGTH:
+            raise self.error(f"name is longer than {MAX_SYSTEM_NAME_LENGTH} characters", "name", allowed=allowed)
+        bad = next((i for i, c in enumerate(name) if not c.isprintable() or c in '"\\'), None)
+        if bad is not None:
+            raise self.error(
+                f"name contains the character {name[bad]!r}", "name", text=name, column=bad, allowed=allowed
+            )
+        return name
+
+    def read_coordinates(self) -> list[str]:
+        allowed = 'coordinates = ["x", "y", "phi"]: a list of names, each a valid name.'
+        if "coordinates" not in self.data:
+            raise self.error("the coordinates list is missing", allowed=allowed)
+        value = self.data["coordinates"]
+        if not isinstance(value, list) or not value:
+            raise self.error(
+                f"coordinates must be a non-empty list of names, got {_describe(value)}", "coordinates",
+                allowed=allowed,
+            )
+        if len(value) > MAX_COORDINATES:
+            raise self.error(
+                f"{len(value)} coordinates (limit {MAX_COORDINATES})", "coordinates",
+                allowed=f"Limit: {MAX_COORDINATES} coordinates.",
+            )
+        seen: list[str] = []
+        for k, item in enumerate(value):
+            where = f"coordinates (item {k + 1})"
+            try:
+                check_name(item, "a coordinate")
+            except ParseError as exc:
+                raise exc.located(source=self.source, key=where) from None
+            if item in seen:
+                raise self.error(f"the coordinate {item} is listed twice", where, allowed=allowed)
+            seen.append(item)
+        return seen
+
+    def read_parameters(self, coordinates: list[str]) -> dict[str, float]:
+        table = self.table("parameters")
+        if len(table) > MAX_PARAMETERS:
+            raise self.error(
+                f"{len(table)} parameters (limit {MAX_PARAMETERS})", "[parameters]",
+                allowed=f"Limit: {MAX_PARAMETERS} parameters.",
+            )
+        out: dict[str, float] = {}
+        for name, value in table.items():
+            where = _key("parameters", name)
+            try:
+                check_name(name, "a parameter")
+            except ParseError as exc:
+                raise exc.located(source=self.source, key=where) from None
+            if name in coordinates:
+                raise self.error(
+                    f"{name} is a coordinate; it cannot also be a parameter", where,
+                    allowed="Parameters are the constants of the system (masses, lengths …).",
+                )
+            out[name] = self.number(value, where)
+        return out
+
+    def number(self, value: Any, where: str) -> float:
+        allowed = 'A number such as 1, 0.5 or -2e-3, or a string of constants such as "pi/4".'
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise self.error(f"expected a number, got {_describe(value)}", where, allowed=allowed)
+        if isinstance(value, str):
+            self.where, self.text = where, value
+            try:
+                number = parse_constant(value)
+            except ParseError as exc:
+                raise exc.located(source=self.source, key=where) from None
+            self.where = self.text = None
+            return number
+        try:
+            number = float(value)
+        except OverflowError:
+            raise self.error("the number is too large", where, allowed=allowed) from None
+        if not math.isfinite(number):
+            raise self.error(f"expected a finite number, got {value}", where, allowed=allowed)
+        return number
+
+    def expression(self, value: Any, where: str, names: Names, velocity_message: str | None = None) -> sp.Expr:
+        if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+            raise self.error(
+                f"expected an expression in quotes, got {_describe(value)}", where,
+                allowed="Expressions are strings, e.g. \"m/2*x'^2\".",
+            )
+        text = value if isinstance(value, str) else repr(value)
+        self.where, self.text = where, text
+        try:
+            expr = parse_expression(text, names, velocity_message=velocity_message)
+        except ParseError as exc:
+            raise exc.located(source=self.source, key=where) from None
+        self.where = self.text = None
+        return expr
+
+    def read_energy(self, names: Names) -> dict[str, Any]:
+        table = self.table("energy", required=True)
+        for key in table:
+            if key not in _ENERGY_KEYS:
+                raise self.error(
+                    _unknown(key, _ENERGY_KEYS, "[energy]"), _key("energy", key), allowed=_SECTION_HELP["energy"]
+                )
+        if "T" not in table:
+            raise self.error("the kinetic energy T is missing", "[energy]", allowed=_SECTION_HELP["energy"])
+        if "V" in table and "U" in table:
+            raise self.error(
+                "give the potential energy V or the force function U (U = -V), not both", "[energy]",
+                allowed=_SECTION_HELP["energy"],
+            )
+        out: dict[str, Any] = {"kinetic_energy": self.expression(table["T"], _key("energy", "T"), names)}
+        for key, arg in (("V", "potential_energy"), ("U", "force_function")):
+            if key in table:
+                message = (
+                    f"{key} depends on the coordinates and t only, not on velocities; velocity-dependent "
+                    "forces go in [forces]"
+                )
+                out[arg] = self.expression(table[key], _key("energy", key), names, message)
+        return out
+
+    def read_forces(self, names: Names) -> dict[str, sp.Expr]:
+        table = self.table("forces")
+        out: dict[str, sp.Expr] = {}
+        for key, value in table.items():
+            where = _key("forces", key)
+            if key not in names.coordinates:
+                hint = ""
+                if key.endswith("'") and key[:-1] in names.coordinates:
+                    hint = f" (write the coordinate, {key[:-1]}, not its velocity)"
+                raise self.error(
+                    f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}", where,
+                    allowed="[forces] keys are coordinates: " + ", ".join(names.coordinates)
+                    + "; each value is the generalized force Q along it.",
+                )
+            out[key] = self.expression(value, where, names)
+        return out
+
+    def read_constraints(self, names: Names) -> tuple[Any, list[str] | None]:
+        table = self.table("constraints")
+        implicit = [k for k in table if k in _IMPLICIT_KEYS]
+        solved = [k for k in table if k not in _IMPLICIT_KEYS]
+        if implicit and solved:
+            raise self.error(
+                "mix of solved constraints (\"x'\" = ...) and implicit = [...]", _key("constraints", solved[0]),
+                allowed=_SECTION_HELP["constraints"],
+            )
+        if implicit:
+            return self.read_implicit(table, names)
+        out: dict[str, sp.Expr] = {}
+        for key in solved:
+            where = _key("constraints", key)
+            value = table[key]
+            q = key[:-1] if key.endswith("'") else None
+            if q is None or q not in names.coordinates:
+                if key in names.coordinates:
+                    reason = f"{key} is a coordinate; a solved constraint gives its velocity: \"{key}'\" = ..."
+                else:
+                    reason = _unknown(key, [f"{c}'" for c in names.coordinates] + list(_IMPLICIT_KEYS), "[constraints]")
+                raise self.error(reason, where, allowed=_SECTION_HELP["constraints"])
+            out[key] = self.expression(value, where, names)
+        return out, None
+
+    def read_implicit(self, table: dict[str, Any], names: Names) -> tuple[list[sp.Expr], list[str]]:
+        help_ = _SECTION_HELP["constraints"]
+        exprs = table.get("implicit")
+        if not isinstance(exprs, list) or not exprs:
+            raise self.error(
+                f"implicit must be a non-empty list of expressions, got {_describe(exprs)}",
+                _key("constraints", "implicit"), allowed=help_,
+            )
+        dependent = table.get("dependent")
+        if dependent is None:
+            raise self.error(
+                f"implicit constraints need dependent = [...] naming {len(exprs)} dependent coordinate(s)",
+                _key("constraints", "dependent"), allowed=help_,
+            )
+        if not isinstance(dependent, list):
+            raise self.error(
+                f"dependent must be a list of coordinate names, got {_describe(dependent)}",
+                _key("constraints", "dependent"), allowed=help_,
+            )
+        for k, d in enumerate(dependent):
+            if not isinstance(d, str) or d not in names.coordinates:
+                raise self.error(
+                    f"{_describe(d)} is not a coordinate", f"[constraints] dependent (item {k + 1})",
+                    allowed="The coordinates are " + ", ".join(names.coordinates) + ".",
+                )
+            if d in dependent[:k]:
+                raise self.error(
+                    f"the coordinate {d} is listed twice", f"[constraints] dependent (item {k + 1})",
+                    allowed=help_,
+                )
+        out = [
+            self.expression(e, f"[constraints] implicit (item {k + 1})", names) for k, e in enumerate(exprs)
+        ]
+        return out, list(dependent)
+
+    def build(
+        self, names: Names, constraints: Any, dependent: list[str] | None, name: str, kwargs: dict[str, Any]
+    ) -> System:
+        coordinates = list(names.coordinates.values())
+        if isinstance(constraints, dict):
+            constraints = {names.coordinates[k[:-1]].diff(TIME): v for k, v in constraints.items()}
+        elif dependent is not None and len(dependent) == len(constraints):
+            self.check_dependent_block(names, constraints, dependent)
+        try:
+            return System(
+                coordinates,
+                constraints=constraints,
+                dependent=None if dependent is None else [names.coordinates[d] for d in dependent],
+                name=name,
+                **kwargs,
+            )
+        except SystemDefinitionError as exc:
+            raise self.error(f"invalid system: {exc}") from None
+        except RecursionError:
+            raise self.error("the expressions are nested too deeply for SymPy") from None
+        except Exception as exc:  # the boundary between user files and SymPy
+            # Not expected from validated input; reported as a file error, never as a traceback
+            # (the original exception stays attached as __cause__).
+            raise self.error(f"chaplygin could not build the system ({type(exc).__name__}: {exc})") from exc
+
+    def check_dependent_block(self, names: Names, exprs: list[sp.Expr], dependent: list[str]) -> None:
+        """Refuse a ``dependent`` choice whose block of A is singular, suggesting one that works.
+
+        System does this check too, but it looks for a suggestion among all choices of
+        ``g`` of ``n`` coordinates, which takes very long for large systems; here a
+        column-pivoted QR factorization of A at random points finds one directly.  Only
+        used when there are many choices.
+        """
+        n, g = len(names.coordinates), len(exprs)
+        if math.comb(n, g) <= _FEW_CHOICES:
+            return
+        import numpy as np
+        from scipy.linalg import qr
+
+        velocities = [q.diff(TIME) for q in names.coordinates.values()]
+        try:
+            coefficients = [[sp.diff(e, v) for v in velocities] for e in exprs]
+        except (TypeError, ValueError, AttributeError, NotImplementedError):
+            return  # System reports what is wrong with the expressions
+        free = sorted(
+            {s for row in coefficients for c in row for s in c.free_symbols} | set(names.coordinates.values()),
+            key=str,
+        )
+        rng = np.random.default_rng(20000843)
+        dep = [list(names.coordinates).index(d) for d in dependent]
+        pivots: list[int] | None = None
+        for _ in range(3):
+            values = {s: sp.Float(v) for s, v in zip(free, rng.uniform(0.3, 1.3, size=len(free)))}
+            try:
+                a = np.array(
+                    [[complex(c.xreplace(values).evalf()) for c in row] for row in coefficients], dtype=complex
+                )
+            except (TypeError, ValueError):  # a pole at this point: try another
+                continue
+            if not np.all(np.isfinite(a)):
+                continue
+            s_dep = np.linalg.svd(a[:, dep], compute_uv=False)
+            if s_dep[-1] > 1e-10 * max(1.0, s_dep[0]):
+                return
+            _, r, perm = qr(a, pivoting=True)
+            if abs(r[g - 1, g - 1]) > 1e-10 * max(1.0, abs(r[0, 0])):
+                pivots = sorted(int(i) for i in perm[:g])
+        if pivots is None:
+            return  # undecided (or redundant constraints): System's own checks decide
+        coords = list(names.coordinates)
+        raise self.error(
+            f"dependent = {json.dumps(dependent)}: the constraints cannot be solved for these velocities "
+            "(their block of the constraint matrix is singular)",
+            "[constraints] dependent",
+            allowed=f"Choose other dependent coordinates, e.g. dependent = {json.dumps([coords[i] for i in pivots])}.",
+        )
+
+    def read_initial(self, system: System) -> dict[str, float]:
+        table = self.table("initial")
+        coords = [q.func.__name__ for q in system.coordinates]
+        independent = [q.func.__name__ + "'" for q in system.independent]
+        dependent = [q.func.__name__ + "'" for q in system.dependent]
+        allowed = (
+            "[initial] gives coordinates ("
+            + ", ".join(coords)
+            + ") and independent velocities ("
+            + ", ".join(independent)
+            + "); missing ones are 0."
+        )
+        for key in table:
+            where = _key("initial", key)
+            if key in dependent:
+                raise self.error(
+                    f"{key} is the velocity of a dependent coordinate: it follows from the constraints",
+                    where, allowed=allowed,
+                )
+            if key not in coords and key not in independent:
+                raise self.error(_unknown(key, coords + independent, "[initial]"), where, allowed=allowed)
+        return {key: (self.number(table[key], _key("initial", key)) if key in table else 0.0)
+                for key in coords + independent}
+
+
+_SECTION_HELP = {
+    "name": 'name = "A descriptive name".',
+    "coordinates": 'coordinates = ["x", "y", "phi"].',
+    "parameters": "[parameters] gives every parameter a default value: m = 1.0.",
+    "energy": "[energy] has T (kinetic energy, required) and either V (potential energy) or U "
+    "(force function, U = -V).",
+    "forces": "[forces] gives generalized forces by coordinate: phi = \"-c*phi'\".",
+    "constraints": "[constraints] has either solved constraints, \"y'\" = \"tan(phi)*x'\" (one per dependent "
+    "velocity), or implicit = [\"sin(phi)*x' - cos(phi)*y'\"] (each = 0) with dependent = [\"y\"].",
+    "initial": "[initial] gives coordinates and independent velocities: theta = 1.0, \"theta'\" = 0.4.",
+}
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if value is None:
+        return "nothing"
+    return f"{type(value).__name__} {value}"
+
+
+# ---------------------------------------------------------------------------- writing
+_PRINTED_FUNCTIONS: dict[type, str] = {
+    sp.sin: "sin", sp.cos: "cos", sp.tan: "tan", sp.asin: "asin", sp.acos: "acos", sp.atan: "atan",
+    sp.atan2: "atan2", sp.sinh: "sinh", sp.cosh: "cosh", sp.tanh: "tanh", sp.exp: "exp", sp.log: "log",
+    sp.Abs: "abs", sp.sign: "sign",
+}
+
+
+class _FilePrinter(StrPrinter):
+    """Prints SymPy expressions in the file syntax (``x'`` velocities, ``^`` powers)."""
+
+    def _print_Derivative(self, expr: sp.Derivative) -> str:
+        return self._print(expr.expr) + "'"
+
+    def _print_Function(self, expr: sp.Expr) -> str:
+        if isinstance(expr, AppliedUndef):
+            return expr.func.__name__
+        name = _PRINTED_FUNCTIONS[type(expr)]
+        return name + "(" + self.stringify(expr.args, ", ") + ")"
+
+    def _print_Abs(self, expr: sp.Expr) -> str:
+        return "abs(" + self._print(expr.args[0]) + ")"
+
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        return super()._print_Pow(expr, rational).replace("**", "^")
+
+
+class _Writer:
+    def __init__(self, system: System) -> None:
+        self.system = system
+        self.coordinates = {q.func.__name__: q for q in system.coordinates}
+        self.printer = _FilePrinter({"full_prec": True})
+
+    def fail(self, reason: str, what: str) -> SystemFileError:
+        return SystemFileError(f"cannot write {what}: {reason}", source=self.system.name)
+
+    def check(self, expr: Any, what: str) -> None:
+        """Refuse anything the file syntax cannot express."""
+        coords = set(self.system.coordinates)
+        stack = [expr]
+        while stack:
+            node = stack.pop()
+            if isinstance(node, (sp.Add, sp.Mul, sp.Pow)) or type(node) in _PRINTED_FUNCTIONS:
+                stack.extend(node.args)
+                continue
+            if isinstance(node, (sp.Rational, sp.Float)) or node is TIME:
+                continue
+            if node in (sp.pi, sp.E) or node in coords:
+                continue
+            if isinstance(node, sp.Derivative):
+                if node.expr in coords and node.variables == (TIME,):
+                    continue
+                raise self.fail(f"{sp.sstr(node)} is not a velocity of a coordinate", what)
+            if isinstance(node, sp.Symbol):
+                if node.name in RESERVED or node.name in self.coordinates:
+                    raise self.fail(
+                        f"the parameter {node.name} has the name of a coordinate, of time or of a constant", what
+                    )
+                try:
+                    check_name(node.name, "the parameter name")
+                except ParseError as exc:
+                    raise self.fail(exc.reason, what) from None
+                continue
+            raise self.fail(
+                f"{sp.sstr(node)} ({type(node).__name__}) has no equivalent in the file syntax", what
+            )
+
+    def expression(self, expr: Any, what: str, names: Names) -> str:
+        expr = sp.S.Zero + expr
+        self.check(expr, what)
+        text = self.printer.doprint(expr)
+        try:
+            parse_expression(text, names)
+        except ParseError as exc:
+            raise self.fail(f"the printed expression is refused by the parser: {exc.reason}", what) from None
+        return text
+
+
+def _toml_string(text: str) -> str:
+    return json.dumps(text, ensure_ascii=False)
+
+
+def _toml_key(key: str) -> str:
+    return key if _BARE_KEY.match(key) else _toml_string(key)
+
+
+def _toml_number(value: float, what: str) -> str:
+    number = float(value)
+    if not math.isfinite(number):
+        raise SystemFileError(f"cannot write {what}: {number} is not a finite number")
+    return repr(number)
+
+
+def _key_name(system: System, key: Any) -> str:
+    """``"x"``/``"x'"`` for a coordinate or velocity given as a name or dynamicsymbol."""
+    if isinstance(key, str):
+        return key.strip()
+    if isinstance(key, sp.Derivative) and key.variables == (TIME,) and isinstance(key.expr, AppliedUndef):
+        return key.expr.func.__name__ + "'"
+    if isinstance(key, AppliedUndef):
+        return key.func.__name__
+    if isinstance(key, sp.Symbol):
+        return key.name
+    return str(key)
+
+
+def dumps(
+    system: System,
+    parameters: Mapping[Any, float] | None = None,
+    initial: Mapping[Any, float] | None = None,
+) -> str:
+    """Write ``system`` as a system file, so that :func:`loads` gives an equivalent system.
+
+    Parameters
+    ----------
+    system : System
+    parameters : mapping, optional
+        Default values by parameter (name or symbol).  Parameters without a
+        value are written as ``1.0`` with a comment saying so.
+    initial : mapping, optional
+        Initial values of coordinates and independent velocities (names such as
+        ``"x"``, ``"x'"`` or dynamicsymbols); velocities of dependent
+        coordinates are left out (they follow from the constraints).  Without
+        it, no ``[initial]`` table is written.
+
+    Raises
+    ------
+    SystemFileError
+        If a name or an expression of the system cannot be written in the file
+        syntax (e.g. a ``Piecewise``, a parameter called ``E``), or a key of
+        ``parameters``/``initial`` is unknown.
+    """
+    w = _Writer(system)
+    coords = [q.func.__name__ for q in system.coordinates]
+    for q in coords:
+        try:
+            check_name(q, "the coordinate name")
+        except ParseError as exc:
+            raise w.fail(exc.reason, "the coordinates") from None
+    name = system.name
+    bad = next((c for c in name if not c.isprintable() or c in '"\\'), None)
+    if bad is not None or len(name) > MAX_SYSTEM_NAME_LENGTH or not name.strip():
+        raise w.fail(
+            f"the name {name!r} must be at most {MAX_SYSTEM_NAME_LENGTH} printable characters without \" or \\",
+            "the name",
+        )
+    pnames = [p.name for p in system.parameters]
+    names = Names.build(pnames, coords)
+    values: dict[str, float] = {}
+    for key, value in (parameters or {}).items():
+        k = key.name if isinstance(key, sp.Symbol) else str(key)
+        if k not in pnames:
+            raise w.fail(
+                f"{k} is not a parameter of the system (its parameters are {', '.join(pnames) or 'none'})",
+                "[parameters]",
+            )
+        values[k] = float(value)
+
+    out = [f"# chaplygin system file: {name}", f"name = {_toml_string(name)}"]
+    out.append("coordinates = [" + ", ".join(_toml_string(q) for q in coords) + "]")
+    if pnames:
+        out += ["", "[parameters]"]
+        for p in pnames:
+            if p in values:
+                out.append(f"{_toml_key(p)} = {_toml_number(values[p], f'the parameter {p}')}")
+            else:
+                out.append(f"{_toml_key(p)} = 1.0  # no value was given")
+
+    out += ["", "[energy]", f"T = {_toml_string(w.expression(system.kinetic_energy, 'the kinetic energy T', names))}"]
+    if system.potential_energy is not None:
+        out.append(f"V = {_toml_string(w.expression(system.potential_energy, 'the potential energy V', names))}")
+    elif system.force_function != 0:
+        out.append(f"U = {_toml_string(w.expression(system.force_function, 'the force function U', names))}")
+
+    if system.forces:
+        out += ["", "[forces]"]
+        for q, value in system.forces.items():
+            qn = q.func.__name__
+            out.append(f"{_toml_key(qn)} = {_toml_string(w.expression(value, f'the forces ({qn})', names))}")
+
+    if system.g:
+        out += ["", "[constraints]"]
+        if system.constraint_form == "B":
+            for vel, value in system.constraints.items():
+                key = vel.expr.func.__name__ + "'"
+                out.append(
+                    f"{_toml_string(key)} = {_toml_string(w.expression(value, f'the constraint {key}', names))}"
+                )
+        else:
+            exprs = [w.expression(e, "the implicit constraints", names) for e in system.implicit_constraints]
+            out.append("implicit = [")
+            out += [f"    {_toml_string(e)}," for e in exprs]
+            out.append("]")
+            out.append("dependent = [" + ", ".join(_toml_string(q.func.__name__) for q in system.dependent) + "]")
+
+    if initial is not None:
+        independent = [q.func.__name__ + "'" for q in system.independent]
+        dependent = [q.func.__name__ + "'" for q in system.dependent]
+        given: dict[str, float] = {}
+        for key, value in initial.items():
+            k = _key_name(system, key)
+            if k in dependent:
+                continue
+            if k not in coords and k not in independent:
+                raise w.fail(
+                    f"{k} is neither a coordinate nor an independent velocity "
+                    f"({', '.join(coords + independent)})", "[initial]",
+                )
+            given[k] = float(value)
+        out += ["", "[initial]"]
+        out += [
+            f"{_toml_key(k)} = {_toml_number(given[k], f'the initial value of {k}')}"
+            for k in coords + independent
+            if k in given
+        ]
+    return "\n".join(out) + "\n"
+

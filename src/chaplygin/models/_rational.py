@@ -1,0 +1,334 @@
+"""Exact rational arithmetic for solved accelerations: fraction-free solves, sin² + cos² = 1.
+
+A derived mass matrix and forcing are rational functions of a few *kernels*:
+the parameters, the velocities, and functions of the coordinates such as
+``sin θ`` and ``cos θ``.  Treating each kernel as an independent variable makes
+them elements of the field ``ℚ(kernels)``, where SymPy's sparse polynomials
+solve a small linear system without fractions (``solve_den``:
+``x = adj(M)·F / det M`` up to common factors) and cancel common factors
+exactly.  The one identity that links kernels in every rolling problem,
+``sin²a + cos²a = 1``, is applied by rewriting every even power of one of the
+two (``cos²a → 1 − sin²a``, or the other way) — a normal form modulo the
+identity — before cancelling, so that factors such as ``cos²θ`` and
+``1 − sin²θ`` cancel.  Both directions are tried and the shorter result is
+kept.
+
+This replaces general simplification (``cancel`` of nested fractions, then
+``trigsimp``), which cost seconds on the rolling disk; heavy simplification
+stays available on request (:func:`simplified`).
+
+Expressions enter the field through :meth:`Algebra.convert`, which walks the
+expression tree once and multiplies out in sparse polynomial arithmetic (much
+faster than SymPy's ``expand``).  A rational power ``b**(p/q)`` is the kernel
+``b**(1/q)`` to the power ``p``; Floats are kernels too, so user-given values
+are never re-rounded.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+import sympy as sp
+from sympy.polys.fields import FracElement, FracField
+from sympy.polys.matrices import DomainMatrix
+from sympy.polys.matrices.exceptions import DMNonInvertibleMatrixError
+from sympy.polys.rings import PolyElement
+
+from chaplygin.errors import ModelError
+
+__all__ = ["Algebra", "TooLarge", "normal_all", "simplified", "solve_linear"]
+
+#: the largest polynomial (in terms) that normal forms are computed for; beyond it an
+#: expanded result would be unreadable and its cancellation slow (see :class:`TooLarge`)
+TERMS = 400
+
+
+#: the most terms an intermediate product or power may have before it is formed
+_WORK = 50 * TERMS
+#: denominators up to this many terms are shown factored
+_FACTOR_TERMS = 40
+
+
+class TooLarge(Exception):
+    """Expanded normal forms would be too large: the caller solves with nested expressions."""
+
+
+def _check(*polys: PolyElement) -> None:
+    if any(len(p) > TERMS for p in polys):
+        raise TooLarge
+
+#: a rational function as (numerator, denominator), not necessarily cancelled
+Fraction = tuple[PolyElement, PolyElement]
+
+
+def _split_power(expr: sp.Expr) -> tuple[sp.Expr, int] | None:
+    """``b**e`` as (kernel, integer power) when ``e`` is rational; None otherwise."""
+    base, exp = expr.args
+    if exp.is_Integer:
+        return base, int(exp)
+    if exp.is_Rational:
+        return base ** sp.Rational(1, exp.q), int(exp.p)
+    return None
+
+
+def _kernels(exprs: Iterable[sp.Expr]) -> list[sp.Expr]:
+    """The kernels of ``exprs``: what is neither a rational number nor +, ·, or a rational power."""
+    found: dict[sp.Expr, None] = {}
+    seen: set[sp.Expr] = set()
+    stack = list(exprs)
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if e.is_Rational:
+            continue
+        if e.is_Add or e.is_Mul:
+            stack.extend(e.args)
+        elif e.is_Pow and (split := _split_power(e)) is not None:
+            base, _ = split
+            if base.is_Pow:  # b**(1/q): a kernel of its own
+                found[base] = None
+            else:
+                stack.append(base)
+        else:
+            found[e] = None
+    return sorted(found, key=sp.default_sort_key)
+
+
+class Algebra:
+    """The ring ``ℚ[kernels]`` of a batch of expressions, with fraction-free linear algebra.
+
+    Parameters
+    ----------
+    exprs : every expression that will be converted (their kernels make the ring)
+    """
+
+    def __init__(self, exprs: Iterable[sp.Expr]) -> None:
+        kernels = _kernels(exprs) or [sp.Dummy("one")]
+        self.field = FracField(kernels, sp.QQ)
+        self.ring = self.field.ring
+        self._gen = dict(zip(kernels, self.ring.gens))
+        where = {g: i for i, g in enumerate(kernels)}
+        #: (index of sin a, index of cos a) for every angle a with both kernels
+        self.pairs = [
+            (i, where[sp.cos(g.args[0])])
+            for i, g in enumerate(kernels)
+            if isinstance(g, sp.sin) and sp.cos(g.args[0]) in where
+        ]
+        self._memo: dict[sp.Expr, Fraction] = {}
+        self._bottoms: dict[PolyElement, sp.Expr] = {}
+
+    # ------------------------------------------------------------------ conversion
+    def convert(self, expr: sp.Expr) -> Fraction:
+        """``expr`` as a fraction of polynomials in the kernels (not cancelled)."""
+        memo = self._memo
+        if expr in memo:
+            return memo[expr]
+        ring = self.ring
+        if expr.is_Rational:
+            out = (ring.ground_new(sp.QQ(int(expr.p), int(expr.q))), ring.one)
+        elif expr.is_Add:
+            out = _sum([self.convert(a) for a in expr.args])
+        elif expr.is_Mul:
+            out = _product([self.convert(a) for a in expr.args])
+        elif expr in self._gen:
+            out = (self._gen[expr], ring.one)
+        elif expr.is_Pow and (split := _split_power(expr)) is not None:
+            base, k = split
+            n, d = (self._gen[base], ring.one) if base in self._gen else self.convert(base)
+            if max(math.comb(len(n) + abs(k) - 1, abs(k)), math.comb(len(d) + abs(k) - 1, abs(k))) > _WORK:
+                raise TooLarge  # a power of a sum with too many terms to expand
+            out = (n**k, d**k) if k >= 0 else (d ** (-k), n ** (-k))
+        else:  # pragma: no cover - every other expression is a kernel
+            raise KeyError(expr)
+        _check(*out)
+        memo[expr] = out
+        return out
+
+    def to_expr(self, frac: FracElement) -> sp.Expr:
+        """A field element back as a SymPy expression, common monomials and contents pulled out."""
+        numer, denom = frac.numer, frac.denom
+        if denom.LC < 0:
+            numer, denom = -numer, -denom
+        top = self._poly_expr(numer)
+        if denom == 1:
+            return top
+        if denom not in self._bottoms:  # solutions often share their denominator
+            if len(denom) > _FACTOR_TERMS:
+                self._bottoms[denom] = self._poly_expr(denom)
+            else:
+                unit, factors = denom.factor_list()
+                self._bottoms[denom] = sp.Rational(int(unit.numerator), int(unit.denominator)) * sp.Mul(
+                    *(self._poly_expr(f) ** k for f, k in factors))
+        return top / self._bottoms[denom]
+
+    def _poly_expr(self, p: PolyElement) -> sp.Expr:
+        if not p:
+            return sp.S.Zero
+        ring = p.ring
+        monoms = p.listmonoms()
+        low = tuple(min(m[i] for m in monoms) for i in range(ring.ngens))
+        if any(low):
+            p = p.exquo(ring({low: sp.QQ(1)}))
+        content, p = p.primitive()
+        if p.LC < 0:
+            content, p = -content, -p
+        factors = [g**e for g, e in zip(ring.symbols, low) if e]
+        return sp.Mul(sp.Rational(int(content.numerator), int(content.denominator)), *factors, p.as_expr())
+
+    # ------------------------------------------------------------------ normal form
+    def reduce(self, frac: Fraction) -> FracElement:
+        """``frac`` in normal form modulo sin² + cos² = 1, common factors cancelled.
+
+        Raises ZeroDivisionError where the denominator vanishes by the identity.
+        """
+        numer, denom = frac
+        _check(numer, denom)
+        candidates = []
+        best = numer, denom
+        for direction in (0, 1) if self.pairs else (0,):
+            # the second direction starts from the first's (smaller) cancelled result
+            pairs = [(p[direction], p[1 - direction]) for p in self.pairs]
+            n, d = _eliminate(best[0], pairs), _eliminate(best[1], pairs)
+            if not d:
+                raise ZeroDivisionError
+            best = n.cancel(d)
+            candidates.append(best)
+        if denom == 1:
+            candidates.append((numer, denom))  # a polynomial may read best as it was written
+        # the fewest terms; on a tie the fewest minus signs (sin²θ + 2/5 rather than 7/5 − cos²θ)
+        return self.field.raw_new(*min(candidates, key=_length))
+
+    def matrix(self, entries: sp.Matrix) -> tuple[DomainMatrix, PolyElement]:
+        """``entries`` as ``N / d``: a polynomial matrix over one common denominator."""
+        fracs = [[self.convert(entries[i, j]) for j in range(entries.cols)] for i in range(entries.rows)]
+        d = self.ring.one
+        for row in fracs:
+            for _, den in row:
+                d = d.lcm(den)
+        rows = [[num * d.exquo(den) for num, den in row] for row in fracs]
+        return DomainMatrix(rows, entries.shape, self.ring.to_domain()), d
+
+    def solve_den(self, A: DomainMatrix, b: DomainMatrix) -> tuple[DomainMatrix, PolyElement]:
+        """``A·x = b`` over the polynomials: ``x = N / d`` (not cancelled).
+
+        Raises ZeroDivisionError where ``A`` is singular, identically or by sin² + cos² = 1.
+        """
+        if A.shape[0] == 0:
+            return DomainMatrix.zeros((0, b.shape[1]), A.domain), self.ring.one
+        # a rough bound of the determinant's size: the product of the rows' largest entries
+        estimate = 1
+        for i in range(A.shape[0]):
+            entries = [A[i, j].element for j in range(A.shape[1])] + [b[i, j].element for j in range(b.shape[1])]
+            estimate *= max(1, *map(len, entries))
+        if estimate > 20 * TERMS:
+            raise TooLarge
+        try:
+            num, den = A.solve_den(b)
+        except DMNonInvertibleMatrixError:
+            raise ZeroDivisionError from None
+        den = getattr(den, "element", den)
+        if not den or not _eliminate(den, self.pairs):
+            raise ZeroDivisionError
+        _check(den, *(num[i, j].element for i in range(num.shape[0]) for j in range(num.shape[1])))
+        return num, den
+
+    def fractions(self, N: DomainMatrix, d: PolyElement) -> list[FracElement]:
+        """The entries of the column ``N / d``, each reduced (:meth:`reduce`)."""
+        return [self.reduce((N[i, 0].element, d)) for i in range(N.shape[0])]
+
+
+def _length(frac: Fraction) -> tuple[int, int]:
+    n, d = frac
+    return len(n) + len(d), sum(c < 0 for c in n.itercoeffs()) + sum(c < 0 for c in d.itercoeffs())
+
+
+def _sum(parts: list[Fraction]) -> Fraction:
+    ring = parts[0][0].ring
+    groups: dict[PolyElement, PolyElement] = {}
+    for n, d in parts:  # add numerators over equal denominators first
+        groups[d] = groups.get(d, ring.zero) + n
+    items = list(groups.items())
+    d_out, n_out = items[0]
+    for d, n in items[1:]:
+        n_out, d_out = n_out * d + n * d_out, d_out * d
+    return n_out, d_out
+
+
+def _product(parts: list[Fraction]) -> Fraction:
+    n_out, d_out = parts[0]
+    for n, d in parts[1:]:
+        if len(n_out) * len(n) > _WORK or len(d_out) * len(d) > _WORK:
+            raise TooLarge
+        n_out, d_out = n_out * n, d_out * d
+    return n_out, d_out
+
+
+def _eliminate(p: PolyElement, pairs: list[tuple[int, int]]) -> PolyElement:
+    """Rewrite ``x^e`` (e ≥ 2) as ``x^(e mod 2)·(1 − y²)^(e div 2)`` for each pair ``(x, y)``."""
+    ring = p.ring
+    for x, y in pairs:
+        if all(m[x] < 2 for m in p.itermonoms()):
+            continue
+        one_minus = ring.one - ring.gens[y] ** 2
+        powers: dict[int, PolyElement] = {}
+        out = ring.zero
+        for monom, coeff in p.iterterms():
+            e = monom[x]
+            if e < 2:
+                out += ring({monom: coeff})
+                continue
+            rest = list(monom)
+            rest[x] = e % 2
+            if e // 2 not in powers:
+                powers[e // 2] = one_minus ** (e // 2)
+            out += ring({tuple(rest): coeff}) * powers[e // 2]
+        p = out
+    return p
+
+
+def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> list[sp.Expr]:
+    """Solve ``M·x = F`` exactly: in normal form where that stays small, else by LU.
+
+    Raises
+    ------
+    ModelError
+        When ``M`` is singular (identically, or by sin² + cos² = 1).
+    """
+    n = M.rows
+    if n == 0:
+        return []
+    try:
+        alg = Algebra([*M, *F])
+        N, _ = alg.matrix(M.row_join(F))  # one common denominator scales the whole system
+        return [alg.to_expr(x) for x in alg.fractions(*alg.solve_den(N[:, :n], N[:, n:]))]
+    except ZeroDivisionError:
+        raise ModelError(f"{what} do not determine their unknowns: the mass matrix is singular.") from None
+    except TooLarge:
+        return list(M.LUsolve(F))
+
+
+def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:
+    """Each expression as one cancelled fraction in normal form modulo sin² + cos² = 1.
+
+    An expression whose normal form would be too large (:class:`TooLarge`) stays as it is.
+    """
+    alg = Algebra(exprs)
+    out = []
+    for e in exprs:
+        try:
+            out.append(alg.to_expr(alg.reduce(alg.convert(e))))
+        except (TooLarge, ZeroDivisionError):
+            out.append(e)
+    return out
+
+
+def simplified(expr: sp.Expr) -> sp.Expr:
+    """Heavy simplification (``sympy.simplify``), kept only where it is shorter.
+
+    Slow on large expressions: used only on request (``simplify=True``).
+    """
+    candidate = sp.simplify(expr)
+    return candidate if sp.count_ops(candidate) < sp.count_ops(expr) else expr

@@ -1,0 +1,165 @@
+"""Reduced equations of the Chetaev model: Chaplygin (15), the new form (40), Voronets.
+
+Only the ε independent accelerations are unknown; the dependent velocities
+(and accelerations) are eliminated by the constraints — the paper's tilde.
+With ``D_σ F = ∂F/∂q_σ + Σ_α B_ασ ∂F/∂q_{ε+α}`` and
+``p_β = (∂T/∂q̇_{ε+β})~``, Voronets' equations read::
+
+    d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ + Σ_β p_β W_βσ = 0,
+    W_βσ = Σ_γ (D_σ B_βγ − D_γ B_βσ) q̇_γ + D_σ B_β0 − ∂_t B_βσ − Σ_α B_α0 ∂B_βσ/∂q_{ε+α},
+    Q̃_σ = Q_σ + Σ_β B_βσ Q_{ε+β}.
+
+For a Chaplygin system (nothing depends on ``q_{ε+β}``) ``D_σ = ∂/∂q_σ`` and
+this is Chaplygin's eq. (15).  The affine terms in ``W`` (from ``B_β0`` and
+explicit time) extend (15) to Voronets' rheonomic case.
+
+The "new" form, eq. (40), differentiates the unreduced T and substitutes after::
+
+    [E_σ(T) − Q_σ]~ + Σ_β B_βσ [E_{ε+β}(T) − Q_{ε+β}]~ = 0
+
+(for a Chaplygin system ``E_{ε+β}(T) = d/dt ∂T/∂q̇_{ε+β}`` as printed in (40));
+it is the multiplier system (6) with λ eliminated through (10).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import sympy as sp
+
+from chaplygin.core._fast import gradient, jacobian
+from chaplygin.core._symbols import TIME, total_derivative
+from chaplygin.models._rational import solve_linear
+from chaplygin.models.equations import Equations
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+
+__all__ = ["reduced_equations", "bracket_terms", "lagrange_reduced", "lindelof_defect"]
+
+
+class Reduction:
+    """Shared pieces of every reduced form: substitutions, D_σ, d/dt on the constraints."""
+
+    def __init__(self, system: System) -> None:
+        self.s = system
+        v = system._vars
+        self.ind_x = [v.x[i] for i in system._ind]
+        self.ind_xd = [v.xd[i] for i in system._ind]
+        self.ind_xdd = [v.xdd[i] for i in system._ind]
+        self.dep_x = [v.x[i] for i in system._dep]
+        self.dep_xd = [v.xd[i] for i in system._dep]
+        self.sub = system._velocity_substitution
+        self.eps = len(self.ind_x)
+        #: (x, ẋ) pairs of the total time derivative on the constraint manifold
+        self.pairs = (
+            list(zip(self.ind_x, self.ind_xd))
+            + [(x, self.sub[xd]) for x, xd in zip(self.dep_x, self.dep_xd)]
+            + list(zip(self.ind_xd, self.ind_xdd))
+        )
+
+    def dt(self, expr: sp.Expr) -> sp.Expr:
+        """Total time derivative along motions that satisfy the constraints."""
+        return total_derivative(expr, self.pairs)
+
+    def D(self, expr: sp.Expr, k: int) -> sp.Expr:
+        """Voronets' derivative ``D_σ F = ∂F/∂q_σ + Σ_α B_ασ ∂F/∂q_{ε+α}``."""
+        deps = [(a, x) for a, x in enumerate(self.dep_x) if expr.has(x)]
+        grad = gradient(expr, [self.ind_x[k], *(x for _, x in deps)])
+        return grad[0] + sum((self.s._B[a, k] * g for (a, _), g in zip(deps, grad[1:])), sp.S.Zero)
+
+    def reduced_force(self, k: int) -> sp.Expr:
+        """``Q̃_σ = (Q_σ + Σ_β B_βσ Q_{ε+β})~``."""
+        s = self.s
+        q = s._Q[s._ind[k]] + sum(
+            (s._B[b, k] * s._Q[i] for b, i in enumerate(s._dep)), sp.S.Zero
+        )
+        return q.xreplace(self.sub)
+
+
+def bracket_terms(system: System) -> list[list[sp.Expr]]:
+    """``W_βσ`` of Voronets' equations (internal symbols), indexed ``[β][σ]``.
+
+    ``W_βσ`` is linear in the independent velocities; its coefficients are the
+    dependent components of the Lie brackets of the constraint distribution
+    (see :mod:`chaplygin.analysis.integrability`), so ``W ≡ 0`` exactly when the
+    constraints are integrable.
+    """
+    r = Reduction(system)
+    B, B0 = system._B, system._B0
+    out = []
+    for b in range(system.g):
+        row = []
+        for k in range(r.eps):
+            w = sum(
+                ((r.D(B[b, c], k) - r.D(B[b, k], c)) * r.ind_xd[c] for c in range(r.eps)),
+                sp.S.Zero,
+            )
+            w += r.D(B0[b], k) - sp.diff(B[b, k], TIME)
+            w -= sum((B0[a] * sp.diff(B[b, k], x) for a, x in enumerate(r.dep_x)), sp.S.Zero)
+            row.append(w)
+        out.append(row)
+    return out
+
+
+def momenta_dependent(system: System, r: Reduction) -> list[sp.Expr]:
+    """``p_β = (∂T/∂q̇_{ε+β})~``: the momenta of the dependent coordinates, constraints substituted."""
+    return [p.xreplace(r.sub) for p in gradient(system._T, r.dep_xd)]
+
+
+def lagrange_reduced(system: System, r: Reduction) -> list[sp.Expr]:
+    """``d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ``: Lagrange's operator on T̃ — Lindelöf's eq. (22)."""
+    Tt = system._T_reduced
+    momenta = gradient(Tt, r.ind_xd)
+    return [r.dt(momenta[k]) - r.D(Tt, k) - r.reduced_force(k) for k in range(r.eps)]
+
+
+def lindelof_defect(system: System, r: Reduction) -> list[sp.Expr]:
+    """``Σ_β p_β W_βσ``: what Chaplygin's (15) adds to Lindelöf's (22)."""
+    W = bracket_terms(system)
+    p = momenta_dependent(system, r)
+    return [sum((p[b] * W[b][k] for b in range(system.g)), sp.S.Zero) for k in range(r.eps)]
+
+
+def _classic(system: System, r: Reduction) -> list[sp.Expr]:
+    """Voronets' equations; Chaplygin's (15) for a Chaplygin system."""
+    return [a + b for a, b in zip(lagrange_reduced(system, r), lindelof_defect(system, r))]
+
+
+def unreduced_tilde(system: System, r: Reduction) -> list[sp.Expr]:
+    """The unreduced form (40): ``[E_σ(T) − Q_σ]~ + Σ_β B_βσ [E_{ε+β}(T) − Q_{ε+β}]~``."""
+    from chaplygin.models.multipliers import lagrange_operator
+
+    v = system._vars
+    E = lagrange_operator(system)
+    acc = {v.xdd[i]: r.dt(r.sub[v.xd[i]]) for i in system._dep}
+    tilde = {**r.sub, **acc}
+    rows = [(E[s] - system._Q[s]).xreplace(tilde) for s in range(system.n)]
+    out = []
+    for k, i in enumerate(system._ind):
+        res = rows[i] + sum(
+            (system._B[b, k] * rows[j] for b, j in enumerate(system._dep)), sp.S.Zero
+        )
+        out.append(res)
+    return out
+
+
+def reduced_equations(system: System, model: str, form: str) -> Equations:
+    """Chaplygin's or Voronets' equations in the classic or new form."""
+    r = Reduction(system)
+    residuals = (_classic if form == "classic" else unreduced_tilde)(system, r)
+    return reduced_system(system, model, form, residuals, r)
+
+
+def reduced_system(
+    system: System, model: str, form: str, residuals: list[sp.Expr], r: Reduction, **extra: object
+) -> Equations:
+    """Wrap ε residuals linear in the independent accelerations as :class:`Equations`."""
+    res = sp.Matrix(residuals)
+    M = jacobian(res, r.ind_xdd)
+    F = -res.xreplace({a: 0 for a in r.ind_xdd})
+
+    def solve() -> dict[sp.Symbol, sp.Expr]:
+        return dict(zip(r.ind_xdd, solve_linear(M, F, f"the {model} equations")))
+
+    return Equations(system, model, form, residuals, r.ind_xdd, M, F, solve, **extra)  # type: ignore[arg-type]

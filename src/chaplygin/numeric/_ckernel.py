@@ -1,0 +1,632 @@
+"""The ``c`` backend: a model's ``fill`` in C, integrated by a DOP853 loop in C.
+
+Why C and not numba for the everyday path
+------------------------------------------
+numba compiles the DOP853 loop of :mod:`chaplygin.numeric._loop` anew inside every
+model's module (a loop that takes the model as an argument is recompiled in
+every process), 8–15 s on a 2-core machine, and ``import numba`` alone costs
+about half a second.  Here the loop is C, built once per installation (and
+compiler) into a shared library of the kernel cache, and each model adds one
+small library holding its generated ``fill`` (:mod:`chaplygin.numeric._cfill`), built
+by the C compiler in a fraction of a second.  The loop calls ``fill`` through a
+function pointer; Python reaches both through :mod:`ctypes` (no import of
+numba, no compile on a warm cache).  ``ctypes`` releases the GIL during a call.
+
+The loop is a line-by-line port of :func:`chaplygin.numeric._loop._k_dop853` (itself
+SciPy's ``DOP853``): the same tableau, step-size control, error norm, dense
+output, Gaussian elimination with partial pivoting and failure codes
+(:data:`chaplygin.numeric._loop.STATUS`; a C ``fill`` raises nothing, so code 3 never
+occurs).  Built with IEEE semantics (no fast-math, no FMA contraction), its
+runs agree with the numba loop's to round-off, which the tests check.
+
+The kernel cache
+----------------
+Libraries live in ``cache_dir()/kernels`` (``$CHAPLYGIN_CACHE`` moves it;
+deleting the folder clears it).  Each is keyed by the SHA-256 of its C source,
+the compiler command and its flags, written atomically, and recorded with the
+SHA-256 of its bytes in a JSON file beside it.  On loading, a library whose
+bytes do not match the record (truncated, edited, from a half-finished copy)
+or that the dynamic loader refuses is deleted and built again.
+:data:`STATS` counts builds and loads in this process.
+
+This module imports neither SymPy nor numba: a warm run needs neither.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, NamedTuple
+
+import numpy as np
+
+from chaplygin.numeric.cache import cache_dir
+
+__all__ = ["Unavailable", "compiler", "library", "Layout", "CompiledModel", "CKernel", "STATS", "FLAGS"]
+
+#: position-independent shared library, optimised, IEEE semantics kept (no -ffast-math, no FMA)
+FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")
+
+#: libraries built and loaded (from the kernel cache) by this process
+STATS = {"built": 0, "loaded": 0, "discarded": 0}
+
+
+class Unavailable(Exception):
+    """Generated C cannot be used here; the message says why."""
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The fixed order of the state ``y`` and the parameters ``p`` of generated functions."""
+
+    model: str
+    form: str
+    coordinates: tuple[str, ...]
+    velocities: tuple[str, ...]
+    multipliers: tuple[str, ...]
+    parameters: tuple[str, ...]
+    #: names of the multipliers computed (not integrated), e.g. Chetaev's λ
+    reactions: tuple[str, ...] = ()
+
+    @property
+    def state(self) -> tuple[str, ...]:
+        """Names of the entries of ``y``."""
+        return self.coordinates + self.velocities + self.multipliers
+
+    def describe(self) -> str:
+        return (
+            f"f(t, y, p) for the {self.model}/{self.form} equations\n"
+            f"  y = [{', '.join(self.state)}]\n"
+            f"  p = [{', '.join(self.parameters)}]"
+        )
+
+
+class CompiledModel:
+    """Numerical functions of one model, all with signature ``(t, y, p)``.
+
+    Attributes
+    ----------
+    layout : Layout
+        The order of ``y`` and ``p`` (also in each function's docstring).
+    rhs : callable
+        ``dy/dt``.
+    observe : callable
+        ``[energy, constraint residuals (g), computed multipliers, full velocities (n)]``.
+    module : module
+        The generated module (its ``__file__`` is the source), or the
+        :class:`CKernel` of the ``c`` backend.
+    """
+
+    def __init__(self, layout: Layout, module: Any, backend: str) -> None:
+        self.layout = layout
+        self.module = module
+        self.backend = backend
+        self.rhs: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = module.rhs
+        self.observe: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = module.observe
+        self.n_observed = int(module.N_OBSERVED)
+
+    def __repr__(self) -> str:
+        return f"<CompiledModel {self.backend}: {self.layout.describe()}>"
+
+
+def compiler() -> list[str]:
+    """The C compiler command, or raise :class:`Unavailable`.
+
+    ``$CHAPLYGIN_CC`` (a command; ``none`` switches generated C off), else
+    ``$CC``, else the first of ``cc``, ``gcc``, ``clang`` on ``PATH`` (POSIX only).
+    """
+    if os.name != "posix":
+        raise Unavailable("generated C is only built on POSIX systems")
+    chosen = os.environ.get("CHAPLYGIN_CC")
+    if chosen is not None:
+        if chosen.strip().lower() in ("", "none", "0", "off"):
+            raise Unavailable(f"CHAPLYGIN_CC={chosen!r} switches it off")
+        return shlex.split(chosen)
+    if os.environ.get("CC"):
+        return shlex.split(os.environ["CC"])
+    for name in ("cc", "gcc", "clang"):
+        found = shutil.which(name)
+        if found:
+            return [found]
+    raise Unavailable("no C compiler (cc, gcc or clang) on PATH; set CHAPLYGIN_CC")
+
+
+def kernel_dir() -> Path:
+    """The folder of compiled kernels."""
+    return cache_dir() / "kernels"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _discard(*paths: Path) -> None:
+    for path in paths:
+        try:
+            path.unlink()
+        except OSError:
+            pass
+
+
+def _verified(so: Path, record: Path, digest: str) -> bool:
+    """The library exists and its bytes are the ones recorded when it was built."""
+    try:
+        doc = json.loads(record.read_text(encoding="utf-8"))
+        return isinstance(doc, dict) and doc.get("key") == digest and doc.get("sha256") == _sha256(so)
+    except (OSError, ValueError):
+        return False
+
+
+def _compile(source: str, cmd: list[str], directory: Path, so: Path, record: Path, digest: str) -> None:
+    """Build ``source`` into ``so`` (atomically) and record its SHA-256 in ``record``."""
+    with tempfile.TemporaryDirectory(dir=directory) as tmp:
+        c_file = os.path.join(tmp, "kernel.c")
+        with open(c_file, "w", encoding="utf-8") as fh:
+            fh.write(source)
+        out = os.path.join(tmp, "kernel.so")
+        try:
+            run = subprocess.run([cmd[0], *FLAGS, *cmd[1:], c_file, "-o", out, "-lm"], capture_output=True,
+                                 text=True, timeout=600, check=False)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise Unavailable(f"the C compiler {cmd[0]!r} could not run: {exc}") from None
+        if run.returncode != 0 or not os.path.exists(out):
+            first = " / ".join((run.stderr or run.stdout).strip().splitlines()[:3]) or "(no output)"
+            raise Unavailable(f"the C compiler {cmd[0]!r} failed (exit {run.returncode}): {first}")
+        meta = os.path.join(tmp, "kernel.json")
+        with open(meta, "w", encoding="utf-8") as fh:
+            json.dump({"key": digest, "sha256": _sha256(Path(out)), "compiler": cmd}, fh)
+        os.replace(out, so)
+        os.replace(meta, record)
+    STATS["built"] += 1
+
+
+def library(source: str, stem: str) -> tuple[str, Path]:
+    """``source`` built into a verified shared library of the kernel cache: ``(digest, path)``.
+
+    ``source`` may name its symbols ``@DIGEST@``, replaced by the key's first 24
+    hex digits (unique symbols for libraries loaded into one namespace).
+    Raises :class:`Unavailable` when there is no compiler or it fails.
+    """
+    cmd = compiler()
+    digest = hashlib.sha256("\0".join([source, *cmd, *FLAGS]).encode()).hexdigest()[:24]
+    directory = kernel_dir()
+    so, record = directory / f"{stem}_{digest}.so", directory / f"{stem}_{digest}.json"
+    if so.exists() and _verified(so, record, digest):
+        STATS["loaded"] += 1
+        return digest, so
+    if so.exists() or record.exists():
+        STATS["discarded"] += 1
+        _discard(so, record)
+    directory.mkdir(parents=True, exist_ok=True)
+    _compile(source.replace("@DIGEST@", digest), cmd, directory, so, record, digest)
+    return digest, so
+
+
+_OPENED: dict[str, ctypes.CDLL] = {}
+
+
+def _open(source: str, stem: str) -> tuple[str, ctypes.CDLL]:
+    """The library of ``source``, loaded; rebuilt once if the dynamic loader refuses it."""
+    digest, so = library(source, stem)
+    if str(so) in _OPENED:
+        return digest, _OPENED[str(so)]
+    try:
+        lib = ctypes.CDLL(str(so))
+    except OSError:
+        STATS["discarded"] += 1
+        _discard(so, so.with_suffix(".json"))
+        digest, so = library(source, stem)
+        lib = ctypes.CDLL(str(so))
+    _OPENED[str(so)] = lib
+    return digest, lib
+
+
+# ------------------------------------------------------------------ the DOP853 loop in C
+def _array(name: str, values: Any) -> str:
+    flat = np.asarray(values, dtype=float).ravel()
+    return f"static const double {name}[{flat.size}] = {{{', '.join(repr(float(v)) for v in flat)}}};"
+
+
+def loop_source() -> str:
+    """The C source of the DOP853 loop library (tableau from :mod:`chaplygin.numeric._loop`)."""
+    from chaplygin.numeric import _loop as tab
+
+    tables = "\n".join([
+        _array("DOP_A", tab._DOP_A), _array("DOP_B", tab._DOP_B), _array("DOP_C", tab._DOP_C),
+        _array("DOP_E3", tab._DOP_E3), _array("DOP_E5", tab._DOP_E5), _array("DOP_D", tab._DOP_D),
+    ])
+    return _LOOP_C.replace("@TABLES@", tables)
+
+
+_LOOP_C = r"""
+/* chaplygin: SciPy's DOP853 as a C loop over a generated fill(t, y, p, M, F, V, O).
+   A port of chaplygin.numeric._loop._k_dop853 (see chaplygin.numeric._ckernel). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef void (*fill_t)(double, const double *, const double *, double *, double *, double *, double *);
+
+@TABLES@
+
+typedef struct {
+    fill_t fill;
+    int dim, nv, n_obs;
+    double *M, *b, *V, *O;
+} work_t;
+
+static int work_init(work_t *w, fill_t fill, int dim, int nv, int n_obs)
+{
+    w->fill = fill; w->dim = dim; w->nv = nv; w->n_obs = n_obs;
+    w->M = malloc(sizeof(double) * (dim * dim + dim + nv + n_obs + 1));
+    if (!w->M) return 0;
+    w->b = w->M + dim * dim; w->V = w->b + dim; w->O = w->V + nv;
+    return 1;
+}
+
+static int k_fill(work_t *w, double t, const double *y, const double *p)
+{
+    memset(w->M, 0, sizeof(double) * w->dim * w->dim);
+    w->fill(t, y, p, w->M, w->b, w->V, w->O);
+    return 0;
+}
+
+/* b <- M^-1 b, Gaussian elimination with partial pivoting in place; 5 if singular */
+static int k_solve(int n, double *M, double *b)
+{
+    for (int c = 0; c < n; ++c) {
+        int piv = c;
+        double big = fabs(M[c * n + c]);
+        for (int r = c + 1; r < n; ++r)
+            if (fabs(M[r * n + c]) > big) { big = fabs(M[r * n + c]); piv = r; }
+        if (big == 0.0) return 5;
+        if (piv != c) {
+            for (int j = c; j < n; ++j) { double tmp = M[c * n + j]; M[c * n + j] = M[piv * n + j]; M[piv * n + j] = tmp; }
+            double tmp = b[c]; b[c] = b[piv]; b[piv] = tmp;
+        }
+        for (int r = c + 1; r < n; ++r) {
+            double factor = M[r * n + c] / M[c * n + c];
+            for (int j = c + 1; j < n; ++j) M[r * n + j] -= factor * M[c * n + j];
+            b[r] -= factor * b[c];
+        }
+    }
+    for (int c = n - 1; c >= 0; --c) {
+        double acc = b[c];
+        for (int j = c + 1; j < n; ++j) acc -= M[c * n + j] * b[j];
+        b[c] = acc / M[c * n + c];
+    }
+    return 0;
+}
+
+static int k_eval(work_t *w, double t, const double *y, const double *p, double *f, int n)
+{
+    k_fill(w, t, y, p);
+    for (int i = 0; i < w->nv; ++i) if (!isfinite(w->V[i])) return 9;  /* a pole of the constraints */
+    if (k_solve(w->dim, w->M, w->b) != 0) return 5;
+    for (int i = 0; i < w->nv; ++i) f[i] = w->V[i];
+    for (int i = 0; i < n - w->nv; ++i) f[w->nv + i] = w->b[i];
+    for (int i = 0; i < n; ++i) if (!isfinite(f[i])) return 2;
+    return 0;
+}
+
+static int k_stages(work_t *w, int first, int last, double t, double h, const double *y, const double *p,
+                    double *K, double *y_stage, int n, int *s_out)
+{
+    for (int s = first; s < last; ++s) {
+        for (int i = 0; i < n; ++i) {
+            double acc = 0.0;
+            for (int j = 0; j < s; ++j) acc += K[j * n + i] * DOP_A[s * 16 + j];
+            y_stage[i] = y[i] + acc * h;
+        }
+        int code = k_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * n, n);
+        if (code != 0) { *s_out = s; return code; }
+    }
+    *s_out = last - 1;
+    return 0;
+}
+
+static double k_rms(const double *v, int n)
+{
+    double s = 0.0;
+    for (int i = 0; i < n; ++i) s += v[i] * v[i];
+    return sqrt(s / n);
+}
+
+/* row <- [O..., reactions, V]; NaN reactions where M is singular */
+static void k_observe(work_t *w, double t, const double *y, const double *p, int n_react, double *row)
+{
+    k_fill(w, t, y, p);
+    for (int j = 0; j < w->n_obs; ++j) row[j] = w->O[j];
+    int first = w->n_obs - w->nv - n_react;
+    if (n_react > 0) {
+        int singular = k_solve(w->dim, w->M, w->b) != 0;
+        for (int j = 0; j < n_react; ++j) row[first + j] = singular ? NAN : w->b[w->dim - n_react + j];
+    }
+    for (int j = 0; j < w->nv; ++j) row[w->n_obs - w->nv + j] = w->V[j];
+}
+
+static double dmin(double a, double b) { return a < b ? a : b; }
+static double dmax(double a, double b) { return a > b ? a : b; }
+
+/* info: filled, status, n_rhs, n_steps; dinfo: t, t_fail; y_last, y_fail: n each */
+int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t0, double t1,
+                    const double *y0, const double *p, const double *t_out, long n_out, double rtol,
+                    const double *atol, double max_step, double first_step, long max_steps, double *out,
+                    long *info, double *dinfo, double *y_last, double *y_fail)
+{
+    work_t w;
+    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
+    double *K = malloc(sizeof(double) * (16 * n + 8 * n + 7 * n + 1));
+    if (!K) { free(w.M); return -1; }
+    double *y = K + 16 * n, *y_new = y + n, *y_stage = y_new + n, *f_new = y_stage + n;
+    double *scale = f_new + n, *e5 = scale + n, *e3 = e5 + n, *F = e3 + n;
+    double direction = t1 >= t0 ? 1.0 : -1.0;
+    long n_rhs = 0, n_steps = 0, filled = 0;
+    double t = t0, t_new = t0, t_fail = t0;
+    int status = 0, code = 0, s = 0;
+    memcpy(y, y0, sizeof(double) * n);
+    memcpy(y_fail, y0, sizeof(double) * n);
+    while (filled < n_out && direction * (t_out[filled] - t0) <= 0.0) {
+        memcpy(out + filled * n, y0, sizeof(double) * n);
+        filled += 1;
+    }
+    code = k_eval(&w, t, y, p, K, n);
+    n_rhs += 1;
+    if (code != 0) { status = code; goto done; }
+
+    double interval = fabs(t1 - t0), h_abs;
+    if (first_step > 0.0) h_abs = first_step;
+    else if (n == 0 || interval == 0.0) h_abs = interval;
+    else {
+        for (int i = 0; i < n; ++i) {
+            scale[i] = atol[i] + fabs(y[i]) * rtol;
+            e5[i] = y[i] / scale[i];
+            e3[i] = K[i] / scale[i];
+        }
+        double d0 = k_rms(e5, n), d1 = k_rms(e3, n);
+        double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+        h0 = dmin(h0, interval);
+        for (int i = 0; i < n; ++i) y_stage[i] = y[i] + h0 * direction * K[i];
+        code = k_eval(&w, t + h0 * direction, y_stage, p, f_new, n);
+        n_rhs += 1;
+        if (code != 0) { status = code; t_fail = t + h0 * direction; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
+        for (int i = 0; i < n; ++i) e5[i] = (f_new[i] - K[i]) / scale[i];
+        double d2 = k_rms(e5, n) / h0, h1;
+        if (d1 <= 1e-15 && d2 <= 1e-15) h1 = dmax(1e-6, h0 * 1e-3);
+        else h1 = pow(0.01 / dmax(d1, d2), 1.0 / 8.0);
+        h_abs = dmin(dmin(100.0 * h0, h1), dmin(interval, max_step));
+    }
+
+    while (direction * (t - t1) < 0.0) {
+        if (max_steps > 0 && n_steps >= max_steps) { status = 4; break; }
+        double min_step = 10.0 * fabs(nextafter(t, direction * INFINITY) - t);
+        if (h_abs > max_step) h_abs = max_step;
+        else if (h_abs < min_step) h_abs = min_step;
+        int rejected = 0, accepted = 0;
+        double h = 0.0;
+        while (!accepted) {
+            if (h_abs < min_step) { status = 1; break; }
+            t_new = t + h_abs * direction;
+            if (direction * (t_new - t1) > 0.0) t_new = t1;
+            h = t_new - t;
+            h_abs = fabs(h);
+            code = k_stages(&w, 1, 12, t, h, y, p, K, y_stage, n, &s);
+            n_rhs += s;
+            if (code != 0) { status = code; t_fail = t + DOP_C[s] * h; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
+            for (int i = 0; i < n; ++i) {
+                double acc = 0.0;
+                for (int j = 0; j < 12; ++j) acc += K[j * n + i] * DOP_B[j];
+                y_new[i] = y[i] + h * acc;
+            }
+            code = k_eval(&w, t + h, y_new, p, K + 12 * n, n);
+            n_rhs += 1;
+            if (code != 0) { status = code; t_fail = t + h; memcpy(y_fail, y_new, sizeof(double) * n); goto done; }
+            for (int i = 0; i < n; ++i) {
+                scale[i] = atol[i] + dmax(fabs(y[i]), fabs(y_new[i])) * rtol;
+                double a5 = 0.0, a3 = 0.0;
+                for (int j = 0; j < 13; ++j) { a5 += K[j * n + i] * DOP_E5[j]; a3 += K[j * n + i] * DOP_E3[j]; }
+                e5[i] = a5 / scale[i];
+                e3[i] = a3 / scale[i];
+            }
+            double n5 = 0.0, n3 = 0.0, error;
+            for (int i = 0; i < n; ++i) { n5 += e5[i] * e5[i]; n3 += e3[i] * e3[i]; }
+            if (n5 == 0.0 && n3 == 0.0) error = 0.0;
+            else error = h_abs * n5 / sqrt((n5 + 0.01 * n3) * n);
+            if (error < 1.0) {
+                double factor = error == 0.0 ? 10.0 : dmin(10.0, 0.9 * pow(error, -1.0 / 8.0));
+                if (rejected) factor = dmin(1.0, factor);
+                h_abs *= factor;
+                accepted = 1;
+            } else {
+                h_abs *= dmax(0.2, 0.9 * pow(error, -1.0 / 8.0));
+                rejected = 1;
+            }
+        }
+        if (status != 0) break;
+        n_steps += 1;
+        if (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
+            code = k_stages(&w, 13, 16, t, h, y, p, K, y_stage, n, &s);
+            n_rhs += s - 12;
+            if (code != 0) { status = code; t_fail = t + DOP_C[s] * h; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
+            for (int i = 0; i < n; ++i) {
+                double dy = y_new[i] - y[i];
+                F[0 * n + i] = dy;
+                F[1 * n + i] = h * K[i] - dy;
+                F[2 * n + i] = 2.0 * dy - h * (K[12 * n + i] + K[i]);
+                for (int r = 0; r < 4; ++r) {
+                    double acc = 0.0;
+                    for (int j = 0; j < 16; ++j) acc += DOP_D[r * 16 + j] * K[j * n + i];
+                    F[(3 + r) * n + i] = h * acc;
+                }
+            }
+            while (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
+                double x = (t_out[filled] - t) / h;
+                for (int i = 0; i < n; ++i) {
+                    double v = 0.0;
+                    for (int r = 0; r < 7; ++r) {
+                        v += F[(6 - r) * n + i];
+                        v *= (r % 2 == 0) ? x : 1.0 - x;
+                    }
+                    out[filled * n + i] = v + y[i];
+                }
+                filled += 1;
+            }
+        }
+        t = t_new;
+        for (int i = 0; i < n; ++i) { y[i] = y_new[i]; K[i] = K[12 * n + i]; }
+    }
+    t_fail = t;
+    memcpy(y_fail, y, sizeof(double) * n);
+done:
+    memcpy(y_last, y, sizeof(double) * n);
+    info[0] = filled; info[1] = status; info[2] = n_rhs; info[3] = n_steps;
+    dinfo[0] = t; dinfo[1] = t_fail;
+    free(K);
+    free(w.M);
+    return 0;
+}
+
+/* rows[k] <- observe(ts[k], ys[k], p) for k < m */
+int chaplygin_observe_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, int n_react, long m,
+                     const double *ts, const double *ys, const double *p, double *rows)
+{
+    work_t w;
+    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
+    for (long k = 0; k < m; ++k) k_observe(&w, ts[k], ys + k * n, p, n_react, rows + k * n_obs);
+    free(w.M);
+    return 0;
+}
+
+/* f <- rhs(t, y, p); the kernel status (0, 2, 5) */
+int chaplygin_rhs_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t, const double *y,
+                 const double *p, double *f)
+{
+    work_t w;
+    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
+    int code = k_eval(&w, t, y, p, f, n);
+    free(w.M);
+    return code;
+}
+"""
+
+
+# ------------------------------------------------------------------ Python side
+_D = ctypes.POINTER(ctypes.c_double)
+_L = ctypes.POINTER(ctypes.c_long)
+_I, _LONG, _DBL, _PTR = ctypes.c_int, ctypes.c_long, ctypes.c_double, ctypes.c_void_p
+
+
+def _p(a: np.ndarray) -> Any:
+    return a.ctypes.data_as(_D)
+
+
+class _Loop(NamedTuple):
+    dop853: Any
+    observe: Any
+    rhs: Any
+
+
+_LOOP: list[_Loop] = []
+
+
+def loop() -> _Loop:
+    """The loop library's functions (built into the kernel cache once per installation)."""
+    if not _LOOP:
+        digest, lib = _open(loop_source(), "dop853")
+        dop = getattr(lib, f"chaplygin_dop853_{digest}")
+        dop.argtypes = [_PTR, _I, _I, _I, _I, _DBL, _DBL, _D, _D, _D, _LONG, _DBL, _D, _DBL, _DBL, _LONG,
+                        _D, _L, _D, _D, _D]
+        obs = getattr(lib, f"chaplygin_observe_{digest}")
+        obs.argtypes = [_PTR, _I, _I, _I, _I, _I, _LONG, _D, _D, _D, _D]
+        rhs = getattr(lib, f"chaplygin_rhs_{digest}")
+        rhs.argtypes = [_PTR, _I, _I, _I, _I, _DBL, _D, _D, _D]
+        for fn in (dop, obs, rhs):
+            fn.restype = _I
+        _LOOP.append(_Loop(dop, obs, rhs))
+    return _LOOP[0]
+
+
+class LoopOutput(NamedTuple):
+    """What :meth:`CKernel.integrate` returns: the numba kernel ``_k_dop853``'s results, and the samples."""
+
+    out: np.ndarray
+    filled: int
+    code: int
+    t: float
+    y: np.ndarray
+    n_rhs: int
+    n_steps: int
+    t_fail: float
+    y_fail: np.ndarray
+
+
+class CKernel:
+    """One model's C ``fill`` with the C loop: the ``module`` of a ``c``-backend model.
+
+    Attributes ``DIM``, ``N``, ``K``, ``N_OBSERVED`` are those of the generated
+    Python module; :meth:`rhs` and :meth:`observe` take ``(t, y, p)``.
+    """
+
+    def __init__(self, fill_source: str, dim: int, n: int, k: int, n_observed: int, n_react: int) -> None:
+        self.fill_source = fill_source
+        digest, lib = _open(fill_source, "fill")
+        self.__file__ = str(kernel_dir() / f"fill_{digest}.so")
+        self._fill = ctypes.cast(getattr(lib, f"chaplygin_fill_{digest}"), ctypes.c_void_p).value
+        self.DIM, self.N, self.K, self.N_OBSERVED = dim, n, k, n_observed
+        self.n_react = n_react
+        self._loop = loop()
+
+    def _shape(self) -> tuple[Any, int, int, int]:
+        return self._fill, self.DIM, self.N, self.N_OBSERVED
+
+    def rhs(self, t: float, y: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """``dy/dt``; raises ``LinAlgError`` at a singular mass matrix (as numpy's solve)."""
+        y = np.ascontiguousarray(y, dtype=float)
+        p = np.ascontiguousarray(p, dtype=float)
+        f = np.empty(self.N + self.K)
+        code = self._loop.rhs(*self._shape(), f.size, float(t), _p(y), _p(p), _p(f))
+        if code == 5:
+            raise np.linalg.LinAlgError("Matrix is singular.")
+        return f
+
+    def observe(self, t: float, y: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """``[energy, residuals, computed multipliers, velocities]`` (NaN multipliers where M is singular)."""
+        return self.observe_many(np.array([float(t)]), np.asarray(y, dtype=float)[None, :], p)[0]
+
+    def observe_many(self, ts: np.ndarray, ys: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """:meth:`observe` at every ``(ts[k], ys[k])``, one row each."""
+        ts = np.ascontiguousarray(ts, dtype=float)
+        ys = np.ascontiguousarray(ys, dtype=float).reshape(len(ts), -1)
+        p = np.ascontiguousarray(p, dtype=float)
+        rows = np.empty((len(ts), self.N_OBSERVED))
+        if len(ts):
+            self._loop.observe(*self._shape(), ys.shape[1], self.n_react, len(ts), _p(ts), _p(ys), _p(p), _p(rows))
+        return rows
+
+    def integrate(self, t0: float, t1: float, y0: np.ndarray, p: np.ndarray, times: np.ndarray, rtol: float,
+                  atol: np.ndarray, max_step: float, first_step: float, max_steps: int) -> LoopOutput:
+        """The C DOP853 loop from ``(t0, y0)`` to ``t1`` sampled at ``times`` (arguments validated by the caller)."""
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        p = np.ascontiguousarray(p, dtype=float)
+        times = np.ascontiguousarray(times, dtype=float)
+        atol = np.ascontiguousarray(atol, dtype=float)
+        n = y0.size
+        out = np.empty((times.size, n))
+        info = np.zeros(4, dtype=np.int64)
+        dinfo = np.zeros(2)
+        y_last, y_fail = np.empty(n), np.empty(n)
+        if self._loop.dop853(*self._shape(), n, float(t0), float(t1), _p(y0), _p(p), _p(times), times.size,
+                             float(rtol), _p(atol), float(max_step), float(first_step), int(max_steps),
+                             _p(out), info.ctypes.data_as(_L), _p(dinfo), _p(y_last), _p(y_fail)) != 0:
+            raise MemoryError("the C loop could not allocate its work space")
+        filled = int(info[0])
+        return LoopOutput(out[:filled], filled, int(info[1]), float(dinfo[0]), y_last, int(info[2]),
+                          int(info[3]), float(dinfo[1]), y_fail)

@@ -1,0 +1,645 @@
+"""Numerical code generated from a model's ``M·x = F`` with a fixed argument order.
+
+Every generated function takes ``(t, y, p)``:
+
+* ``t`` — time;
+* ``y`` — the state, in the order given by :class:`Layout`:
+  all coordinates ``q_1 … q_n`` in the system's order, then the velocities the
+  model integrates (the independent ones ``q̇_σ`` for reduced models, all of
+  them for the multiplier models), then the multipliers ``μ_β`` (vakonomic
+  multiplier model only);
+* ``p`` — the parameter values in :attr:`Layout.parameters` order: the
+  system's parameters (sorted by name), then the constants ``c_β`` of a
+  vakonomic family.
+
+The symbolic model stays free of numerics: this module only reads an
+:class:`~chaplygin.Equations` object's mass matrix, forcing and kinematics
+(or, for the numerically reduced models, the Chetaev matrices derived in
+SymEngine by :mod:`chaplygin.core._native`), writes one Python module (plain
+``math`` code with common subexpressions eliminated, printed by
+:mod:`chaplygin.numeric._printing`) to the cache directory, and imports it.  The ``numpy`` backend
+runs that module as it is; the ``numba`` backend compiles the same functions
+with ``numba.njit``, except that a large ``fill`` is printed as C and built by
+the system's C compiler (:mod:`chaplygin.numeric._cfill`), which numba then calls.  Generated modules are written atomically and keyed by a
+hash of their source, so they are never half-written and are shared between
+runs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import heapq
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+import threading
+import warnings
+from dataclasses import dataclass
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import sympy as sp
+
+from chaplygin.core._fast import cse, native, to_sympy
+from chaplygin.core._native import chetaev_matrices
+from chaplygin.core._symbols import TIME
+from chaplygin.errors import ChaplyginError
+from chaplygin.models import registry
+from chaplygin.numeric import _cfill
+from chaplygin.numeric._ckernel import CompiledModel, Layout
+from chaplygin.numeric._printing import code
+from chaplygin.numeric.cache import cache_dir
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+    from chaplygin.models.equations import Equations
+
+__all__ = ["Layout", "CompiledModel", "compile_equations", "compile_model", "BACKENDS", "REDUCTIONS", "cache_dir"]
+
+BACKENDS = ("numpy", "numba", "jax", "c")
+#: bumped whenever the generated code changes shape, so that no stale cache is reused
+CODE_FORMAT = 5
+
+
+def _docstring_safe(text: str) -> str:
+    """``text`` escaped so that it cannot end or escape the generated module's docstring."""
+    return text.encode("unicode_escape").decode("ascii").replace('"', "\\x22")
+
+
+def _version() -> str:
+    from chaplygin._version import __version__
+
+    return __version__
+
+
+def _state_symbols(eqs: Equations) -> tuple[Layout, dict[sp.Symbol, sp.Expr], list[sp.Expr], int]:
+    """The layout, the map from internal symbols to ``y[i]``/``p[j]``, the full velocities, k."""
+    s = eqs.system
+    v = s._vars
+    n = s.n
+    y = sp.IndexedBase("y")
+    p = sp.IndexedBase("p")
+    names = [q.func.__name__ for q in s.coordinates]
+    to_num: dict[sp.Symbol, sp.Expr] = {x: y[i] for i, x in enumerate(v.x)}
+    multiplier_model = not registry.MODELS[eqs.model].reduced
+    carried = list(range(n)) if multiplier_model else list(s._ind)
+    for k, i in enumerate(carried):
+        to_num[v.xd[i]] = y[n + k]
+    mus = list(eqs._state)
+    for b, mu in enumerate(mus):
+        to_num[mu] = y[n + len(carried) + b]
+    params = [*s.parameters, *eqs.constants]
+    for j, par in enumerate(params):
+        to_num[par] = p[j]
+    if multiplier_model:
+        velocities = [v.xd[i] for i in range(n)]
+        k = n + len(mus)  # q̈ (and μ̇) come from the solve; λ are observed
+    else:
+        velocities = [s._velocity_substitution.get(v.xd[i], v.xd[i]) for i in range(n)]
+        k = len(carried)
+    layout = Layout(
+        eqs.model,
+        eqs.form,
+        tuple(names),
+        tuple(names[i] + "'" for i in carried),
+        tuple(sp.sstr(eqs._user(m)).replace("(t)", "") for m in mus),
+        tuple(par.name for par in params),
+        tuple(sp.sstr(eqs._user(m)).replace("(t)", "") for m in eqs._multipliers if m not in mus),
+    )
+    return layout, to_num, velocities, k
+
+
+#: where ``fill`` stores one value: array name, flat (row-major) index, row width (0: 1-D)
+Target = tuple[str, int, int]
+
+
+@dataclass(frozen=True)
+class _Block:
+    """Assignments ``target = expr``, whose common subexpressions are named ``prefix0, …``.
+
+    The first ``skip_zero`` targets (arrays zeroed before ``fill``) are left out
+    where their expression is 0.
+    """
+
+    exprs: list[Any]  # SymEngine or SymPy
+    targets: list[Target]
+    prefix: str
+    skip_zero: int = 0
+
+
+@dataclass(frozen=True)
+class _Fill:
+    """What ``fill(t, y, p, M, F, V, O)`` computes, in no particular language.
+
+    With ``solve = g > 0`` it first fills ``Ad`` (g × g) and ``b`` from
+    ``pre`` and solves ``Ad·d = b`` (the numerically reduced models), then
+    evaluates ``main``.  :func:`_python_body` and :mod:`chaplygin.numeric._cfill` print it.
+    """
+
+    main: _Block
+    solve: int = 0
+    pre: _Block | None = None
+
+    def blocks(self) -> list[_Block]:
+        return [self.pre, self.main] if self.pre is not None else [self.main]
+
+
+def _canonical(replacements: list[tuple[Any, Any]], reduced: list[Any],
+               prefix: str) -> tuple[list[tuple[Any, Any]], list[Any]]:
+    """``cse``'s result renamed and ordered in a way that does not depend on the process.
+
+    SymEngine's ``cse`` finds the same subexpressions in every process but
+    numbers them in an order that varies from run to run (it follows memory
+    addresses), so the generated source — and every cache keyed by its hash,
+    numba's included — changed with each process.  Here each subexpression is
+    named once all those it uses are named, the smallest printed form first.
+    """
+    names = [s for s, _ in replacements]
+    index = {s: k for k, s in enumerate(names)}
+    deps = [[index[x] for x in e.free_symbols if x in index] for _, e in replacements]
+    users: list[list[int]] = [[] for _ in names]
+    for k, used in enumerate(deps):
+        for j in used:
+            users[j].append(k)
+    waiting = [len(used) for used in deps]
+    rename: dict[Any, Any] = {}
+    renamed: dict[int, Any] = {}
+    ready: list[tuple[str, int]] = []
+
+    def push(k: int) -> None:
+        e = replacements[k][1]
+        renamed[k] = e.xreplace({names[j]: rename[names[j]] for j in deps[k]}) if deps[k] else e
+        heapq.heappush(ready, (str(renamed[k]), k))
+
+    for k in range(len(names)):
+        if not waiting[k]:
+            push(k)
+    order: list[int] = []
+    while ready:
+        _, k = heapq.heappop(ready)
+        rename[names[k]] = type(names[k])(f"{prefix}{len(order)}")
+        order.append(k)
+        for u in users[k]:
+            waiting[u] -= 1
+            if not waiting[u]:
+                push(u)
+    out = [e.xreplace({s: rename[s] for s in e.free_symbols if s in rename}) for e in reduced]
+    return [(rename[names[k]], renamed[k]) for k in order], out
+
+
+def _assignments(block: _Block) -> tuple[list[tuple[Any, Any]], list[tuple[Target, Any]]]:
+    """The block's common subexpressions and its (target, expression) pairs still to store."""
+    replacements, reduced = _canonical(*cse(block.exprs, block.prefix), block.prefix)
+    stores = [(target, e) for i, (target, e) in enumerate(zip(block.targets, reduced))
+              if i >= block.skip_zero or e != 0]
+    return replacements, stores
+
+
+def _python_body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> list[str]:
+    """``fill``'s body as Python lines (``math`` calls; run by numpy, compiled by numba).
+
+    ``assigned``: :func:`_assignments` of each of ``fill.blocks()``.
+    """
+    out: list[str] = []
+    if fill.solve:
+        out += [f"    Ad = np.zeros(({fill.solve}, {fill.solve}))", f"    b = np.zeros({fill.solve})"]
+    for block, (replacements, stores) in zip(fill.blocks(), assigned):
+        out += [f"    {sym} = {code(e, 'python')}" for sym, e in replacements]
+        out += [
+            f"    {name}[{f'{i // w}, {i % w}' if w else i}] = {code(e, 'python')}"
+            for (name, i, w), e in stores
+        ]
+        if block is fill.pre:
+            out.append("    d = np.linalg.solve(Ad, b)")
+    return out or ["    pass"]
+
+
+def _targets(dim: int, n: int, g: int) -> list[Target]:
+    """Where ``fill`` stores M (row-major), F, the velocities, energy and residuals."""
+    return (
+        [("M", i, dim) for i in range(dim * dim)]
+        + [("F", i, 0) for i in range(dim)]
+        + [("V", i, 0) for i in range(n)]
+        + [("O", i, 0) for i in range(1 + g)]
+    )
+
+
+def _plain(to_num: dict[sp.Symbol, sp.Expr]) -> dict[sp.Symbol, sp.Expr]:
+    """``y[i]``, ``p[j]`` as symbols of those names (printed as they are) for SymEngine's cse."""
+    return {k: sp.Symbol(f"{v.base}[{v.indices[0]}]") for k, v in to_num.items()} | {TIME: sp.Symbol("t")}
+
+
+def _common(items: list[Any]) -> list[Any]:
+    """``items`` (SymPy or SymEngine) all as SymEngine expressions, or all as SymPy's if SymEngine cannot."""
+    fast = native(items)
+    return fast if fast is not None else [to_sympy(e) for e in items]
+
+
+def _at(exprs: list[Any], plain: dict[sp.Symbol, sp.Expr]) -> list[Any]:
+    """``exprs`` with ``plain``'s symbols substituted (see :func:`_common`)."""
+    items = _common([*exprs, *plain, *plain.values()])
+    k, m = len(exprs), len(plain)
+    rule = dict(zip(items[k : k + m], items[k + m :]))
+    return [e.xreplace(rule) for e in items[:k]]
+
+
+def _kinematics(s: System) -> tuple[Any, list[list[Any]], list[Any], list[Any]]:
+    """``T − U``, the rows of ``A``, ``A_0`` and ``q̇`` (SymEngine's where it has them)."""
+    nat = s._native
+    if nat is not None:
+        return nat.T - nat.U, nat.A, nat.A0, nat.xd
+    return s._T - s._U, s._A.tolist(), list(s._A0), list(s._vars.xd)
+
+
+def _main_block(
+    s: System, M: list[Any], F: list[Any], velocities: list[Any], plain: dict[sp.Symbol, sp.Expr]
+) -> _Block:
+    """``M`` (flat, row-major), ``F``, the full velocities, energy and constraint residuals at ``plain``'s symbols."""
+    energy, A, A0, xd = _kinematics(s)
+    dim, n, g = len(F), s.n, s.g
+    items = _common([*M, *F, *velocities, energy, *(a for row in A for a in row), *A0, *xd])
+    cut = np.cumsum([0, dim * dim, dim, n, 1, g * n, g])
+    M, F, velocities, (energy,), A, A0, xd = (items[i:j] for i, j in zip(cut, [*cut[1:], None]))
+    energy = energy.xreplace(dict(zip(xd, velocities)))
+    residual = [sum((A[b * n + j] * velocities[j] for j in range(n)), A0[b]) for b in range(g)]
+    exprs = _at([*M, *F, *velocities, energy, *residual], plain)
+    return _Block(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim)
+
+
+@dataclass(frozen=True)
+class _Parts:
+    """What a model's generated code is made of: its layout, ``fill``, ``M``'s size, ``K``."""
+
+    system: System
+    layout: Layout
+    fill: _Fill
+    dim: int
+    k: int
+
+
+def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
+    """The layout and the generated Python module of ``eqs`` (numpy or numba)."""
+    parts = _parts(eqs)
+    return parts.layout, _module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend)
+
+
+def _parts(eqs: Equations) -> _Parts:
+    layout, to_num, velocities, k = _state_symbols(eqs)
+    fill = _Fill(_main_block(eqs.system, list(eqs._M), list(eqs._F), velocities, _plain(to_num)))
+    return _Parts(eqs.system, layout, fill, eqs._M.shape[0], k)
+
+
+def _numeric_reduction_parts(s: System, model: str) -> _Parts:
+    """A reduced model (Chaplygin's or Voronets' equations) computed from the Chetaev model.
+
+    The state is that of the reduced model (coordinates, independent
+    velocities); ``fill`` solves the constraints ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``
+    numerically, then fills the multiplier system (6) with its unknowns ordered
+    ``[q̈_σ, q̈_dep, λ]``, whose leading ε entries are the reduced model's
+    accelerations at that (admissible) state.  No symbolic ``B`` is needed, so
+    systems far too large for a symbolic elimination compile in seconds.  The
+    Chetaev matrices are derived in SymEngine (:mod:`chaplygin.core._native`) where
+    it can represent the system, else taken from :meth:`System.equations`.
+    """
+    v, n, g, ind, dep = s._vars, s.n, s.g, list(s._ind), list(s._dep)
+    names = [q.func.__name__ for q in s.coordinates]
+    layout = Layout(model, "numeric", tuple(names), tuple(names[i] + "'" for i in ind), (),
+                    tuple(par.name for par in s.parameters))
+    y, p = sp.IndexedBase("y"), sp.IndexedBase("p")
+    to_num: dict[sp.Symbol, sp.Expr] = {x: y[i] for i, x in enumerate(v.x)}
+    to_num.update({v.xd[i]: y[n + k] for k, i in enumerate(ind)})
+    to_num.update({par: p[j] for j, par in enumerate(s.parameters)})
+    plain = _plain(to_num)
+    if s._native is not None:
+        rows, F = chetaev_matrices(s._native)
+    else:
+        eqs = s.equations("chetaev")
+        rows, F = eqs._M.tolist(), list(eqs._F)
+    _, A, A0, xd = _kinematics(s)
+    a_dep = [A[b][j] for b in range(g) for j in dep]
+    rhs = [-(sum((A[b][i] * xd[i] for i in ind), 0) + A0[b]) for b in range(g)]
+    pre = _Block(_at([*a_dep, *rhs], plain),
+                 [("Ad", i, g) for i in range(g * g)] + [("b", i, 0) for i in range(g)], "a_", skip_zero=g * g)
+    plain.update({v.xd[i]: sp.Symbol(f"d[{k}]") for k, i in enumerate(dep)})
+    M = [row[j] for row in rows for j in [*ind, *dep, *range(n, n + g)]]
+    fill = _Fill(_main_block(s, M, F, list(xd), plain), solve=g, pre=pre)
+    return _Parts(s, layout, fill, n + g, len(ind))
+
+
+# ``_k_pivot`` and ``_k_solve`` are compiled inside every generated module (and used by the
+# integrators appended to it: chaplygin.numeric._loop, chaplygin.numeric.symmetric); never called from here.
+def _k_pivot(M, c):  # pragma: no cover - compiled
+    """The row ``r ≥ c`` of largest ``|M[r, c]|`` (partial pivoting), and that magnitude."""
+    piv = c
+    big = abs(M[c, c])
+    for r in range(c + 1, M.shape[0]):
+        if abs(M[r, c]) > big:
+            big = abs(M[r, c])
+            piv = r
+    return piv, big
+
+
+def _k_solve(M, b):  # pragma: no cover - compiled
+    """``b ← M⁻¹ b`` by Gaussian elimination with partial pivoting, in place; 5 if singular."""
+    n = M.shape[0]
+    for c in range(n):
+        piv, big = _k_pivot(M, c)
+        if big == 0.0:
+            return 5
+        if piv != c:
+            for j in range(c, n):
+                tmp = M[c, j]
+                M[c, j] = M[piv, j]
+                M[piv, j] = tmp
+            tmp = b[c]
+            b[c] = b[piv]
+            b[piv] = tmp
+        for r in range(c + 1, n):
+            factor = M[r, c] / M[c, c]
+            for j in range(c + 1, n):
+                M[r, j] -= factor * M[c, j]
+            b[r] -= factor * b[c]
+    for c in range(n - 1, -1, -1):
+        acc = b[c]
+        for j in range(c + 1, n):
+            acc -= M[c, j] * b[j]
+        b[c] = acc / M[c, c]
+    return 0
+
+
+def _fill_source(fill: _Fill, backend: str) -> str:
+    """``fill``'s definition: Python (numpy; numba for small models) or a call into generated C."""
+    assigned = [_assignments(block) for block in fill.blocks()]
+    if backend == "numba" and sum(len(r) + len(st) for r, st in assigned) >= C_FILL_FROM_LINES:
+        try:
+            return _cfill.numba_fill(*_cfill.build(fill, assigned))
+        except _cfill.Unavailable as exc:
+            warnings.warn(
+                f"chaplygin: numba compiles this model's large fill itself, which can take minutes, "
+                f"because generated C is not available: {exc}", RuntimeWarning, stacklevel=4,
+            )
+    deco = "@_jit\n" if backend == "numba" else ""
+    return f"{deco}def fill(t, y, p, M, F, V, O):\n" + "\n".join(_python_body(fill, assigned)) + "\n"
+
+
+def _solver_source(jit: bool) -> str:
+    """``_k_pivot``, ``_k_solve`` and, for numba, ``_solve``: ``M⁻¹F`` without numba's LAPACK binding.
+
+    numba compiles ``np.linalg.solve`` in about 4 s for every generated module;
+    Gaussian elimination with partial pivoting (what LAPACK's ``gesv`` does)
+    compiles in a fraction of that and is as fast at these sizes.
+    """
+    deco = "@_jit\n" if jit else ""
+    source = "\n\n".join(deco + inspect.getsource(fn) for fn in (_k_pivot, _k_solve))
+    if jit:
+        source += '''
+
+@_jit
+def _solve(M, F):
+    """M⁻¹F (M and F are overwritten); LinAlgError for a singular M, as numpy.linalg.solve."""
+    if _k_solve(M, F) != 0:
+        raise np.linalg.LinAlgError("Matrix is singular.")
+    return F
+'''
+    return source
+
+
+def _module(s: System, layout: Layout, fill: _Fill, dim: int, k: int, backend: str) -> str:
+    """The generated module: ``fill`` and the functions built on it."""
+    jit = backend == "numba"
+    solve = "_solve" if jit else "np.linalg.solve"
+    n_reactions = len(layout.reactions)
+    n_observed = 1 + s.g + n_reactions + s.n
+    deco = "@_jit\n" if jit else ""
+    header = (
+        '"""Generated by chaplygin {version} (code format {fmt}) from the {model}/{form} '
+        'equations of {name}.\n\n'
+        "Every function takes (t, y, p):\n"
+        "    y = [{state}]\n"
+        "    p = [{params}]\n"
+        "observe() returns [energy, constraint residuals ({g}), computed multipliers "
+        "({reactions}), velocities ({n})].\n"
+        '"""\n'
+    ).format(
+        version=_version(), fmt=CODE_FORMAT,
+        model=layout.model, form=layout.form, name=_docstring_safe(s.name), state=", ".join(layout.state),
+        params=", ".join(layout.parameters), g=s.g, reactions=", ".join(layout.reactions) or "none",
+        n=s.n,
+    )
+    jit_line = (
+        "from numba import njit\n_jit = njit(cache=True, fastmath=False)\n" if jit else ""
+    )
+    return f'''{header}
+import math
+
+import numpy as np
+{jit_line}
+DIM = {dim}
+N = {s.n}
+K = {k}
+N_OBSERVED = {n_observed}
+
+
+{_fill_source(fill, backend)}
+
+{_solver_source(jit)}
+
+{deco}def evaluate(t, y, p):
+    """Fresh arrays M, F, V, O filled at (t, y, p)."""
+    M = np.zeros((DIM, DIM))
+    F = np.zeros(DIM)
+    V = np.zeros(N)
+    O = np.zeros(N_OBSERVED)
+    fill(t, y, p, M, F, V, O)
+    return M, F, V, O
+
+
+{deco}def rhs(t, y, p):
+    """dy/dt = [velocities of q, solve(M, F)[:K]]."""
+    M, F, V, O = evaluate(t, y, p)
+    x = {solve}(M, F)
+    dy = np.empty(N + K)
+    for i in range(N):  # loops, not slices: numba compiles them much faster
+        dy[i] = V[i]
+    for i in range(K):
+        dy[N + i] = x[i]
+    return dy
+
+
+{deco}def observe(t, y, p):
+    """[energy, residuals, computed multipliers, velocities]."""
+    M, F, V, O = evaluate(t, y, p)
+    if N_OBSERVED - 1 - {s.g} - N > 0:
+        x = {solve}(M, F)
+        for i in range({n_reactions}):
+            O[1 + {s.g} + i] = x[DIM - {n_reactions} + i]
+    for i in range(N):
+        O[N_OBSERVED - N + i] = V[i]
+    return O
+'''
+
+
+class BackendUnavailable(ChaplyginError):
+    """The backend asked for cannot run here (no C compiler, or a function C lacks)."""
+
+
+_LOADED: dict[str, ModuleType] = {}
+_LOCK = threading.Lock()
+
+
+def _import(source: str, tag: str) -> ModuleType:
+    """Write ``source`` to the code cache (atomically, keyed by its hash) and import it.
+
+    Each source is imported once per process.  The module is registered in
+    ``sys.modules`` under its file name: numba's cache re-imports a compiled
+    function's module by name when it loads it.
+    """
+    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+    with _LOCK:
+        if digest in _LOADED:
+            return _LOADED[digest]
+        directory = cache_dir() / "codegen"
+        directory.mkdir(parents=True, exist_ok=True)
+        path = directory / f"chaplygin_{tag}_{digest}.py"
+        if not path.exists() or path.read_text(encoding="utf-8") != source:
+            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(source)
+            os.replace(tmp, path)
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        if spec is None or spec.loader is None:  # pragma: no cover
+            raise ChaplyginError(f"cannot load generated code from {path}")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            sys.modules.pop(path.stem, None)
+            raise
+        _LOADED[digest] = module
+        return module
+
+
+def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
+    """Generate and load the numerical functions of ``eqs`` for ``backend``.
+
+    Parameters
+    ----------
+    eqs : Equations
+        Any model's equations (reduced or with multipliers).
+    backend : {"numpy", "numba", "jax", "c"}
+        ``"numpy"``: plain Python/NumPy, no compile step.  ``"numba"``: the
+        same code compiled with ``numba.njit`` (microseconds per call; the
+        first call compiles, later runs load from numba's cache).  ``"c"``:
+        ``fill`` as C built by the system's C compiler, with a DOP853 loop in C
+        (:mod:`chaplygin.numeric._ckernel`; raises :class:`ChaplyginError` without a
+        compiler).  ``"jax"``:
+        the same expressions as JAX functions (optional extra
+        ``chaplygin[jax]``; see :mod:`chaplygin.numeric.jaxbackend`).
+    """
+    _check_backend(backend)
+    cache = eqs.__dict__.setdefault("_compiled", {})  # one compilation per equations and backend
+    if backend not in cache:
+        cache[backend] = _compile(eqs, backend)
+    return cache[backend]
+
+
+def _check_backend(backend: str) -> None:
+    if backend not in BACKENDS:
+        raise ChaplyginError(
+            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
+        )
+
+
+#: the numba backend builds ``fill`` with a C compiler from this many generated lines on
+#: (numba needs ~20 ms a line, a C compiler ~1 ms; see :mod:`chaplygin.numeric._cfill`)
+C_FILL_FROM_LINES = 200
+
+#: ``reduction="auto"`` reduces numerically from this many coordinates on
+NUMERIC_REDUCTION_FROM = 9
+REDUCTIONS = ("auto", "symbolic", "numeric")
+
+
+def compile_model(
+    system: System,
+    model: str,
+    form: str = "classic",
+    backend: str = "numpy",
+    *,
+    constants: Any = None,
+    reduction: str = "auto",
+) -> CompiledModel:
+    """Compile one model of ``system``, deriving what it needs.
+
+    Parameters
+    ----------
+    reduction : {"auto", "symbolic", "numeric"}
+        How Chaplygin's and Voronets' equations are computed.  ``"symbolic"``
+        compiles the derived equations (15)/(40); ``"numeric"`` compiles the
+        Chetaev model (6) and eliminates the dependent velocities, accelerations
+        and multipliers numerically at each call (:func:`_numeric_reduction_source`):
+        the same accelerations at every admissible state, without the symbolic
+        elimination whose size grows fast with the number of constraints.
+        ``"auto"`` chooses ``"numeric"`` from :data:`NUMERIC_REDUCTION_FROM`
+        coordinates on (never for the ``jax`` backend).  Other models ignore it.
+    """
+    if reduction not in REDUCTIONS:
+        raise ChaplyginError(
+            f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}."
+        )
+    entry = registry.get(model, form)
+    numeric = (
+        entry.reduced and entry.is_true_motion
+        and backend != "jax"
+        and (reduction == "numeric" or (reduction == "auto" and system.n >= NUMERIC_REDUCTION_FROM))
+    )
+    if not numeric:
+        kwargs = {} if constants is None else {"constants": constants}
+        return compile_equations(system.equations(model, form, **kwargs), backend)
+    _check_backend(backend)
+    if entry.obstruction(system):
+        system.equations(model, form)  # raises the error that explains why
+    cache = system.__dict__.setdefault("_compiled_numeric", {})
+    key = (backend, model)
+    if key not in cache:
+        cache[key] = _load_model(_numeric_reduction_parts(system, model), backend)
+    return cache[key]
+
+
+def _compile(eqs: Equations, backend: str) -> CompiledModel:
+    if backend == "jax":
+        from chaplygin.numeric.jaxbackend import compile_jax
+
+        return compile_jax(eqs)
+    if backend == "numba":
+        try:
+            import numba  # noqa: F401
+        except ImportError as exc:  # pragma: no cover - numba is a dependency
+            raise ChaplyginError("backend 'numba' needs numba: pip install numba") from exc
+    return _load_model(_parts(eqs), backend)
+
+
+def _load_model(parts: _Parts, backend: str) -> CompiledModel:
+    """The generated module (numpy, numba) or C kernel (c) of ``parts``, loaded."""
+    if backend == "c":
+        from chaplygin.numeric._ckernel import CKernel
+
+        s, layout = parts.system, parts.layout
+        try:
+            kernel = CKernel(
+                _cfill.source(parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"),
+                parts.dim, s.n, parts.k, 1 + s.g + len(layout.reactions) + s.n, len(layout.reactions),
+            )
+        except _cfill.Unavailable as exc:
+            raise BackendUnavailable(f"backend 'c' cannot be used: {exc}") from None
+        return CompiledModel(layout, kernel, "c")  # type: ignore[arg-type]
+    module = _import(_module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend), backend)
+    return CompiledModel(parts.layout, module, backend)
+
+
+def parameter_vector(layout: Layout, values: dict[str, float]) -> np.ndarray:
+    """``p`` in layout order from a name → value map (every name must be present)."""
+    return np.array([float(values[name]) for name in layout.parameters], dtype=float)

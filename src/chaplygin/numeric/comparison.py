@@ -1,0 +1,213 @@
+"""Run several models from the same initial state and show where they part.
+
+The typical question: how far does the motion predicted by Lindelöf's
+equations (or any vakonomic motion) drift from the true, Chetaev motion?
+:func:`compare` simulates each model, measures the distance between the paths
+of a chosen pair of coordinates (the contact point or centre, by default
+``x, y``) over time, and draws matplotlib figures: paths in the plane,
+coordinates over time, energy and constraint drift.
+
+A reduced model (Chaplygin's, Voronets' equations, the vakonomic family) solves
+the constraints for the dependent velocities; where that solution has a pole on
+the path (a knife edge whose ``ẏ = tan φ ẋ`` meets φ = π/2) its run stops
+there.  :func:`compare` then warns and simulates the multiplier form of the same
+motion (``chetaev``; ``vakonomic`` for the family), which has no such pole, under
+the same label; :attr:`Comparison.notes` says so.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from chaplygin.errors import ChaplyginError, ChaplyginWarning
+from chaplygin.models import registry
+from chaplygin.numeric.simulate import Trajectory, _atomic_write, simulate
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from chaplygin.core.system import System
+
+__all__ = ["Comparison", "compare"]
+
+FIGURES = ("paths", "coordinates", "invariants")
+
+
+def _parse(model: str | tuple[str, str]) -> tuple[str, str, str]:
+    if isinstance(model, tuple):
+        name, form = model
+    else:
+        name, _, form = model.partition("/")
+    form = form or "classic"
+    return name, form, name if form == "classic" else f"{name}/{form}"
+
+
+@dataclass
+class Comparison:
+    """Trajectories of several models from one initial state.
+
+    Attributes
+    ----------
+    trajectories : dict of label → Trajectory
+        One per model, labelled ``"model"`` or ``"model/form"``.
+    reference : str
+        The label the others are measured against (the first model).
+    path : tuple of str or None
+        The coordinates whose path in the plane is compared.
+    notes : list of str
+        What the reader must know about the runs, e.g. that a reduced model met
+        a pole of its solved constraints and its multiplier form was used.
+    """
+
+    system_name: str
+    trajectories: dict[str, Trajectory]
+    reference: str
+    path: tuple[str, str] | None
+    notes: list[str] = field(default_factory=list)
+
+    def distance(self, label: str) -> np.ndarray:
+        """Distance from the reference over time: in the path's plane, else over all coordinates."""
+        ref, other = self.trajectories[self.reference], self.trajectories[label]
+        k = min(len(ref.t), len(other.t))
+        names = self.path or tuple(ref.coordinates)
+        diff = np.array([other[c][:k] - ref[c][:k] for c in names])
+        return np.sqrt(np.sum(diff**2, axis=0))
+
+    def summary(self) -> str:
+        """A table: largest distance from the reference (and when), energy drift, residual."""
+        what = f"path ({', '.join(self.path)})" if self.path else "coordinates"
+        lines = [
+            f"{self.system_name}: models compared with {self.reference} from the same initial state",
+            f"  {'model':<22} {'max distance of ' + what:>30} {'at t':>9} {'energy drift':>13} {'max residual':>13}  status",
+        ]
+        for label, tr in self.trajectories.items():
+            d = self.distance(label)
+            k = int(np.argmax(d)) if len(d) else 0
+            lines.append(
+                f"  {label:<22} {d[k] if len(d) else float('nan'):>30.6g} {tr.t[k] if len(d) else float('nan'):>9.4g} "
+                f"{tr.energy_drift():>13.3g} {np.max(tr.constraint_residual, initial=0.0):>13.3g}  {tr.status}"
+            )
+        lines += [f"  note: {note}" for note in self.notes]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    # ------------------------------------------------------------------ figures
+    def figure(self, kind: str = "paths") -> Figure:
+        """A matplotlib figure: ``"paths"``, ``"coordinates"`` or ``"invariants"``."""
+        from matplotlib.figure import Figure
+
+        if kind not in FIGURES:
+            raise ChaplyginError(f"figure kind {kind!r}: choose one of {', '.join(FIGURES)}.")
+        if kind == "paths":
+            fig = Figure(figsize=(6, 5), layout="constrained")
+            ax = fig.add_subplot()
+            if not self.path:
+                raise ChaplyginError("no path coordinates to draw; pass path=('x', 'y') to compare().")
+            for label, tr in self.trajectories.items():
+                ax.plot(tr[self.path[0]], tr[self.path[1]], label=label)
+                ax.plot(tr[self.path[0]][:1], tr[self.path[1]][:1], "ko", ms=3)
+            ax.set(xlabel=self.path[0], ylabel=self.path[1], title=f"{self.system_name}: paths")
+            ax.set_aspect("equal", adjustable="datalim")
+        elif kind == "coordinates":
+            names = list(self.trajectories[self.reference].coordinates)
+            fig = Figure(figsize=(7, 1.6 * len(names) + 0.6), layout="constrained")
+            axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+            for ax, name in zip(axes, names):
+                for label, tr in self.trajectories.items():
+                    ax.plot(tr.t, tr[name], label=label)
+                ax.set_ylabel(name)
+            axes[-1].set_xlabel("t")
+            axes[0].set_title(f"{self.system_name}: coordinates")
+            ax = axes[0]
+        else:
+            fig = Figure(figsize=(7, 5), layout="constrained")
+            top, bottom = fig.subplots(2, 1, sharex=True)
+            for label, tr in self.trajectories.items():
+                e0 = tr.energy[0] if len(tr.energy) else 0.0
+                top.plot(tr.t, np.abs(tr.energy - e0) / max(1.0, abs(e0)) + 1e-18, label=label)
+                bottom.plot(tr.t, tr.constraint_residual + 1e-18, label=label)
+            top.set(yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: invariants")
+            bottom.set(yscale="log", ylabel="constraint residual", xlabel="t")
+            ax = top
+        ax.legend(fontsize="small")
+        return fig
+
+    def save_figures(self, directory: str | Path, *, fmt: str = "svg") -> list[Path]:
+        """Write every figure to ``directory`` (atomically) and return the paths."""
+        out = []
+        for kind in FIGURES:
+            if kind == "paths" and not self.path:
+                continue
+            fig = self.figure(kind)
+            target = Path(directory) / f"{kind}.{fmt}"
+            out.append(_atomic_write(target, lambda fh, f=fig: f.savefig(fh, format=fmt), text=False))
+        return out
+
+
+def _default_path(system: System) -> tuple[str, str] | None:
+    names = [q.func.__name__ for q in system.coordinates]
+    if "x" in names and "y" in names:
+        return ("x", "y")
+    dep = [q.func.__name__ for q in system.dependent]
+    return (dep[0], dep[1]) if len(dep) >= 2 else None
+
+
+def compare(
+    system: System,
+    models: Sequence[str | tuple[str, str]],
+    t_span: tuple[float, float] | float,
+    initial: Mapping[Any, float],
+    parameters: Mapping[Any, float] | None = None,
+    *,
+    path: tuple[str, str] | None = None,
+    **options: Any,
+) -> Comparison:
+    """Simulate ``models`` from one initial state and compare them with the first.
+
+    Parameters
+    ----------
+    system : System
+    models : sequence
+        Model names, optionally with a form: ``["chaplygin", "lindelof/new"]``
+        or ``[("chaplygin", "new")]``.  The first is the reference.
+    t_span, initial, parameters
+        As for :meth:`System.simulate`; ``options`` are passed on to it.
+        A reduced model whose solved constraints have a pole on the path is
+        replaced by its multiplier form (the ``fallback`` of its registry entry), with a
+        :class:`~chaplygin.errors.ChaplyginWarning` and a note in
+        :attr:`Comparison.notes`; Lindelöf's equations have none, so their run
+        stops at the pole (noted too).
+    path : (str, str), optional
+        The coordinates whose paths are compared and drawn; by default ``x, y``
+        when the system has them, else its first two dependent coordinates.
+    """
+    if not models:
+        raise ChaplyginError("models: name at least one model.")
+    names = [q.func.__name__ for q in system.coordinates]
+    if path is not None and any(c not in names for c in path):
+        raise ChaplyginError(f"path: {path} are not both coordinates of {system.name} ({', '.join(names)}).")
+    trajectories: dict[str, Trajectory] = {}
+    notes: list[str] = []
+    for model in models:
+        name, form, label = _parse(model)
+        tr = simulate(system, name, t_span, initial, parameters, form=form, **options)
+        if tr.failure == "pole":
+            fallback = registry.get(name).fallback
+            if fallback is None:
+                note = f"{label} stops at {tr.message.split(';')[0]} (these equations have no multiplier form)"
+            else:
+                note = (f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
+                        f"shown instead: the {fallback} model (the same motion with multipliers, no pole)")
+                tr = simulate(system, fallback, t_span, initial, parameters, **options)
+            warnings.warn(note, ChaplyginWarning, stacklevel=2)
+            notes.append(note)
+        trajectories[label] = tr
+    return Comparison(system.name, trajectories, next(iter(trajectories)), path or _default_path(system), notes)

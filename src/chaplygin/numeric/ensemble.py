@@ -1,0 +1,457 @@
+"""Many initial conditions at once: final states without the dense trajectories.
+
+:func:`simulate_ensemble` integrates one model from ``N`` initial states (and,
+optionally, ``N`` sets of parameters) and keeps only what is asked for: by
+default the state reached at the end, with the energy and the constraint
+residual there.  Two engines:
+
+* ``backend="numba"``: the compiled DOP853 loop of :mod:`chaplygin.numeric._loop`
+  (the same steps as SciPy's ``DOP853``), chunks of members handed by one
+  Python thread per CPU core to the compiled loop, which releases the GIL;
+* ``backend="jax"``: diffrax's ``Dopri8`` under ``jax.jit(jax.vmap(...))``,
+  on a GPU when JAX sees one (optional extra ``chaplygin[jax]``).
+
+A member that fails (step-size underflow, a blow-up, a singular mass matrix,
+too many steps) does not stop the others: its status says so and its state is
+the last one reached.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from contextlib import suppress
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from chaplygin.errors import ChaplyginError
+from chaplygin.models import registry
+from chaplygin.numeric._loop import STATUS
+from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
+from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+
+__all__ = ["Ensemble", "simulate_ensemble", "ENSEMBLE_BACKENDS"]
+
+ENSEMBLE_BACKENDS = ("numba", "jax")
+
+
+@dataclass
+class Ensemble:
+    """The outcome of :func:`simulate_ensemble` for ``N`` initial states.
+
+    Attributes
+    ----------
+    layout : Layout
+        Order of the columns of :attr:`y` (``layout.state``).
+    t : ndarray, shape (N,)
+        Time each member reached (``t1`` when it succeeded).
+    y : ndarray, shape (N, len(layout.state))
+        The state there.
+    coordinates, velocities : dict of str → ndarray (N,)
+        Every coordinate and every velocity (``"x'"``, dependent ones
+        included) at :attr:`t`.
+    energy, energy_initial : ndarray (N,)
+        ``T − U`` at :attr:`t` and at the start.
+    constraint_residual : ndarray (N,)
+        ``max_β |Σ_s A_βs q̇_s + A_β0|`` at :attr:`t`.
+    code : ndarray of int (N,)
+        0 for success, else why it failed (see :attr:`messages`).
+    rhs_evaluations : ndarray of int (N,)
+    times, samples : ndarray or None
+        With ``keep`` times: the times and the states there, shape
+        ``(N, len(times), len(layout.state))``; NaN after a failure.
+    wall_time : float
+        Seconds spent integrating (compilation excluded when it was cached).
+    """
+
+    model: str
+    form: str
+    backend: str
+    layout: Layout
+    t: np.ndarray
+    y: np.ndarray
+    coordinates: dict[str, np.ndarray]
+    velocities: dict[str, np.ndarray]
+    energy: np.ndarray
+    energy_initial: np.ndarray
+    constraint_residual: np.ndarray
+    code: np.ndarray
+    rhs_evaluations: np.ndarray
+    times: np.ndarray | None = None
+    samples: np.ndarray | None = None
+    wall_time: float = 0.0
+    parameters: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def success(self) -> np.ndarray:
+        """Boolean mask of the members that reached the end."""
+        return self.code == 0
+
+    @property
+    def status(self) -> np.ndarray:
+        """``"success"`` or ``"failed"`` per member."""
+        return np.where(self.code == 0, "success", "failed")
+
+    @property
+    def messages(self) -> list[str]:
+        """Why each member stopped (``""`` for the successful ones)."""
+        return [
+            "" if c == 0 else f"stopped at t = {t:.6g}: {STATUS.get(int(c), 'failed')}"
+            for c, t in zip(self.code, self.t)
+        ]
+
+    def energy_drift(self) -> np.ndarray:
+        """``|E − E(0)| / max(1, |E(0)|)`` per member."""
+        return np.abs(self.energy - self.energy_initial) / np.maximum(1.0, np.abs(self.energy_initial))
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        for table in (self.coordinates, self.velocities):
+            if name in table:
+                return table[name]
+        if name in self.layout.state:
+            return self.y[:, self.layout.state.index(name)]
+        if name in ("t", "energy", "constraint_residual"):
+            return getattr(self, name)
+        raise KeyError(f"{name!r}: use a coordinate, a velocity, 't', 'energy' or 'constraint_residual'")
+
+    def __repr__(self) -> str:
+        failed = int(np.count_nonzero(self.code))
+        return (
+            f"<Ensemble {self.model}/{self.form} [{self.backend}]: {len(self)} members, "
+            f"{failed} failed, {self.wall_time:.3g} s>"
+        )
+
+
+# ------------------------------------------------------------------ inputs
+def _parameter_matrix(
+    system: System, layout: Layout, parameters: Mapping[Any, Any] | None, n: int
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """``P`` of shape (n, len(layout.parameters)): numbers broadcast, arrays of length n per member."""
+    columns: dict[str, np.ndarray] = {}
+    for key, value in (parameters or {}).items():
+        name = system.parameter(key).name
+        arr = np.asarray(value, dtype=float)
+        if arr.ndim == 0:
+            arr = np.full(n, float(arr))
+        if arr.shape != (n,):
+            raise ChaplyginError(
+                f"parameters: {name} must be a number or one value per member ({n}), "
+                f"not shape {arr.shape}."
+            )
+        columns[name] = arr
+    missing = [name for name in layout.parameters if name not in columns]
+    if missing:
+        raise ChaplyginError(
+            f"parameters: no value for {', '.join(missing)}; every parameter of {system.name} "
+            f"({', '.join(layout.parameters)}) needs a number or an array."
+        )
+    P = np.column_stack([columns[name] for name in layout.parameters]) if layout.parameters else np.zeros((n, 0))
+    return np.ascontiguousarray(P), {name: columns[name] for name in layout.parameters}
+
+
+def _states(
+    system: System, model: str, layout: Layout, initial_states: Any, P: np.ndarray | None,
+    vak: dict[str, Any] | None, t0: float,
+) -> np.ndarray:
+    """``Y0`` (N × len(layout.state)) from an array in layout order or a list of mappings."""
+    if isinstance(initial_states, np.ndarray) or (
+        isinstance(initial_states, Sequence) and initial_states and not isinstance(initial_states[0], Mapping)
+    ):
+        Y0 = np.atleast_2d(np.asarray(initial_states, dtype=float))
+        if Y0.ndim != 2 or Y0.shape[1] != len(layout.state):
+            raise ChaplyginError(
+                f"initial_states: an array of shape (N, {len(layout.state)}) in layout order "
+                f"[{', '.join(layout.state)}], not shape {np.shape(initial_states)}."
+            )
+        if not np.all(np.isfinite(Y0)):
+            bad = np.flatnonzero(~np.all(np.isfinite(Y0), axis=1))
+            raise ChaplyginError(f"initial_states: rows {bad[:10].tolist()} are not finite.")
+        return np.ascontiguousarray(Y0)
+    if not isinstance(initial_states, Sequence) or not initial_states:
+        raise ChaplyginError(
+            "initial_states: give an (N, len(state)) array in layout order or a non-empty list "
+            "of mappings like simulate()'s `initial`."
+        )
+    Q, QD = _given(system, initial_states)
+    params = {name: P[:, j] for j, name in enumerate(layout.parameters)
+              if name in {p.name for p in system.parameters}} if P is not None else {}
+    if system.g:
+        _dependent_velocities(system, Q, QD, params, t0)
+    entry = registry.get(model)
+    columns = [Q, QD if not entry.reduced else QD[:, list(system._ind)]]
+    if entry.multipliers_in_state:
+        columns.append(_multipliers(system, vak or {}, Q, QD, params, t0))
+    return np.ascontiguousarray(np.column_stack(columns), dtype=float)
+
+
+def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates and velocities (N × n each, NaN where not given) from N mappings; every
+    coordinate and independent velocity must be there (the messages name the member and key)."""
+    from chaplygin.numeric.simulate import _lookup
+
+    n, count = system.n, len(initial_states)
+    Q, QD = np.full((count, n), np.nan), np.full((count, n), np.nan)
+    where: dict[Any, tuple[str, int]] = {}  # a key's column, looked up once for all members
+    for k, initial in enumerate(initial_states):
+        if not isinstance(initial, Mapping):
+            raise ChaplyginError(
+                f"initial_states[{k}]: expected a mapping like simulate()'s `initial`, not "
+                f"{type(initial).__name__} (or give every state as a row of one array)."
+            )
+        for key, value in initial.items():
+            try:
+                kind, i = where[key]
+            except (KeyError, TypeError):  # new, or unhashable
+                try:
+                    kind, i = _lookup(system, key)
+                except ChaplyginError as exc:
+                    raise ChaplyginError(f"initial_states[{k}]: {str(exc).removeprefix('initial: ')}") from None
+                with suppress(TypeError):
+                    where[key] = kind, i
+            try:
+                (Q if kind == "q" else QD)[k, i] = float(value)
+            except (TypeError, ValueError):
+                raise ChaplyginError(f"initial_states[{k}]: {key!r} = {value!r} is not a number.") from None
+    names = [c.func.__name__ for c in system.coordinates]
+    needed = np.concatenate([np.isnan(Q), np.isnan(QD[:, list(system._ind)])], axis=1)
+    if needed.any():
+        k = int(np.flatnonzero(needed.any(axis=1))[0])
+        labels = names + [names[i] + "'" for i in system._ind]
+        missing = [label for label, lacking in zip(labels, needed[k]) if lacking]
+        raise ChaplyginError(
+            f"initial_states[{k}]: missing {', '.join(missing)}; give every coordinate and the "
+            f"independent velocities ({', '.join(names[i] + chr(39) for i in system._ind)})."
+        )
+    return Q, QD
+
+
+def _evaluate_all(
+    system: System, exprs: Sequence[Any], Q: np.ndarray, QD: np.ndarray,
+    params: Mapping[str, np.ndarray], t0: float,
+) -> np.ndarray:
+    """``exprs`` (internal symbols) at every member's state: one vectorised call, N × len(exprs)."""
+    from chaplygin.core._sampling import compile_function
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    f = compile_function(list(exprs), [TIME, *v.x, *v.xd, *(system.parameter(name) for name in params)])
+    with np.errstate(all="ignore"):  # NaN velocities (not given yet) and poles show as NaN, not warnings
+        values = f(t0, *Q.T, *QD.T, *params.values())
+    return np.column_stack([np.broadcast_to(np.asarray(x, dtype=float), (len(Q),)) for x in values])
+
+
+def _dependent_velocities(
+    system: System, Q: np.ndarray, QD: np.ndarray, params: Mapping[str, np.ndarray], t0: float
+) -> None:
+    """Fill in the dependent velocities of every member from the constraints (``initial_state``
+    for N members at once): ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``; a given one must agree."""
+    ind, dep = list(system._ind), list(system._dep)
+    names = [c.func.__name__ for c in system.coordinates]
+    matrix = system._A.row_join(system._A0)
+    a = _evaluate_all(system, list(matrix), Q, QD, params, t0).reshape(len(Q), *matrix.shape)
+    lhs, rhs = a[:, :, dep], -(np.einsum("kij,kj->ki", a[:, :, ind], QD[:, ind]) + a[:, :, -1])
+    solvable = np.all(np.isfinite(lhs), axis=(1, 2)) & np.all(np.isfinite(rhs), axis=1)
+    solvable[solvable] = np.linalg.matrix_rank(lhs[solvable]) == len(dep)
+    if not solvable.all():
+        k = int(np.flatnonzero(~solvable)[0])
+        raise ChaplyginError(
+            f"initial_states[{k}]: the constraints cannot be solved for the dependent velocities "
+            f"({', '.join(names[i] + chr(39) for i in dep)}) at this configuration."
+        )
+    implied = np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]
+    given = QD[:, dep]
+    wrong = ~np.isnan(given) & (np.abs(given - implied) > 1e-9 * np.maximum(1.0, np.abs(implied)))
+    if wrong.any():
+        k, j = (int(x) for x in np.argwhere(wrong)[0])
+        name = names[dep[j]]
+        raise ChaplyginError(
+            f"initial_states[{k}]: {name}' = {given[k, j]:g} violates the constraints, which give "
+            f"{name}' = {implied[k, j]:.12g} (residual {given[k, j] - implied[k, j]:.3g})."
+        )
+    QD[:, dep] = implied
+
+
+def _multipliers(
+    system: System, vak: dict[str, Any], Q: np.ndarray, QD: np.ndarray,
+    params: Mapping[str, np.ndarray], t0: float,
+) -> np.ndarray:
+    """μ(0) of every member of the vakonomic model (N × g).
+
+    simulate's one-state path, for the first member, checks the request (and its μ(0) is every
+    member's when μ(0) is given or ``constants="match"``); from constants c, ``μ = c − ∂T/∂q̇_dep``
+    is evaluated for all members at once.
+    """
+    first = _initial_multipliers(system, vak, Q[0], QD[0], {k: float(v[0]) for k, v in params.items()}, t0)
+    c = vak.get("constants")
+    if "mu" in vak or (isinstance(c, str) and c == "match"):
+        return np.tile(first, (len(Q), 1))  # the same for every member
+    exprs = system.integrated_multipliers(c)
+    names = system.equations("vakonomic").multipliers
+    return _evaluate_all(system, [exprs[m].xreplace(system._to_sym) for m in names], Q, QD, params, t0)
+
+
+def _observe_all(compiled: CompiledModel, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
+    if compiled.backend == "jax":
+        import jax
+
+        solvers = compiled._solvers  # type: ignore[attr-defined]  # jitted functions of this model
+        if "observe_vmap" not in solvers:
+            solvers["observe_vmap"] = jax.jit(jax.vmap(compiled.module.observe_jax))
+        return np.asarray(solvers["observe_vmap"](t, Y, P))
+    observe = compiled.module.observe
+    return np.array([observe(ti, yi, pi) for ti, yi, pi in zip(t, Y, P)]).reshape(len(t), -1)
+
+
+# ------------------------------------------------------------------ driver
+def simulate_ensemble(
+    system: System,
+    model: str,
+    t_span: tuple[float, float] | float,
+    initial_states: Any,
+    parameters: Mapping[Any, Any] | None = None,
+    *,
+    form: str = "classic",
+    backend: str = "numba",
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    method: str = "DOP853",
+    keep: Any = "final",
+    constants: Any = None,
+    multipliers: Any = None,
+    max_step: float = np.inf,
+    max_steps: int = 1_000_000,
+    threads: int | None = None,
+    reduction: str = "auto",
+) -> Ensemble:
+    """Integrate ``model`` of ``system`` from many initial states.
+
+    Parameters
+    ----------
+    system, model, t_span, form, rtol, atol, constants, multipliers, max_step, reduction :
+        As for :func:`chaplygin.numeric.simulate.simulate`.
+    initial_states : array (N, len(state)) or list of mappings
+        Either states in layout order (``compile_model(system, model).layout.state``:
+        coordinates, the integrated velocities, multipliers), or ``N``
+        mappings like ``simulate``'s ``initial`` (dependent velocities follow
+        from the constraints, computed for all members in one vectorised
+        step; an error names the member, ``initial_states[k]``, and the key).
+        An array for a multiplier model (all velocities integrated) must
+        satisfy the constraints.
+    parameters : mapping
+        A number for every parameter, or an array of ``N`` numbers (one per
+        member) for a parameter sweep.
+    backend : {"numba", "jax"}
+        The compiled DOP853 loop on all CPU cores (``threads`` of them if
+        given), or diffrax under ``jax.vmap`` (``method`` ``"DOP853"`` →
+        ``Dopri8``, ``"RK45"``, ``"RK23"``).
+    keep : "final", int, or sequence of times
+        ``"final"``: only the end state.  An int ``k``: also ``k`` equally
+        spaced samples; a sequence: samples at those times (states only, in
+        :attr:`Ensemble.samples`).
+    max_steps : int
+        A member that needs more steps fails (0: no limit; numba only).
+
+    Returns
+    -------
+    Ensemble
+    """
+    t0, t1 = (0.0, float(t_span)) if np.isscalar(t_span) else map(float, t_span)  # type: ignore[arg-type]
+    if not t1 > t0:
+        raise ChaplyginError(f"t_span: the end time {t1:g} must be after the start {t0:g}.")
+    if backend not in ENSEMBLE_BACKENDS:
+        raise ChaplyginError(
+            f"backend {backend!r}: ensembles run on {', '.join(map(repr, ENSEMBLE_BACKENDS))}."
+        )
+    if backend == "numba" and method != "DOP853":
+        raise ChaplyginError(f"method {method!r}: the numba ensemble integrates with 'DOP853' only.")
+    times = _keep_times(keep, t0, t1)
+    family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+    if backend == "numba":
+        from chaplygin.numeric._loop import loop_model
+
+        compiled = loop_model(compiled)  # its observe is compiled (and cached) with the loop
+    layout = compiled.layout
+
+    n = len(initial_states)
+    if n == 0:
+        raise ChaplyginError("initial_states: no initial states given.")
+    P, param_columns = _parameter_matrix(system, layout, parameters, n)
+    Y0 = _states(system, model, layout, initial_states, P, vak, t0)
+
+    g = system.g
+    n_coords = len(layout.coordinates)
+    obs0 = _observe_all(compiled, np.full(n, t0), Y0, P)
+    if g:
+        resid0 = np.max(np.abs(obs0[:, 1 : 1 + g]), axis=1)
+        speed = np.maximum(1.0, np.max(np.abs(obs0[:, obs0.shape[1] - n_coords :]), axis=1))
+        bad = np.flatnonzero(resid0 > 1e-8 * speed)
+        if bad.size:
+            raise ChaplyginError(
+                f"initial_states: rows {bad[:10].tolist()} violate the constraints (residual up to "
+                f"{resid0[bad].max():.3g}); give states that satisfy them."
+            )
+
+    start = time.perf_counter()
+    if backend == "numba":
+        from chaplygin.numeric._loop import ensemble_dop853
+
+        res = ensemble_dop853(
+            compiled, (t0, t1), Y0, P, times=times, rtol=rtol, atol=atol, max_step=max_step,
+            max_steps=max_steps, threads=threads,
+        )
+    else:
+        from chaplygin.numeric.jaxbackend import solve_ensemble
+
+        res = solve_ensemble(
+            compiled, (t0, t1), Y0, P, times=times, rtol=rtol, atol=atol, method=method,
+            max_step=max_step, max_steps=max_steps or 1_000_000,
+        )
+    wall = time.perf_counter() - start
+
+    obs = res["observed"]
+    velocities = obs[:, obs.shape[1] - n_coords :]
+    residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g else np.zeros(n)
+    return Ensemble(
+        model=layout.model,
+        form=layout.form,
+        backend=backend,
+        layout=layout,
+        t=res["t"],
+        y=res["y"],
+        coordinates={name: res["y"][:, i] for i, name in enumerate(layout.coordinates)},
+        velocities={name + "'": velocities[:, i] for i, name in enumerate(layout.coordinates)},
+        energy=obs[:, 0],
+        energy_initial=obs0[:, 0],
+        constraint_residual=residual,
+        code=res["code"],
+        rhs_evaluations=res["n_rhs"],
+        times=times,
+        samples=res.get("samples"),
+        wall_time=wall,
+        parameters=param_columns,
+    )
+
+
+def _keep_times(keep: Any, t0: float, t1: float) -> np.ndarray | None:
+    if isinstance(keep, str):
+        if keep != "final":
+            raise ChaplyginError(f"keep={keep!r}: use 'final', a number of samples, or times.")
+        return None
+    if np.isscalar(keep):
+        k = int(keep)  # type: ignore[arg-type]
+        if k < 2:
+            raise ChaplyginError("keep: at least 2 samples (the start and the end).")
+        return np.linspace(t0, t1, k)
+    times = np.asarray(keep, dtype=float)
+    if times.ndim != 1 or times.size == 0 or np.any(np.diff(times) < 0) or times[0] < t0 or times[-1] > t1:
+        raise ChaplyginError(f"keep: increasing output times within [{t0:g}, {t1:g}].")
+    return times

@@ -1,0 +1,897 @@
+"""Numerical simulation of any model from one initial state, with invariants monitored.
+
+Reduced models (Chaplygin, Voronets, Lindelöf, the vakonomic family) integrate
+all coordinates and the independent velocities; the dependent coordinates
+follow through the constraints.  The multiplier models integrate all
+coordinates and velocities (and μ for the vakonomic model) with the
+constraints imposed at acceleration level; their constraint residual shows the
+drift.  Integration: with ``backend="c"`` (what ``"auto"``, the default, picks
+for DOP853 where a C compiler is found; see :func:`choose_backend`) or
+``backend="numba"`` and DOP853, a compiled port of SciPy's DOP853 that runs
+entirely in C (:mod:`chaplygin.numeric._ckernel`) or inside numba (:mod:`chaplygin.numeric._loop`); with
+``backend="jax"``, diffrax; otherwise SciPy's stepper classes (``DOP853`` by
+default) driven step by step.  Every path ends a failed run (step-size
+underflow, a singular mass matrix, a blow-up) with a status, a message and the
+trajectory so far; after a failure inside a step, the compiled loop and the SciPy
+path integrate again from the last accepted step with smaller steps, so the
+samples reach the failure whatever steps the integrator chose.
+
+Before integrating, :func:`simulate` refuses (:class:`~chaplygin.errors.InputError`)
+what cannot be a motion: non-finite parameters or initial values, a time span
+or sample count that is not finite or too large, a start on a pole of the solved
+constraints, and a reduced mass matrix that is not positive definite or is
+ill-conditioned.  After integrating, a reduced model's run stops where its solved
+constraints have a pole or its mass matrix stops being positive definite.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple
+
+import numpy as np
+
+from chaplygin.errors import ChaplyginError, InputError
+from chaplygin.models import registry
+
+if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
+    # warm run of the command line (chaplygin.apps._quick) needs none of them
+    from chaplygin.core.system import System
+    from chaplygin.numeric._ckernel import CompiledModel
+
+__all__ = ["Trajectory", "simulate", "METHODS", "BACKENDS", "choose_backend", "MAX_SAMPLES", "MAX_CONDITION"]
+
+#: chaplygin.numeric.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
+SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
+METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA", *SYMMETRIC_METHODS)
+#: what ``backend=`` accepts: "auto" chooses one of the others (:func:`choose_backend`)
+BACKENDS = ("auto", "numpy", "numba", "c", "jax")
+
+
+def choose_backend(backend: str, method: str = "DOP853") -> str:
+    """The backend that ``backend="auto"`` runs ``method`` with; any other value as it is.
+
+    ``"auto"`` is ``"c"`` (the generated ``fill`` and the DOP853 loop in C,
+    :mod:`chaplygin.numeric._ckernel`) for ``DOP853`` where a C compiler is found: it
+    costs a fraction of a second to build once per model, nothing later (the
+    kernel cache), and integrates at compiled speed, so it pays for itself on
+    any run.  Otherwise ``"numpy"`` (no build step; SciPy's steppers).  numba is
+    never chosen: its first compile of a model takes seconds, and importing it
+    half a second more; ``backend="numba"`` still asks for it.
+    """
+    if backend not in BACKENDS:
+        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}.")
+    if backend != "auto":
+        return backend
+    if method == "DOP853":
+        from chaplygin.numeric._ckernel import Unavailable, compiler
+
+        try:
+            compiler()
+            return "c"
+        except Unavailable:
+            pass
+    return "numpy"
+#: the most samples one run returns: each is a row of every column in memory (10**6 samples
+#: of a ten-coordinate system take about 0.2 GB, more while they are observed)
+MAX_SAMPLES = 10**6
+#: the largest condition number of the reduced mass matrix accepted at the start: beyond it
+#: the accelerations lose more than about four of the sixteen digits of a double
+MAX_CONDITION = 1e12
+
+
+@dataclass
+class Trajectory:
+    """A simulated motion, sampled at :attr:`t`.
+
+    Attributes
+    ----------
+    t : ndarray
+        Sample times.
+    coordinates, velocities : dict of str → ndarray
+        Every coordinate and every velocity (``"x'"``), dependent ones included.
+    multipliers : dict of str → ndarray
+        λ (Chetaev) or μ (vakonomic) where the model has them.
+    energy : ndarray
+        ``T − U`` at each sample (for rheonomic or affine constraints it is not
+        an invariant).
+    constraint_residual : ndarray
+        ``max_β |Σ_s A_βs q̇_s + A_β0|`` at each sample.
+    status, message : str
+        ``"success"`` or ``"failed"``, and why.
+    failure : str
+        What stopped a failed run where a check of :func:`simulate` found it:
+        ``"pole"`` (the solved constraints of a reduced model have a pole there),
+        ``"mass"`` (the mass matrix stopped being positive definite); else ``""``.
+    """
+
+    model: str
+    form: str
+    backend: str
+    t: np.ndarray
+    coordinates: dict[str, np.ndarray]
+    velocities: dict[str, np.ndarray]
+    multipliers: dict[str, np.ndarray]
+    energy: np.ndarray
+    constraint_residual: np.ndarray
+    status: str = "success"
+    message: str = ""
+    parameters: dict[str, float] = field(default_factory=dict)
+    rhs_evaluations: int = 0
+    failure: str = ""
+
+    @property
+    def success(self) -> bool:
+        return self.status == "success"
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        for table in (self.coordinates, self.velocities, self.multipliers):
+            if name in table:
+                return table[name]
+        if name in ("t", "energy", "constraint_residual"):
+            return getattr(self, name)
+        raise KeyError(f"{name!r}: the columns are {', '.join(self.columns)}")
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names in export order."""
+        return ["t", *self.coordinates, *self.velocities, "energy", "constraint_residual", *self.multipliers]
+
+    def table(self) -> np.ndarray:
+        """All columns as one array (samples × columns)."""
+        return np.column_stack([self[c] for c in self.columns])
+
+    def energy_drift(self) -> float:
+        """``max |E − E(0)| / max(1, |E(0)|)``."""
+        if len(self.energy) == 0:
+            return float("nan")
+        e0 = self.energy[0]
+        return float(np.max(np.abs(self.energy - e0)) / max(1.0, abs(e0)))
+
+    def to_csv(self, path: str | os.PathLike[str]) -> Path:
+        """Write the columns to a CSV file, atomically."""
+        header = ",".join(self.columns)
+
+        def write(fh: Any) -> None:
+            np.savetxt(fh, self.table(), delimiter=",", header=header, comments="", fmt="%.17g")
+
+        return _atomic_write(path, write, text=True)
+
+    def to_npz(self, path: str | os.PathLike[str]) -> Path:
+        """Write the columns to a NumPy ``.npz`` archive (one array per column), atomically."""
+
+        def write(fh: Any) -> None:
+            np.savez(fh, **{c: self[c] for c in self.columns})
+
+        return _atomic_write(path, write, text=False)
+
+    def __repr__(self) -> str:
+        return (
+            f"<Trajectory {self.model}/{self.form} [{self.backend}] {self.status}: "
+            f"{len(self.t)} samples to t = {self.t[-1] if len(self.t) else float('nan'):g}>"
+        )
+
+
+def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Path:
+    """Write through a temporary file in the same folder, then rename over ``path``."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") if text else os.fdopen(fd, "wb") as fh:
+            write(fh)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a normal file follows the umask
+        os.replace(tmp, target)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return target
+
+
+# ------------------------------------------------------------------ inputs
+def _lookup(system: System, key: Any) -> tuple[str, int]:
+    """``("q", i)`` for a coordinate, ``("v", i)`` for a velocity, given as symbol or name."""
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME
+
+    names = [q.func.__name__ for q in system.coordinates]
+    if isinstance(key, str):
+        name = key.strip()
+        if name.endswith("'") and name[:-1] in names:
+            return "v", names.index(name[:-1])
+        if name in names:
+            return "q", names.index(name)
+    elif isinstance(key, sp.Derivative) and key.expr in system.coordinates and key.variables == (TIME,):
+        return "v", system.coordinates.index(key.expr)
+    elif key in system.coordinates:
+        return "q", system.coordinates.index(key)
+    raise ChaplyginError(
+        f"initial: {key!r} is neither a coordinate nor a velocity of {system.name}; use "
+        f"{', '.join(names)} or their velocities ({names[0]}' …)."
+    )
+
+
+def initial_state(
+    system: System, initial: Mapping[Any, float], params: Mapping[str, float], t0: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Full coordinates and velocities at ``t0`` from the user's initial data.
+
+    Every coordinate and every independent velocity is needed, as finite
+    numbers; dependent velocities follow from the constraints (a given one must
+    agree with them).  A configuration where the constraints cannot be solved
+    for the dependent velocities (a pole of ``q̇_dep = B q̇_σ + B_0``) is refused.
+    """
+    n = system.n
+    q = np.full(n, np.nan)
+    qd = np.full(n, np.nan)
+    for key, value in initial.items():
+        kind, i = _lookup(system, key)
+        name = system.coordinates[i].func.__name__ + ("'" if kind == "v" else "")
+        (q if kind == "q" else qd)[i] = _finite(value, f"initial: {name}", "a finite number")
+    names = [c.func.__name__ for c in system.coordinates]
+    missing = [names[i] for i in range(n) if np.isnan(q[i])]
+    missing += [names[i] + "'" for i in system._ind if np.isnan(qd[i])]
+    if missing:
+        raise ChaplyginError(
+            f"initial: missing {', '.join(missing)}; give every coordinate and the independent "
+            f"velocities ({', '.join(names[i] + chr(39) for i in system._ind)})."
+        )
+    if not system.g:
+        return q, qd
+    # A_dep q̇_dep = −(A_ind q̇_σ + A_0), solved numerically (no symbolic B needed)
+    ind, dep = list(system._ind), list(system._dep)
+    a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
+    dep_names = ", ".join(names[i] + "'" for i in dep)
+    at = ", ".join(f"{names[i]} = {q[i]:.6g}" for i in range(n))
+    if not _solvable(a[:, :-1], dep):
+        raise InputError(
+            f"initial: the constraints cannot be solved for the dependent velocities ({dep_names}) "
+            f"at {at}: this configuration is a pole of the solved constraints (their block of A "
+            "is singular there). Start away from it, or choose other dependent coordinates."
+        )
+    implied_all = np.linalg.solve(a[:, dep], -(a[:, ind] @ qd[ind] + a[:, -1]))
+    for i, implied in zip(dep, implied_all):
+        if not np.isfinite(implied):
+            raise InputError(
+                f"initial: the constraints give {names[i]}' = {implied} at {at}; start where "
+                "they give finite velocities."
+            )
+        if not np.isnan(qd[i]) and abs(qd[i] - implied) > 1e-9 * max(1.0, abs(implied)):
+            raise ChaplyginError(
+                f"initial: {names[i]}' = {qd[i]:g} violates the constraints, which give "
+                f"{names[i]}' = {implied:.12g} (residual {qd[i] - implied:.3g})."
+            )
+        qd[i] = implied
+    return q, qd
+
+
+def _finite(value: Any, what: str, accepted: str) -> float:
+    """``value`` as a float, or an :class:`InputError` naming ``what`` and what is ``accepted``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} = {value!r} is not a number; give {accepted}.") from None
+    if not math.isfinite(number):
+        raise InputError(f"{what} = {number} is not finite; give {accepted}.")
+    return number
+
+
+def _solvable(a: np.ndarray, dep: Sequence[int]) -> bool:
+    """Whether ``A`` (numbers, g × n) can be solved for the velocities ``dep``: its rows scaled
+    to largest entry 1, the dependent block must be finite and of full rank (smallest singular
+    value above 1e-10)."""
+    if not np.all(np.isfinite(a)):
+        return False
+    scale = np.max(np.abs(a), axis=1, keepdims=True)
+    if np.any(scale == 0):
+        return False
+    block = a[:, list(dep)] / scale
+    return bool(np.linalg.svd(block, compute_uv=False)[-1] > 1e-10)
+
+
+def _parameters(system: System, parameters: Mapping[Any, float] | None) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for key, value in (parameters or {}).items():
+        name = system.parameter(key).name
+        out[name] = _finite(value, f"parameters: {name}", "a finite number")
+    missing = [p.name for p in system.parameters if p.name not in out]
+    if missing:
+        raise ChaplyginError(
+            f"parameters: no value for {', '.join(missing)}; every parameter of {system.name} "
+            f"({', '.join(p.name for p in system.parameters)}) needs a number."
+        )
+    return out
+
+
+def _check_options(t0: float, t1: float, samples: Any, rtol: Any, atol: Any, max_step: Any) -> None:
+    """Refuse a time span, sample count, tolerance or step bound no run can honour."""
+    _finite(t0, "t_span: the start time", "a finite number")
+    _finite(t1, "t_span: the end time", f"a finite number after the start ({t0:g})")
+    if not t1 > t0:
+        raise InputError(f"t_span: the end time {t1:g} must be after the start {t0:g}.")
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)):
+        raise InputError(f"samples = {samples!r}: give a whole number from 2 to {MAX_SAMPLES}.")
+    if not 2 <= samples <= MAX_SAMPLES:
+        raise InputError(
+            f"samples = {samples}: give from 2 (the start and the end) to {MAX_SAMPLES} samples "
+            f"(each sample is a row of every column in memory; for finer output, simulate shorter spans)."
+        )
+    _finite(rtol, "rtol", "a positive finite tolerance, e.g. 1e-10")
+    if not float(rtol) > 0:
+        raise InputError(f"rtol = {rtol}: give a positive finite tolerance, e.g. 1e-10.")
+    a = np.asarray(atol, dtype=float) if np.ndim(atol) else np.asarray(_finite(
+        atol, "atol", "a positive finite tolerance, e.g. 1e-12"))
+    if not (np.all(np.isfinite(a)) and np.all(a > 0)):
+        raise InputError(f"atol = {atol}: give positive finite tolerances, e.g. 1e-12.")
+    if not (float(max_step) > 0):  # NaN fails too
+        raise InputError(f"max_step = {max_step}: give a positive bound on the step (inf: none).")
+
+
+def _check_mass(system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float) -> None:
+    """Refuse a start where the reduced mass matrix ``Cᵀ M C`` is not positive definite or is
+    ill-conditioned (condition number above :data:`MAX_CONDITION`), naming the velocity along
+    which the kinetic energy fails and the parameters of T that are not positive."""
+    from symengine import DenseMatrix
+
+    mass = system._M if system._native is None else DenseMatrix(system._native.H)
+    m = _numeric(system, mass, q, qd, params, t0)
+    c = np.eye(system.n)[:, list(system._ind)]
+    if system.g:
+        a = _numeric(system, system._constraint_matrix(), q, qd, params, t0)
+        c = system._numeric_C(a)
+    ind = [system.coordinates[i].func.__name__ + "'" for i in system._ind]
+    if c is None or not np.all(np.isfinite(m)):
+        raise InputError("initial: the mass matrix is not finite at the initial state; start elsewhere.")
+    reduced = c.T @ m @ c
+    w, v = np.linalg.eigh((reduced + reduced.T) / 2)
+    biggest = float(np.max(np.abs(w), initial=0.0))
+    along = ind[int(np.argmax(np.abs(v[:, 0])))] if len(w) else ""
+    symbols = {str(x) for x in system.kinetic_energy.free_symbols}
+    bad = [f"{k} = {val:g}" for k, val in params.items() if k in symbols and val <= 0]
+    hint = f" Check the parameters of T that are not positive: {', '.join(bad)}." if bad else (
+        " Check the parameters and the kinetic energy.")
+    if biggest == 0 or w[0] < -1e-12 * biggest:
+        raise InputError(
+            f"the kinetic energy is not positive definite at the initial state: it is "
+            f"{'zero' if biggest == 0 else 'negative'} along {along} (eigenvalue {w[0]:.3g} of the "
+            f"reduced mass matrix in {', '.join(ind)}); a motion needs T > 0 for every non-zero "
+            f"admissible velocity.{hint}"
+        )
+    if w[0] <= biggest / MAX_CONDITION:
+        raise InputError(
+            f"the reduced mass matrix (in {', '.join(ind)}) is singular or nearly so at the initial "
+            f"state: its condition number {biggest / w[0] if w[0] > 0 else math.inf:.3g} exceeds "
+            f"{MAX_CONDITION:g}, so the accelerations are not determined along {along}.{hint}"
+        )
+
+
+def _numeric(system: System, matrix: Any, q: np.ndarray, qd: np.ndarray,
+             params: Mapping[str, float], t0: float) -> np.ndarray:
+    """A SymPy or SymEngine matrix of internal symbols at ``(t0, q, q̇)`` and the parameters."""
+    import sympy as sp
+
+    from chaplygin.core._fast import evaluator, to_sympy
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
+    by_name = dict(params)
+    # SymEngine's symbols come back without assumptions: a parameter is known by its name
+    args = sorted({to_sympy(x) for x in matrix.free_symbols}, key=str)
+    numbers = [values[x] if x in values else by_name[x.name] for x in args]
+    fast = evaluator(args, list(matrix))
+    shape = (matrix.rows, matrix.cols)
+    if fast is not None:
+        with np.errstate(all="ignore"):
+            out = np.asarray(fast(numbers), dtype=complex).reshape(shape)
+        # (complex arithmetic leaves round-off in the imaginary parts of real values)
+        return np.where(np.abs(out.imag) <= 1e-12 * np.maximum(1.0, np.abs(out.real)), out.real, np.nan)
+    plain = sp.Matrix(matrix.tolist()).xreplace({x: sp.Float(val) for x, val in zip(args, numbers)})
+    try:
+        return np.array(plain.evalf().tolist(), dtype=float)
+    except TypeError:  # zoo or nan: a singular point
+        return np.full(shape, np.nan)
+
+
+def _vakonomic_setup(
+    system: System, model: str, constants: Any, multipliers: Any
+) -> tuple[Any, dict[str, Any] | None]:
+    """Constants of the family, or the initial multipliers of the multiplier form."""
+    entry = registry.get(model)
+    if entry.constants:
+        return ([0.0] * system.g if constants is None else constants), None
+    if entry.multipliers_in_state:
+        if multipliers is not None:
+            return None, {"mu": multipliers}
+        return None, {"constants": [0.0] * system.g if constants is None else constants}
+    if constants is not None or multipliers is not None:
+        raise ChaplyginError(
+            f"constants/multipliers are for the vakonomic models, not for {model!r}."
+        )
+    return None, None
+
+
+# ------------------------------------------------------------------ integration
+class _StepFailure(Exception):
+    """A right-hand side that failed inside a step (at time ``t``): the step is not taken."""
+
+    def __init__(self, message: str, t: float) -> None:
+        super().__init__(message)
+        self.t = t
+
+
+class _Attempt(NamedTuple):
+    """One integration from ``(t_start, y_start)``: the samples it reached and how it ended."""
+
+    t: np.ndarray
+    y: np.ndarray
+    message: str  # "" on success
+    retry: bool  # a right-hand side failed inside a step: smaller steps may get closer
+    t_last: float  # the last accepted step
+    y_last: np.ndarray
+    t_fail: float
+    n_rhs: int
+
+
+#: a failure inside a step is pinned down to this fraction of max(1, |t|) before the run stops
+PIN = 1e-9
+
+
+def simulate(
+    system: System,
+    model: str,
+    t_span: tuple[float, float] | float,
+    initial: Mapping[Any, float],
+    parameters: Mapping[Any, float] | None = None,
+    *,
+    form: str = "classic",
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    method: str = "DOP853",
+    samples: int = 1001,
+    backend: str = "auto",
+    constants: Any = None,
+    multipliers: Any = None,
+    max_step: float = np.inf,
+    step: float | None = None,
+    reduction: str = "auto",
+) -> Trajectory:
+    """Simulate one model of ``system`` (see :meth:`System.simulate`).
+
+    Inputs that cannot give a motion are refused with an :class:`InputError`
+    before anything is derived or compiled: a start or end time that is not
+    finite, ``samples`` outside ``2 … MAX_SAMPLES``, tolerances that are not
+    positive and finite, parameters or initial values that are not finite, a
+    start on a pole of the solved constraints, and a reduced mass matrix that is
+    not positive definite or whose condition number exceeds :data:`MAX_CONDITION`.
+    """
+    t0, t1 = (0.0, t_span) if np.isscalar(t_span) else t_span  # type: ignore[misc]
+    t0, t1 = _finite(t0, "t_span: the start time", "a finite number"), _finite(
+        t1, "t_span: the end time", "a finite number after the start")
+    _check_options(t0, t1, samples, rtol, atol, max_step)
+    if method not in METHODS:
+        raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
+    auto = backend == "auto"
+    backend = choose_backend(backend, method)
+    params = _parameters(system, parameters)
+    q, qd = initial_state(system, initial, params, t0)
+    _check_mass(system, q, qd, params, t0)
+    if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.numeric.symmetric
+        from chaplygin.numeric.symmetric import simulate_symmetric
+
+        tr = simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
+                                form=form, samples=samples, backend=backend, constants=constants,
+                                multipliers=multipliers)
+        return _watch(system, tr, params, reduced=True)
+    if step is not None:
+        raise ChaplyginError(
+            f"step: a fixed step size is for the symmetric methods ({', '.join(SYMMETRIC_METHODS)}); "
+            f"method {method!r} adapts its steps to rtol/atol (bounded by max_step)."
+        )
+    family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    if isinstance(family_c, str) and family_c == "match":
+        family_c = _matching_constants(system, q, qd, params, t0)
+    from chaplygin.numeric.codegen import (
+        BackendUnavailable,
+        compile_model,
+        parameter_vector,
+    )
+
+    try:
+        compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+    except BackendUnavailable:
+        if not auto:
+            raise
+        compiled = compile_model(system, model, form, "numpy", constants=family_c, reduction=reduction)
+    layout = compiled.layout
+
+    entry = registry.get(model)
+    y0 = list(q) + ([*qd] if not entry.reduced else [qd[i] for i in system._ind])
+    if entry.multipliers_in_state:
+        y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
+    p = parameter_vector(layout, params)
+    tr = integrate(compiled, (t0, t1), np.array(y0), p, params, rtol=rtol, atol=atol,
+                   method=method, samples=samples, max_step=max_step, g=system.g)
+    return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
+
+
+# ------------------------------------------------------------------ checks along a run
+def _watch(
+    system: System, tr: Trajectory, params: Mapping[str, float], *, reduced: bool,
+    compiled: CompiledModel | None = None, p: np.ndarray | None = None,
+) -> Trajectory:
+    """``tr`` cut at the first sample where the motion stops making sense, with status
+    ``"failed"`` and a message that says where and along which coordinate.
+
+    Checked at every sample: the velocities are finite; for reduced models (which solve
+    the constraints for the dependent velocities) the constraints stay solvable — the
+    dependent block of ``A`` neither becomes singular at a sample nor changes the sign of
+    its determinant between two (a pole of ``q̇_dep = B q̇_σ + B_0`` crossed); where the
+    generated ``M`` is the reduced mass matrix, it stays positive definite.
+    """
+    k_bad, why, kind = len(tr.t), "", ""
+    names = list(tr.coordinates)
+    vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
+    finite = np.all(np.isfinite(vel), axis=1) if len(tr.t) else np.empty(0, dtype=bool)
+    if not np.all(finite):
+        k = int(np.argmin(finite))
+        bad = [c + "'" for c, x in zip(names, vel[k]) if not np.isfinite(x)]
+        k_bad, kind = k, "pole"
+        why = (f"a pole at t = {tr.t[k]:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+               f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite")
+    if reduced and system.g and k_bad > 0:
+        k, found = _pole(system, tr, params, k_bad)
+        if k < k_bad:
+            k_bad, why, kind = k, found, "pole"
+    if reduced and compiled is not None and p is not None and k_bad > 0:
+        k, found = _lost_definiteness(compiled, tr, p, k_bad)
+        if k < k_bad:
+            k_bad, why, kind = k, found, "mass"
+    if k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1):
+        return tr  # (the last sample of a failed run: its own message says why)
+    keep = slice(0, k_bad)
+    for table in (tr.coordinates, tr.velocities, tr.multipliers):
+        for key in table:
+            table[key] = table[key][keep]
+    tr.t, tr.energy, tr.constraint_residual = tr.t[keep], tr.energy[keep], tr.constraint_residual[keep]
+    tr.status, tr.failure = "failed", kind
+    entry = registry.get(tr.model)
+    tr.message = why + (f"; the {tr.model} equations do not hold there" if kind == "pole" and entry.reduced else "")
+    if kind == "pole" and entry.reduced and entry.is_true_motion:
+        tr.message += (f" (the multiplier model {entry.fallback!r} does not solve the constraints and has "
+                       "no such pole)")
+    return tr
+
+
+def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
+    """The first sample (before ``stop``) at or just after a pole of the solved constraints;
+    ``(stop, "")`` if none.
+
+    At a sample: ``A`` (or a factor of a denominator of its entries) is not finite, or the
+    dependent block of ``A`` is singular (rows scaled to largest entry 1).  Between two: the
+    sign of ``det A_dep`` times the factors of the denominators of ``A``'s entries (``tan φ``
+    counts as ``sin φ / cos φ``) changes — a singular block or a pole of ``B`` crossed.
+    """
+    if stop == 0:
+        return stop, ""
+    evaluate, n_factors = _pole_functions(system)
+    names = [q.func.__name__ for q in system.coordinates]
+    columns = [tr.t[:stop], *(tr.coordinates[c][:stop] for c in names),
+               *(np.full(stop, params[par.name]) for par in system.parameters)]
+    with np.errstate(all="ignore"):
+        values = [np.asarray(x) for x in evaluate(*columns)]
+    values = [np.broadcast_to(np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else
+                              x.astype(float), (stop,)) for x in values]
+    g, n, dep = system.g, system.n, list(system._dep)
+    a = np.stack(values[: g * n], axis=1).reshape(stop, g, n)
+    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((stop, 1))
+    finite = np.all(np.isfinite(a), axis=(1, 2)) & np.all(np.isfinite(factors), axis=1)
+    dep_names = ", ".join(names[i] + "'" for i in dep)
+    with np.errstate(all="ignore"):
+        sign = np.sign(np.linalg.det(np.where(np.isfinite(a), a, 0.0)[:, :, dep]) * np.prod(factors, axis=1))
+    for k in range(stop):
+        if not finite[k] or sign[k] == 0 or not _solvable(a[k], dep):
+            return k, (f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
+                       f"solved for {dep_names} there")
+        if k and sign[k] != sign[k - 1]:
+            return k, (f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
+                       f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between")
+    return stop, ""
+
+
+def _pole_functions(system: System) -> tuple[Any, int]:
+    """A NumPy function of ``(t, q…, parameters…)`` giving ``A``'s entries (row-major), then
+    the distinct factors of the denominators of ``[A | A_0]``; and how many factors."""
+    cached = system.__dict__.get("_pole_functions")
+    if cached is not None:
+        return cached
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME
+
+    quotients = {
+        sp.tan: lambda a: sp.sin(a) / sp.cos(a), sp.cot: lambda a: sp.cos(a) / sp.sin(a),
+        sp.sec: lambda a: 1 / sp.cos(a), sp.csc: lambda a: 1 / sp.sin(a),
+        sp.tanh: lambda a: sp.sinh(a) / sp.cosh(a), sp.coth: lambda a: sp.cosh(a) / sp.sinh(a),
+    }
+    factors: list[sp.Expr] = []
+    for entry in [*system._A, *system._A0]:
+        for fn, quotient in quotients.items():
+            entry = entry.replace(fn, quotient)
+        for factor in sp.Mul.make_args(sp.denom(sp.together(entry))):
+            base = factor.base if factor.is_Pow else factor
+            if base.free_symbols and base not in factors:
+                factors.append(base)
+    args = [TIME, *system._vars.x, *system.parameters]
+    cached = (sp.lambdify(args, [*system._A, *factors], modules="numpy"), len(factors))
+    system.__dict__["_pole_functions"] = cached
+    return cached
+
+
+def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, stop: int) -> tuple[int, str]:
+    """The first sample (before ``stop``) where the generated ``M`` — the reduced mass matrix
+    of a symbolically reduced model — is not positive definite; ``(stop, "")`` if none (and
+    for the models whose ``M`` is not a mass matrix)."""
+    module = compiled.module
+    evaluate = getattr(module, "evaluate", None)
+    if evaluate is None or int(module.DIM) != int(module.K) or not registry.get(compiled.layout.model).reduced:
+        return stop, ""
+    layout = compiled.layout
+    for k in range(stop):
+        y = np.array([tr[name][k] for name in layout.state], dtype=float)
+        m = np.asarray(evaluate(float(tr.t[k]), y, p)[0], dtype=float)
+        if not np.allclose(m, m.T, rtol=1e-9, atol=1e-12 * np.max(np.abs(m), initial=1.0)):
+            return stop, ""  # not a symmetric mass matrix: nothing to check
+        try:
+            np.linalg.cholesky(m)
+        except np.linalg.LinAlgError:
+            w, vec = np.linalg.eigh(m)
+            along = layout.velocities[int(np.argmax(np.abs(vec[:, 0])))]
+            return k, (f"the mass matrix is no longer positive definite at t = {tr.t[k]:.6g}: the "
+                       f"kinetic energy is {'zero' if w[0] == 0 else 'negative' if w[0] < 0 else 'nearly zero'} "
+                       f"along {along} (eigenvalue {w[0]:.3g})")
+    return stop, ""
+
+
+def _evaluate(
+    system: System, expr: Any, q: np.ndarray, qd: np.ndarray,
+    params: Mapping[str, float], t0: float,
+) -> Any:
+    """``expr`` (internal symbols; a matrix gives an array) at time ``t0``, state ``(q, q̇)``
+    and the parameter values (velocities that are NaN are left out)."""
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    values = {TIME: t0, **dict(zip(v.x, q)), **{x: val for x, val in zip(v.xd, qd) if not np.isnan(val)}}
+    values.update({system.parameter(k): val for k, val in params.items()})
+    out = expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf()
+    if isinstance(out, sp.MatrixBase):
+        return np.array(out.tolist(), dtype=float)
+    return float(out)
+
+
+def _matching_constants(
+    system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+) -> list[float]:
+    """The c with μ(0) = 0 — vakonomic momenta equal to the true ones: ``c_β = ∂T/∂q̇_{ε+β}`` at t0."""
+    import sympy as sp
+
+    v = system._vars
+    return [_evaluate(system, sp.diff(system._T, v.xd[i]), q, qd, params, t0) for i in system._dep]
+
+
+def _initial_multipliers(
+    system: System, vak: dict[str, Any], q: np.ndarray, qd: np.ndarray,
+    params: Mapping[str, float], t0: float,
+) -> np.ndarray:
+    names = [m for m in system.equations("vakonomic").multipliers]
+    if "mu" in vak:
+        given = vak["mu"]
+        values = [given[k] for k in range(system.g)] if isinstance(given, Sequence) else [
+            given.get(m, given.get(m.func.__name__)) for m in names
+        ]
+        if any(v is None for v in values) or len(values) != system.g:
+            raise ChaplyginError(
+                f"multipliers: give μ(0) for {', '.join(m.func.__name__ for m in names)}."
+            )
+        return np.array(values, dtype=float)
+    c = vak["constants"]
+    if isinstance(c, str) and c == "match":
+        return np.zeros(system.g)  # μ(0) = 0: vakonomic momenta equal the true ones
+    from chaplygin.models.vakonomic import family_obstructions
+
+    problems = family_obstructions(system)
+    if problems:
+        raise ChaplyginError(
+            f"initial multipliers: for {system.name} μ(0) does not follow from constants c ("
+            + "; ".join(problems)
+            + "); give multipliers=[μ(0), ...], or "
+            "constants='match' to start with μ(0) = 0."
+        )
+    exprs = system.integrated_multipliers(c)
+    return np.array([_evaluate(system, exprs[m].xreplace(system._to_sym), q, qd, params, t0) for m in names])
+
+
+def integrate(
+    compiled: CompiledModel,
+    t_span: tuple[float, float],
+    y0: np.ndarray,
+    p: np.ndarray,
+    params: dict[str, float],
+    *,
+    rtol: float,
+    atol: float,
+    method: str,
+    samples: int,
+    max_step: float,
+    g: int,
+) -> Trajectory:
+    """Integrate ``compiled.rhs`` from ``y0`` and sample it.
+
+    ``c`` or ``numba`` backend with ``method="DOP853"``: the compiled loop of
+    :mod:`chaplygin.numeric._ckernel` or :mod:`chaplygin.numeric._loop` (the whole integration in C or numba).  ``jax``
+    backend with ``"DOP853"``, ``"RK45"`` or ``"RK23"``: diffrax
+    (:mod:`chaplygin.numeric.jaxbackend`).  Otherwise: SciPy's stepper class driven
+    step by step, with dense output where a sample falls.
+
+    When the right-hand side fails inside a step (a singular mass matrix, a
+    non-finite value), the step is not taken; the compiled loop and the SciPy
+    path then integrate again from the last accepted step with steps of at most
+    half the distance to the failure, until it is pinned down to :data:`PIN`.
+    So a failed run keeps every sample before the failure, whatever steps the
+    integrator chose (a first step that jumps past all the samples included).
+    """
+    times = np.linspace(t_span[0], t_span[1], samples)
+    if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
+        from chaplygin.numeric.jaxbackend import solve
+
+        res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
+        return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+    if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
+        if compiled.backend == "numba":
+            from chaplygin.numeric._loop import loop_model
+
+            compiled = loop_model(compiled)
+        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol)
+    else:
+        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method)
+    ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
+    status = "failed" if message else "success"
+    message = message or f"reached t = {t_span[1]:g}"
+    return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
+
+
+def _pinned(
+    attempt: Callable[[float, np.ndarray, np.ndarray, float, float | None], _Attempt],
+    t0: float, y0: np.ndarray, times: np.ndarray, max_step: float,
+) -> tuple[np.ndarray, np.ndarray, str, int]:
+    """Samples at ``times`` from ``attempt``s: after a failure inside a step, again from the
+    last accepted step with ``max_step`` half the distance to the failure (see :func:`integrate`)."""
+    t_parts, y_parts, n_rhs, k = [], [], 0, 0
+    t_start, y_start, cap, first = t0, y0, max_step, None
+    for _ in range(200):  # the distance to the failure halves every time: ~40 suffice
+        run = attempt(t_start, y_start, times[k:], cap, first)
+        t_parts.append(run.t)
+        y_parts.append(run.y)
+        n_rhs += run.n_rhs
+        k += len(run.t)
+        gap = run.t_fail - run.t_last
+        if not (run.message and run.retry and gap > PIN * max(1.0, abs(run.t_fail))):
+            break
+        t_start, y_start, cap = run.t_last, run.y_last, min(max_step, gap / 2)
+        first = cap  # steps after the first stay within it, so the next failure is at most this far
+    return np.concatenate(t_parts), np.concatenate(y_parts).reshape(k, len(y0)), run.message, n_rhs
+
+
+def _loop_attempt(looped: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any) -> Callable[..., _Attempt]:
+    """An attempt of :func:`_pinned` with the compiled DOP853 loop."""
+    from chaplygin.numeric._loop import integrate_dop853
+
+    def attempt(t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float,
+                first: float | None) -> _Attempt:
+        res = integrate_dop853(looped, (t_start, t1), y_start, p, times, rtol=rtol, atol=atol,
+                               max_step=cap, first_step=first)
+        message = "" if res.code == 0 else res.message
+        return _Attempt(res.t, res.y, message, res.code in (2, 3, 5, 9), res.t_last, res.y_last,
+                        res.t_fail, res.n_rhs)
+
+    return attempt
+
+
+def _scipy_attempt(
+    compiled: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any, method: str
+) -> Callable[..., _Attempt]:
+    """An attempt of :func:`_pinned` with SciPy's stepper, driven step by step."""
+    import scipy.integrate as si
+
+    rhs = compiled.rhs
+    names = compiled.layout.coordinates
+    n = len(names)
+
+    def fun(t: float, y: np.ndarray) -> np.ndarray:
+        count[0] += 1
+        try:
+            dy = rhs(t, y, p)
+        except (np.linalg.LinAlgError, ZeroDivisionError, ValueError, ArithmeticError) as exc:
+            raise _StepFailure(f"the right-hand side failed at t = {t:.6g}: {exc}", t) from None
+        if not np.all(np.isfinite(dy)):
+            bad = [c + "'" for c, x in zip(names, dy[:n]) if not math.isfinite(x)]
+            if bad:
+                raise _StepFailure(f"a pole at t = {t:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+                                   f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite", t)
+            raise _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}", t)
+        return dy
+
+    count = [0]
+
+    def attempt(t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float,
+                first: float | None) -> _Attempt:
+        count[0] = 0
+        out = np.empty((len(times), len(y_start)))
+        k, t_last, y_last = 0, t_start, y_start
+        message, retry, t_fail = "", False, math.nan
+        stepper = None
+        try:
+            stepper = getattr(si, method)(fun, t_start, y_start, t1, rtol=rtol, atol=atol,
+                                          max_step=cap, first_step=first)
+            if len(times) and times[0] == t_start:
+                out[0], k = y_start, 1
+            while k < len(times):
+                msg = stepper.step()
+                if stepper.status == "failed":
+                    message, t_fail = f"the integrator stopped at t = {stepper.t:.6g}: {msg}", stepper.t
+                    break
+                if times[k] > stepper.t and stepper.status != "finished":
+                    continue  # no sample in this step: skip the dense output (extra evaluations)
+                dense = stepper.dense_output()
+                while k < len(times) and times[k] <= stepper.t:
+                    out[k] = dense(times[k])
+                    k += 1
+                if stepper.status == "finished" and k < len(times):
+                    out[k:] = dense(times[k:]).T
+                    k = len(times)
+            t_last, y_last = stepper.t, stepper.y
+        except _StepFailure as exc:
+            message, retry, t_fail = str(exc), True, exc.t
+            if stepper is not None:  # (None: the stepper's own first evaluations failed)
+                t_last, y_last = stepper.t, stepper.y
+        return _Attempt(times[:k], out[:k], message, retry, float(t_last), np.array(y_last),
+                        t_fail, count[0])
+
+    return attempt
+
+
+def _trajectory(
+    compiled: CompiledModel, times: np.ndarray, ys: np.ndarray, p: np.ndarray,
+    params: dict[str, float], status: str, message: str, evaluations: int, g: int,
+) -> Trajectory:
+    layout = compiled.layout
+    n = len(layout.coordinates)
+    if compiled.backend == "c":  # every sample in one call
+        obs = compiled.module.observe_many(times, ys, p)
+    else:
+        obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(len(times), compiled.n_observed)
+    n_react = len(layout.reactions)
+    velocities = obs[:, obs.shape[1] - n :] if len(times) else np.empty((0, n))
+    residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g and len(times) else np.zeros(len(times))
+    multipliers = {name: obs[:, 1 + g + j] for j, name in enumerate(layout.reactions)} if n_react else {}
+    base = n + len(layout.velocities)
+    multipliers.update({name: ys[:, base + j] for j, name in enumerate(layout.multipliers)})
+    return Trajectory(
+        layout.model, layout.form, compiled.backend, times,
+        {name: ys[:, i] for i, name in enumerate(layout.coordinates)},
+        {name + "'": velocities[:, i] for i, name in enumerate(layout.coordinates)},
+        multipliers, obs[:, 0] if len(times) else np.empty(0), residual,
+        status, message, dict(params), evaluations,
+    )
