@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,17 @@ demo: $(STAMP)
 # stay on one worker, the longest start first
 test: $(STAMP)
 	$(BIN)/python -m pytest -n auto
+
+# the house checks (also run by CI before the tests): lint, formatting, types, layers
+$(VENV)/.lint: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[lint]'
+	touch $(VENV)/.lint
+
+lint: $(VENV)/.lint
+	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/derive.py

@@ -6,7 +6,7 @@ whose message names the offending item and says what would be accepted.
 
 from __future__ import annotations
 
-__all__ = ["ChaplyginError", "SystemDefinitionError", "ModelError", "InputError", "ChaplyginWarning"]
+__all__ = ["ChaplyginError", "ChaplyginWarning", "InputError", "ModelError", "SystemDefinitionError"]
 
 
 class ChaplyginError(Exception):

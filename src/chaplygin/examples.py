@@ -27,20 +27,20 @@ from chaplygin.core.system import System
 from chaplygin.errors import ChaplyginError
 
 __all__ = [
-    "chaplygin_sleigh",
-    "turntable_ball",
-    "chaplygin_ball",
-    "heisenberg",
-    "contact_oscillator",
-    "differential_drive",
-    "sleigh_chain",
-    "rolling_sphere",
-    "knife_edge",
-    "vertical_rolling_disk",
-    "rolling_disk",
     "ExampleEntry",
     "catalogue",
+    "chaplygin_ball",
+    "chaplygin_sleigh",
+    "contact_oscillator",
+    "differential_drive",
     "get",
+    "heisenberg",
+    "knife_edge",
+    "rolling_disk",
+    "rolling_sphere",
+    "sleigh_chain",
+    "turntable_ball",
+    "vertical_rolling_disk",
 ]
 
 _t = TIME

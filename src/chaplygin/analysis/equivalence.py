@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Union
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
@@ -25,9 +25,9 @@ from chaplygin.models.equations import Equations
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["equivalent", "EquivalenceReport", "EquationsLike"]
+__all__ = ["EquationsLike", "EquivalenceReport", "equivalent"]
 
-EquationsLike = Union[Equations, Sequence[Any], Mapping[Any, Any]]
+EquationsLike = Equations | Sequence[Any] | Mapping[Any, Any]
 
 _SYMBOLIC_MAX_OPS = 600
 

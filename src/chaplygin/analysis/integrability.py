@@ -35,7 +35,7 @@ from chaplygin.models.reduced import Reduction
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["IntegrabilityReport", "Condition", "analyze"]
+__all__ = ["Condition", "IntegrabilityReport", "analyze"]
 
 
 @dataclass

@@ -31,7 +31,7 @@ from chaplygin.models.vakonomic import family_obstructions
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["ModelComparison", "compare_models", "Classification", "classify"]
+__all__ = ["Classification", "ModelComparison", "classify", "compare_models"]
 
 
 @dataclass

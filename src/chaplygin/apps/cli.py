@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional
+from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.console import Console
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from chaplygin.models.equations import Equations
     from chaplygin.numeric.comparison import Comparison
 
-__all__ = ["app", "main", "file_syntax", "derive_json", "check_json"]
+__all__ = ["app", "check_json", "derive_json", "file_syntax", "main"]
 
 app = typer.Typer(
     name="chaplygin",
@@ -195,7 +195,7 @@ def _errors() -> Iterator[None]:
         where = f"{exc.filename}: " if exc.filename else ""
         _stderr().print(f"error: {where}{exc.strerror or exc}", markup=False)
         raise typer.Exit(1) from None
-    except Exception as exc:  # noqa: BLE001 - a bug or an input nobody foresaw: still no traceback
+    except Exception as exc:
         if os.environ.get("CHAPLYGIN_DEBUG"):
             raise
         _stderr().print(
@@ -236,7 +236,7 @@ def _load(spec: str) -> Any:
     return files.load(spec)
 
 
-def _overrides(values: Optional[list[str]], option: str) -> dict[str, float]:
+def _overrides(values: list[str] | None, option: str) -> dict[str, float]:
     out: dict[str, float] = {}
     for item in values or []:
         key, sep, value = item.partition("=")
@@ -249,7 +249,7 @@ def _overrides(values: Optional[list[str]], option: str) -> dict[str, float]:
     return out
 
 
-def _numbers(loaded: Any, params: Optional[list[str]], initial: Optional[list[str]]) -> tuple[dict[str, float], dict[str, float]]:
+def _numbers(loaded: Any, params: list[str] | None, initial: list[str] | None) -> tuple[dict[str, float], dict[str, float]]:
     from chaplygin.apps._quick import warn_defaulted
 
     given = _overrides(initial, "--initial")
@@ -396,7 +396,7 @@ class _Derivation:
 @app.command()
 def derive(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: Optional[str] = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    model: str | None = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."),
     fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
     accelerations: bool = typer.Option(True, "--accelerations/--no-accelerations",
@@ -453,7 +453,7 @@ def _definition(spec: str) -> bytes | None:
         return None  # _load reports the problem
 
 
-def _derive(file: str, model: Optional[str], form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
+def _derive(file: str, model: str | None, form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
     """Derive (the only place ``derive`` does symbolic work beyond printing); no ``model``: the true motion."""
     loaded = _load(file)
     system = loaded.system
@@ -570,7 +570,7 @@ def _model_spec(text: str) -> tuple[str, str]:
     return name, form
 
 
-def _constants(text: Optional[str]) -> Any:
+def _constants(text: str | None) -> Any:
     if text is None:
         return None
     if text.strip() == "match":
@@ -591,18 +591,18 @@ def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
 @app.command()
 def simulate(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: Optional[str] = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    model: str | None = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the run starts at t = 0)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz (missing folders are created)."),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
-    constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
-    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
-    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    constants: str | None = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
+    param: list[str] | None = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
     method: str = typer.Option("DOP853", "--method", help="Integrator: DOP853 (adaptive, the default), RK45, RK23, Radau, BDF, LSODA; or, for the true motion (chetaev, chaplygin, voronets), a symmetric fixed-step method that keeps the energy error bounded: midpoint, gauss4, gauss6 (needs --step)."),
-    step: Optional[float] = typer.Option(None, "--step", help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used)."),
+    step: float | None = typer.Option(None, "--step", help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used)."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the adaptive integrators (positive)."),
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."),
 ) -> None:
@@ -688,7 +688,7 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
         k = int(np.argmax(d)) if len(d) else 0
         rows[label] = {
             "status": tr.status, "message": tr.message, "backend": tr.backend,
-            "samples": int(len(tr.t)), "t_end": float(tr.t[-1]) if len(tr.t) else None,
+            "samples": len(tr.t), "t_end": float(tr.t[-1]) if len(tr.t) else None,
             "max_distance": float(d[k]) if len(d) else None,
             "at_t": float(tr.t[k]) if len(d) else None,
             "final_distance": float(d[-1]) if len(d) else None,
@@ -725,12 +725,12 @@ def compare(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory (created if missing)."),
-    models: Optional[str] = typer.Option(None, "--models", help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's."),
+    models: str | None = typer.Option(None, "--models", help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
     figure_format: FigureFormat = typer.Option(FigureFormat.svg, "--figure-format", help="Format of the figures."),
-    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
-    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    param: list[str] | None = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
@@ -837,12 +837,12 @@ def sweep(
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(201, "--samples", "-n", min=2, help="Samples per run, where the energy drift and the constraint residual are measured."),
     backend: SweepBackend = typer.Option(SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."),
-    constants: Optional[str] = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
-    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
-    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
-    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md)."),
-    workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of a LocalCluster; giving it asks for one (default: one per core)."),
-    chunk_size: Optional[int] = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
+    constants: str | None = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
+    param: list[str] | None = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
+    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md)."),
+    workers: int | None = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of a LocalCluster; giving it asks for one (default: one per core)."),
+    chunk_size: int | None = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
     resume: bool = typer.Option(False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."),
     force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
 ) -> None:
@@ -901,12 +901,12 @@ def _report_progress(steps: _Steps) -> Any:
 def report(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
-    models: Optional[str] = typer.Option(None, "--models", help="Models to simulate and compare (comma-separated), the reference first."),
+    models: str | None = typer.Option(None, "--models", help="Models to simulate and compare (comma-separated), the reference first."),
     t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
     backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
-    param: Optional[list[str]] = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
-    initial: Optional[list[str]] = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    param: list[str] | None = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
+    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
 ) -> None:
     """Write one self-contained HTML report: system, integrability, equations, simulations."""

@@ -29,7 +29,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from html.entities import html5 as _HTML5
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import sympy as sp
@@ -45,18 +45,18 @@ if TYPE_CHECKING:
     from chaplygin.numeric.comparison import Comparison
 
 __all__ = [
-    "write_report",
-    "render_report",
-    "mathml",
+    "GENERATOR",
+    "STAGES",
+    "VERDICTS",
+    "PaperLine",
+    "PaperTable",
     "applicable_models",
     "default_models",
     "is_paper_sphere",
+    "mathml",
     "paper_table",
-    "PaperLine",
-    "PaperTable",
-    "VERDICTS",
-    "GENERATOR",
-    "STAGES",
+    "render_report",
+    "write_report",
 ]
 
 #: ``<meta name="generator">`` of every report; the demo recognises its own output by it.
@@ -73,7 +73,7 @@ VERDICTS = ("agree", "transcription error", "differs in substance")
 class _Printer(MathMLPresentationPrinter):
     """SymPy's presentation MathML with ``q(t)`` printed as ``q`` and ``q̇``, ``q̈`` with dots."""
 
-    _DOTS = {1: "\u02d9", 2: "\u00a8"}
+    _DOTS: ClassVar[dict[int, str]] = {1: "\u02d9", 2: "\u00a8"}
 
     def _print_AppliedUndef(self, e: Any) -> Any:
         if e.args == (TIME,):
@@ -403,17 +403,14 @@ def paper_table(classify_sets: bool = True) -> PaperTable:
         PaperLine("(61)", f"{C}, θ",
                   r"\frac{7}{5}ma^2 (\ddot{\theta} + \dot{\varphi} \sin \theta) - m_N^0"
                   r" - a(V_1 \sin \theta - V_2 \cos \theta)",
-                  p61, r61, ["factor ψ̇ lost in φ̇ ψ̇ sin θ"] + force_theta, chaplygin_forced[1]),
+                  p61, r61, ["factor ψ̇ lost in φ̇ ψ̇ sin θ", *force_theta], chaplygin_forced[1]),
         PaperLine("(62)", f"{C}, φ",
                   r"ma^2 \left[\dot{\varphi} \sin^2 \theta + \frac{2}{5}\dot{\psi}"
                   r" + \frac{2}{5}\dot{\varphi} \cos \theta + \dot{\theta} \sin \theta \cos \theta"
                   r" - \frac{7}{5}\dot{\theta} \sin \theta \right] - m_3^0"
                   r" + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
                   p62, r62,
-                  ["second dot lost: φ̈ sin²θ",
-                   "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ",
-                   "factor φ̇ lost in θ̇ φ̇ sin θ cos θ",
-                   "factor ψ̇ lost in (7/5) θ̇ ψ̇ sin θ"] + force_phi,
+                  ["second dot lost: φ̈ sin²θ", "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ", "factor φ̇ lost in θ̇ φ̇ sin θ cos θ", "factor ψ̇ lost in (7/5) θ̇ ψ̇ sin θ", *force_phi],
                   chaplygin_forced[2]),
     ]
     for line in lines:

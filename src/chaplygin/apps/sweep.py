@@ -68,16 +68,16 @@ if TYPE_CHECKING:
     from chaplygin.io.files import SystemFile
 
 __all__ = [
-    "sweep",
-    "SweepResult",
-    "Axis",
-    "parse_grid",
-    "grid_values",
-    "read_results",
-    "SweepOutputExists",
-    "SWEEP_BACKENDS",
-    "SCHEMA",
     "AUTO_CLUSTER_SECONDS",
+    "SCHEMA",
+    "SWEEP_BACKENDS",
+    "Axis",
+    "SweepOutputExists",
+    "SweepResult",
+    "grid_values",
+    "parse_grid",
+    "read_results",
+    "sweep",
 ]
 
 SCHEMA = "chaplygin.apps.sweep/1"
@@ -328,7 +328,7 @@ def _object_recipe(system: System, source: str, local: bool) -> _Recipe:
     clone.__dict__["_equations"] = {}  # derived equations hold compiled code; workers derive their own
     try:
         payload = pickle.dumps(clone, protocol=pickle.HIGHEST_PROTOCOL)
-    except Exception as exc:  # noqa: BLE001 - anything that stops the system travelling
+    except Exception as exc:
         raise ChaplyginError(
             f"{system.name}: this System cannot be sent to Dask workers ({type(exc).__name__}: {exc}); "
             "save it as a system file (chaplygin.dumps) and sweep the file."
@@ -425,7 +425,7 @@ def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
         if plan.constants is not None:
             options["constants"] = plan.constants
         tr = simulate(system, plan.model, plan.t_end, initial, params, **options)
-    except Exception as exc:  # noqa: BLE001 - a failed run is a row with its message
+    except Exception as exc:
         outcome["message"] = f"{type(exc).__name__}: {exc}"[:MAX_MESSAGE]
     else:
         outcome["status"] = "success" if tr.success else "failed"
@@ -517,7 +517,7 @@ def _read_part(path: Path, columns: list[str] | None = None) -> pa.Table:
     pq = _require("pyarrow.parquet")
     try:
         return pq.read_table(path, columns=columns)
-    except Exception as exc:  # noqa: BLE001 - pyarrow raises several kinds for a damaged file
+    except Exception as exc:
         raise ChaplyginError(
             f"{path}: cannot read this part of the sweep ({type(exc).__name__}: {exc}); move it "
             "away and resume: its runs will run again."
@@ -595,7 +595,7 @@ class _Writer:
                 with self._lock:
                     if self.rows and time.monotonic() - self.last >= self.flush_seconds:
                         self._flush()
-            except BaseException as exc:  # noqa: BLE001 - raised in the sweep's own thread, at add/close
+            except BaseException as exc:
                 self._error = exc
                 return
 
@@ -658,7 +658,7 @@ def _locked(directory: Path) -> Iterator[None]:
     except ImportError:  # pragma: no cover - Windows: no lock
         yield
         return
-    fh = open(directory / LOCK_FILE, "a+b")  # noqa: SIM115 - closed below
+    fh = open(directory / LOCK_FILE, "a+b")
     try:
         try:
             fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -865,7 +865,7 @@ def _check_workers(client: Any) -> None:
 
     try:
         versions = client.run(_worker_version)
-    except Exception as exc:  # noqa: BLE001 - an unpickling error on a worker without chaplygin, etc.
+    except Exception as exc:
         raise ChaplyginError(
             f"the Dask workers cannot run chaplygin ({type(exc).__name__}: {exc}); install "
             f"chaplygin {__version__} in the workers' environment."
@@ -920,7 +920,7 @@ def sweep(
     out : path
         The output directory (``results.parquet``).
     model, form, constants :
-        As for :meth:`System.simulate`.
+        As for :func:`chaplygin.simulate`.
     parameters, initial : mapping, optional
         Fixed values over the file's (or example's) defaults; a ``System``
         given directly needs every parameter and initial value here or in the grid.

@@ -574,8 +574,8 @@ class System:
         return momenta(self._native_T, self._native_xd)
 
     @cached_property
-    def _native_xd(self) -> list[Any]:
-        """The internal velocity symbols, in SymEngine."""
+    def _native_xd(self) -> Any:
+        """The internal velocity symbols, in SymEngine (None where SymEngine is not installed)."""
         return native(self._vars.xd)
 
     def _constraint_parts(self) -> list[Any]:

@@ -675,7 +675,7 @@ class _Parser:
         value = (
             sp.Rational(mantissa * 10**shift) if shift >= 0 else sp.Rational(mantissa, 10**-shift)
         )
-        return self.check_defined(value, tok.pos)  # type: ignore[return-value]
+        return self.check_defined(value, tok.pos)
 
     def name(self, tok: _Token) -> _Value:
         name = tok.text
@@ -820,7 +820,7 @@ class _Parser:
                 size, denominator = abs(const), int(const.q)
             else:
                 try:
-                    size, denominator = abs(complex(const.evalf(15))), 1  # type: ignore[arg-type]
+                    size, denominator = abs(complex(const.evalf(15))), 1
                 except (TypeError, ValueError, OverflowError):
                     size = math.inf
                 if not math.isfinite(size):
@@ -1005,7 +1005,7 @@ def parse_constant(text: str) -> float:
     expr = parse_expression(text, Names(time=False))
     with preserved_state():
         try:
-            value = complex(expr.evalf(30))  # type: ignore[arg-type]
+            value = complex(expr.evalf(30))
         except (TypeError, ValueError, OverflowError):
             value = complex(math.nan)
         except Exception as exc:  # pragma: no cover - constants are bounded by the parser

@@ -24,7 +24,7 @@ from chaplygin.models.equations import Equations
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["lagrange_operator", "multiplier_symbols", "multiplier_equations"]
+__all__ = ["lagrange_operator", "multiplier_equations", "multiplier_symbols"]
 
 
 def lagrange_operator(system: System) -> list[sp.Expr]:

@@ -35,7 +35,7 @@ from chaplygin.models.equations import Equations
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["reduced_equations", "bracket_terms", "lagrange_reduced", "lindelof_defect"]
+__all__ = ["bracket_terms", "lagrange_reduced", "lindelof_defect", "reduced_equations"]
 
 
 class Reduction:

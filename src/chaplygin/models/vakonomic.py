@@ -57,11 +57,11 @@ if TYPE_CHECKING:
     from chaplygin.core.system import System
 
 __all__ = [
+    "constant_symbols",
+    "family_obstructions",
+    "integrated_multipliers",
     "vakonomic_equations",
     "vakonomic_family",
-    "family_obstructions",
-    "constant_symbols",
-    "integrated_multipliers",
 ]
 
 

@@ -42,15 +42,16 @@ import shlex
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from chaplygin.numeric.cache import cache_dir
 
-__all__ = ["Unavailable", "compiler", "library", "Layout", "CompiledModel", "CKernel", "STATS", "FLAGS"]
+__all__ = ["FLAGS", "STATS", "CKernel", "CompiledModel", "Layout", "Unavailable", "compiler", "library"]
 
 #: position-independent shared library, optimised, IEEE semantics kept (no -ffast-math, no FMA)
 FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")

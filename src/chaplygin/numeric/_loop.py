@@ -62,16 +62,16 @@ import os
 import warnings
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from chaplygin.errors import ChaplyginError
 
-if TYPE_CHECKING:  # codegen (and SymPy) only where a model is compiled: the C loop reads the tableau here
-    from chaplygin.numeric.codegen import CompiledModel
+if TYPE_CHECKING:  # the C loop reads the tableau here: no SymPy, no compiled model needed
+    from chaplygin.numeric._ckernel import CompiledModel
 
-__all__ = ["LoopResult", "integrate_dop853", "loop_model", "ensemble_dop853", "STATUS", "default_threads"]
+__all__ = ["STATUS", "LoopResult", "default_threads", "ensemble_dop853", "integrate_dop853", "loop_model"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -208,13 +208,17 @@ def _matrix(rows: tuple[tuple[float, ...], ...], width: int) -> list[list[float]
     return out
 
 
-_DOP_A = _matrix(_DOP_A_ROWS, 16)
+#: (a tuple of tuples in the generated module, indexed [s, j] there)
+_DOP_A: Any = _matrix(_DOP_A_ROWS, 16)
 
 # ------------------------------------------------------------------ kernels
 # These are plain Python functions whose source is compiled by numba inside each
 # model's generated module (see ``_kernel_source``): ``rhs`` and ``observe``
 # are that module's globals.  They are never called from here.
-rhs = observe = fill = _k_solve = None  # placeholders: the generated module defines them
+rhs: Any = None  # placeholders: the generated module defines them
+observe: Any = None
+fill: Any = None
+_k_solve: Any = None
 DIM = N = N_OBSERVED = 0
 
 
@@ -226,7 +230,7 @@ def _k_fill(t, y, p, M, b, V, O):  # pragma: no cover - compiled
             M[i, j] = 0.0
     try:
         fill(t, y, p, M, b, V, O)
-    except Exception:  # noqa: BLE001 - numba catches without the exception object
+    except Exception:
         code = 3
     return code
 
@@ -323,7 +327,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
     C = _DOP_C
     E3 = _DOP_E3
     E5 = _DOP_E5
-    D = _DOP_D
+    D: Any = _DOP_D
     n = y0.size
     n_out = t_out.size
     direction = 1.0 if t1 >= t0 else -1.0
@@ -530,10 +534,10 @@ def _kernel_source() -> str:
 
 # ------------------------------------------------------------------ loading
 def _load(source: str) -> ModuleType:
-    """Write ``source`` to the code cache and import it (see :func:`chaplygin.numeric.codegen._import`)."""
-    from chaplygin.numeric.codegen import _import
+    """Write ``source`` to the code cache and import it (see :func:`chaplygin.numeric.cache.import_source`)."""
+    from chaplygin.numeric.cache import import_source
 
-    return _import(source, "dop853")
+    return import_source(source, "dop853")
 
 
 def loop_model(compiled: CompiledModel) -> CompiledModel:
@@ -550,15 +554,13 @@ def loop_model(compiled: CompiledModel) -> CompiledModel:
         )
     if hasattr(compiled.module, "_k_dop853"):
         return compiled
-    source = Path(compiled.module.__file__).read_text(encoding="utf-8")  # type: ignore[arg-type]
-    from chaplygin.numeric.codegen import CompiledModel
-
+    source = Path(compiled.module.__file__).read_text(encoding="utf-8")
     module = _load(source + _kernel_source())
-    model = CompiledModel(compiled.layout, module, "numba")
+    model = type(compiled)(compiled.layout, module, "numba")
     # the generated observe's numbers, NaN (not an exception) where M is singular
     n_react = len(compiled.layout.reactions)
     kernel = module._k_observe_new
-    model.observe = lambda t, y, p: kernel(float(t), y, p, n_react)  # type: ignore[method-assign]
+    model.observe = lambda t, y, p: kernel(float(t), y, p, n_react)
     return model
 
 
@@ -606,7 +608,7 @@ def _message(module: ModuleType, code: int, t: float, t_fail: float, y_fail: np.
         try:  # once more from Python, for the exception's message
             module.rhs(t_fail, y_fail, p)
             why = "it raised an error"
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             why = str(exc) or type(exc).__name__
         return f"the right-hand side failed at t = {t_fail:.6g}: {why}"
     if code == 4:

@@ -29,15 +29,31 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import importlib.util
 import json
 import os
+import sys
 import tempfile
+import threading
 from collections.abc import Sequence
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
-__all__ = ["FORMAT", "key", "load", "store", "clear", "directory", "cache_dir",
-           "expressions_to_data", "expressions_from_data"]
+from chaplygin.errors import ChaplyginError
+
+__all__ = [
+    "FORMAT",
+    "cache_dir",
+    "clear",
+    "directory",
+    "expressions_from_data",
+    "expressions_to_data",
+    "import_source",
+    "key",
+    "load",
+    "store",
+]
 
 #: bumped whenever the shape of cached documents changes
 FORMAT = 2
@@ -269,3 +285,41 @@ def _flags(assumptions: Any) -> dict[str, bool]:
     ):
         raise ValueError("assumptions must map names to true/false")
     return assumptions
+
+
+# ------------------------------------------------------------------ generated modules
+_LOADED: dict[str, ModuleType] = {}
+_LOCK = threading.Lock()
+
+
+def import_source(source: str, tag: str) -> ModuleType:
+    """Write ``source`` to the code cache (atomically, keyed by its hash) and import it.
+
+    Each source is imported once per process.  The module is registered in
+    ``sys.modules`` under its file name: numba's cache re-imports a compiled
+    function's module by name when it loads it.
+    """
+    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+    with _LOCK:
+        if digest in _LOADED:
+            return _LOADED[digest]
+        directory = cache_dir() / "codegen"
+        directory.mkdir(parents=True, exist_ok=True)
+        path = directory / f"chaplygin_{tag}_{digest}.py"
+        if not path.exists() or path.read_text(encoding="utf-8") != source:
+            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(source)
+            os.replace(tmp, path)
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        if spec is None or spec.loader is None:  # pragma: no cover
+            raise ChaplyginError(f"cannot load generated code from {path}")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            sys.modules.pop(path.stem, None)
+            raise
+        _LOADED[digest] = module
+        return module

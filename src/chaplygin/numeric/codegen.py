@@ -27,17 +27,10 @@ runs.
 
 from __future__ import annotations
 
-import hashlib
 import heapq
-import importlib.util
 import inspect
-import os
-import sys
-import tempfile
-import threading
 import warnings
 from dataclasses import dataclass
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -50,14 +43,15 @@ from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
 from chaplygin.numeric import _cfill
 from chaplygin.numeric._ckernel import CompiledModel, Layout
+from chaplygin.numeric._layout import state_symbols
 from chaplygin.numeric._printing import code
-from chaplygin.numeric.cache import cache_dir
+from chaplygin.numeric.cache import cache_dir, import_source
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
     from chaplygin.models.equations import Equations
 
-__all__ = ["Layout", "CompiledModel", "compile_equations", "compile_model", "BACKENDS", "REDUCTIONS", "cache_dir"]
+__all__ = ["BACKENDS", "REDUCTIONS", "CompiledModel", "Layout", "cache_dir", "compile_equations", "compile_model"]
 
 BACKENDS = ("numpy", "numba", "jax", "c")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
@@ -73,43 +67,6 @@ def _version() -> str:
     from chaplygin._version import __version__
 
     return __version__
-
-
-def _state_symbols(eqs: Equations) -> tuple[Layout, dict[sp.Symbol, sp.Expr], list[sp.Expr], int]:
-    """The layout, the map from internal symbols to ``y[i]``/``p[j]``, the full velocities, k."""
-    s = eqs.system
-    v = s._vars
-    n = s.n
-    y = sp.IndexedBase("y")
-    p = sp.IndexedBase("p")
-    names = [q.func.__name__ for q in s.coordinates]
-    to_num: dict[sp.Symbol, sp.Expr] = {x: y[i] for i, x in enumerate(v.x)}
-    multiplier_model = not registry.MODELS[eqs.model].reduced
-    carried = list(range(n)) if multiplier_model else list(s._ind)
-    for k, i in enumerate(carried):
-        to_num[v.xd[i]] = y[n + k]
-    mus = list(eqs._state)
-    for b, mu in enumerate(mus):
-        to_num[mu] = y[n + len(carried) + b]
-    params = [*s.parameters, *eqs.constants]
-    for j, par in enumerate(params):
-        to_num[par] = p[j]
-    if multiplier_model:
-        velocities = [v.xd[i] for i in range(n)]
-        k = n + len(mus)  # q̈ (and μ̇) come from the solve; λ are observed
-    else:
-        velocities = [s._velocity_substitution.get(v.xd[i], v.xd[i]) for i in range(n)]
-        k = len(carried)
-    layout = Layout(
-        eqs.model,
-        eqs.form,
-        tuple(names),
-        tuple(names[i] + "'" for i in carried),
-        tuple(sp.sstr(eqs._user(m)).replace("(t)", "") for m in mus),
-        tuple(par.name for par in params),
-        tuple(sp.sstr(eqs._user(m)).replace("(t)", "") for m in eqs._multipliers if m not in mus),
-    )
-    return layout, to_num, velocities, k
 
 
 #: where ``fill`` stores one value: array name, flat (row-major) index, row width (0: 1-D)
@@ -287,7 +244,7 @@ def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
 
 
 def _parts(eqs: Equations) -> _Parts:
-    layout, to_num, velocities, k = _state_symbols(eqs)
+    layout, to_num, velocities, k = state_symbols(eqs)
     fill = _Fill(_main_block(eqs.system, list(eqs._M), list(eqs._F), velocities, _plain(to_num)))
     return _Parts(eqs.system, layout, fill, eqs._M.shape[0], k)
 
@@ -486,43 +443,6 @@ class BackendUnavailable(ChaplyginError):
     """The backend asked for cannot run here (no C compiler, or a function C lacks)."""
 
 
-_LOADED: dict[str, ModuleType] = {}
-_LOCK = threading.Lock()
-
-
-def _import(source: str, tag: str) -> ModuleType:
-    """Write ``source`` to the code cache (atomically, keyed by its hash) and import it.
-
-    Each source is imported once per process.  The module is registered in
-    ``sys.modules`` under its file name: numba's cache re-imports a compiled
-    function's module by name when it loads it.
-    """
-    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
-    with _LOCK:
-        if digest in _LOADED:
-            return _LOADED[digest]
-        directory = cache_dir() / "codegen"
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"chaplygin_{tag}_{digest}.py"
-        if not path.exists() or path.read_text(encoding="utf-8") != source:
-            fd, tmp = tempfile.mkstemp(dir=directory, suffix=".tmp")
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        spec = importlib.util.spec_from_file_location(path.stem, path)
-        if spec is None or spec.loader is None:  # pragma: no cover
-            raise ChaplyginError(f"cannot load generated code from {path}")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[path.stem] = module
-        try:
-            spec.loader.exec_module(module)
-        except BaseException:
-            sys.modules.pop(path.stem, None)
-            raise
-        _LOADED[digest] = module
-        return module
-
-
 def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
     """Generate and load the numerical functions of ``eqs`` for ``backend``.
 
@@ -635,8 +555,8 @@ def _load_model(parts: _Parts, backend: str) -> CompiledModel:
             )
         except _cfill.Unavailable as exc:
             raise BackendUnavailable(f"backend 'c' cannot be used: {exc}") from None
-        return CompiledModel(layout, kernel, "c")  # type: ignore[arg-type]
-    module = _import(_module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend), backend)
+        return CompiledModel(layout, kernel, "c")
+    module = import_source(_module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend), backend)
     return CompiledModel(parts.layout, module, backend)
 
 

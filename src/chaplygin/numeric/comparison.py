@@ -168,7 +168,16 @@ def compare(
     parameters: Mapping[Any, float] | None = None,
     *,
     path: tuple[str, str] | None = None,
-    **options: Any,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    method: str = "DOP853",
+    samples: int = 1001,
+    backend: str = "auto",
+    constants: Any = None,
+    multipliers: Any = None,
+    max_step: float = np.inf,
+    step: float | None = None,
+    reduction: str = "auto",
 ) -> Comparison:
     """Simulate ``models`` from one initial state and compare them with the first.
 
@@ -179,7 +188,7 @@ def compare(
         Model names, optionally with a form: ``["chaplygin", "lindelof/new"]``
         or ``[("chaplygin", "new")]``.  The first is the reference.
     t_span, initial, parameters
-        As for :meth:`System.simulate`; ``options`` are passed on to it.
+        As for :func:`chaplygin.simulate`.
         A reduced model whose solved constraints have a pole on the path is
         replaced by its multiplier form (the ``fallback`` of its registry entry), with a
         :class:`~chaplygin.errors.ChaplyginWarning` and a note in
@@ -188,7 +197,14 @@ def compare(
     path : (str, str), optional
         The coordinates whose paths are compared and drawn; by default ``x, y``
         when the system has them, else its first two dependent coordinates.
+    rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction
+        Passed to :func:`chaplygin.simulate` for every model (it checks them).
     """
+    options: dict[str, Any] = {
+        "rtol": rtol, "atol": atol, "method": method, "samples": samples, "backend": backend,
+        "constants": constants, "multipliers": multipliers, "max_step": max_step, "step": step,
+        "reduction": reduction,
+    }
     if not models:
         raise ChaplyginError("models: name at least one model.")
     names = [q.func.__name__ for q in system.coordinates]

@@ -35,7 +35,7 @@ from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["Ensemble", "simulate_ensemble", "ENSEMBLE_BACKENDS"]
+__all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 
 ENSEMBLE_BACKENDS = ("numba", "jax")
 

@@ -44,7 +44,8 @@ import sympy as sp
 
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
-from chaplygin.numeric.codegen import CompiledModel, _state_symbols
+from chaplygin.numeric._ckernel import CompiledModel
+from chaplygin.numeric._layout import state_symbols
 
 try:
     import jax
@@ -59,7 +60,7 @@ jax.config.update("jax_enable_x64", True)
 if TYPE_CHECKING:
     from chaplygin.models.equations import Equations
 
-__all__ = ["compile_jax", "solve", "solve_ensemble", "JaxResult", "SOLVERS", "devices"]
+__all__ = ["SOLVERS", "JaxResult", "compile_jax", "devices", "solve", "solve_ensemble"]
 
 #: SciPy method name → diffrax solver class name
 SOLVERS = {"DOP853": "Dopri8", "RK45": "Dopri5", "RK23": "Bosh3"}
@@ -80,7 +81,7 @@ def _expressions(eqs: Equations) -> tuple[Any, list[sp.Expr], list[sp.Symbol], l
     tests compare this backend's ``observe`` with the numpy backend's).
     """
     s = eqs.system
-    layout, to_num, velocities, k = _state_symbols(eqs)
+    layout, to_num, velocities, k = state_symbols(eqs)
     full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
     energy = (s._T - s._U).xreplace(full_xd)
     residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []

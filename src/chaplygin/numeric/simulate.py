@@ -29,10 +29,10 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -44,7 +44,7 @@ if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they ar
     from chaplygin.core.system import System
     from chaplygin.numeric._ckernel import CompiledModel
 
-__all__ = ["Trajectory", "simulate", "METHODS", "BACKENDS", "choose_backend", "MAX_SAMPLES", "MAX_CONDITION"]
+__all__ = ["BACKENDS", "MAX_CONDITION", "MAX_SAMPLES", "METHODS", "Trajectory", "choose_backend", "simulate"]
 
 #: chaplygin.numeric.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
 SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
@@ -166,7 +166,8 @@ class Trajectory:
         """Write the columns to a NumPy ``.npz`` archive (one array per column), atomically."""
 
         def write(fh: Any) -> None:
-            np.savez(fh, **{c: self[c] for c in self.columns})
+            arrays: dict[str, Any] = {c: self[c] for c in self.columns}
+            np.savez(fh, **arrays)
 
         return _atomic_write(path, write, text=False)
 
@@ -344,7 +345,7 @@ def _check_mass(system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[s
 
     mass = system._M if system._native is None else DenseMatrix(system._native.H)
     m = _numeric(system, mass, q, qd, params, t0)
-    c = np.eye(system.n)[:, list(system._ind)]
+    c: np.ndarray | None = np.eye(system.n)[:, list(system._ind)]
     if system.g:
         a = _numeric(system, system._constraint_matrix(), q, qd, params, t0)
         c = system._numeric_C(a)
@@ -437,7 +438,7 @@ class _Attempt(NamedTuple):
     message: str  # "" on success
     retry: bool  # a right-hand side failed inside a step: smaller steps may get closer
     t_last: float  # the last accepted step
-    y_last: np.ndarray
+    y_last: np.ndarray | None
     t_fail: float
     n_rhs: int
 
@@ -465,7 +466,7 @@ def simulate(
     step: float | None = None,
     reduction: str = "auto",
 ) -> Trajectory:
-    """Simulate one model of ``system`` (see :meth:`System.simulate`).
+    """Simulate one model of ``system`` (the front door :func:`chaplygin.simulate`).
 
     Inputs that cannot give a motion are refused with an :class:`InputError`
     before anything is derived or compiled: a start or end time that is not
@@ -486,9 +487,7 @@ def simulate(
     q, qd = initial_state(system, initial, params, t0)
     _check_mass(system, q, qd, params, t0)
     if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.numeric.symmetric
-        from chaplygin.numeric.symmetric import simulate_symmetric
-
-        tr = simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
+        tr = _simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
                                 form=form, samples=samples, backend=backend, constants=constants,
                                 multipliers=multipliers)
         return _watch(system, tr, params, reduced=True)
@@ -522,6 +521,74 @@ def simulate(
     tr = integrate(compiled, (t0, t1), np.array(y0), p, params, rtol=rtol, atol=atol,
                    method=method, samples=samples, max_step=max_step, g=system.g)
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
+
+
+def _simulate_symmetric(
+    system: System,
+    model: str,
+    t_span: tuple[float, float],
+    initial: Mapping[Any, float],
+    parameters: Mapping[Any, float] | None,
+    *,
+    method: str,
+    step: float | None,
+    form: str = "classic",
+    samples: int = 1001,
+    backend: str = "numpy",
+    constants: Any = None,
+    multipliers: Any = None,
+) -> Trajectory:
+    """:func:`chaplygin.numeric.simulate.simulate` with a symmetric fixed-step method.
+
+    ``model`` is ``"chetaev"`` (integrated through Voronets' equations, then
+    observed with the multipliers λ), ``"chaplygin"`` or ``"voronets"``.
+    """
+    from chaplygin.numeric.codegen import (
+        compile_equations,
+        compile_model,
+        parameter_vector,
+    )
+    from chaplygin.numeric.symmetric import (
+        TRUE_MODELS,
+        _tolerant,
+        grid,
+        integrate_symmetric,
+    )
+
+    if model not in TRUE_MODELS:
+        raise ChaplyginError(
+            f"method {method!r} integrates the true (Chetaev) motion: model "
+            f"{', '.join(map(repr, TRUE_MODELS))}, not {model!r}; use DOP853 for the other models."
+        )
+    _vakonomic_setup(system, model, constants, multipliers)  # refuses constants/multipliers
+    if backend not in ("numpy", "numba"):
+        raise ChaplyginError(
+            f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
+            f"Python), not {backend!r}."
+        )
+    t0, t1 = t_span
+    h, _ = grid((t0, t1), samples, step)  # refuses a bad step before any work
+    params = _parameters(system, parameters)
+    q, qd = initial_state(system, initial, params, t0)
+    with_multipliers = not registry.get(model).reduced
+    reduced_model, reduced_form = ("voronets", "classic") if with_multipliers else (model, form)
+    stepper = compile_model(system, reduced_model, reduced_form, backend)
+    p = parameter_vector(stepper.layout, params)
+    y0 = np.concatenate([q, qd[list(system._ind)]])
+    res = integrate_symmetric(stepper, (t0, t1), y0, p, method=method, step=h, samples=samples)
+    # observed with generated plain-Python code (nothing to compile): the reduced model's
+    # own observables, or — for "chetaev" — the multiplier model's (λ among them) at (q, q̇)
+    reduced = _tolerant(compile_model(system, reduced_model, reduced_form, "numpy"))
+    observer, ys = reduced, res.y
+    if with_multipliers:
+        observer = _tolerant(compile_equations(system.equations(model), "numpy"))
+        n = system.n
+        velocities = [reduced.observe(t, y, p)[-n:] for t, y in zip(res.t, res.y)]
+        ys = np.hstack([res.y[:, :n], np.reshape(velocities, (len(res.t), n))])
+    p_obs = parameter_vector(observer.layout, params)
+    tr = _trajectory(observer, res.t, ys, p_obs, params, res.status, res.message, res.n_rhs, system.g)
+    tr.backend = backend
+    return tr
 
 
 # ------------------------------------------------------------------ checks along a run
@@ -787,7 +854,7 @@ def _pinned(
         n_rhs += run.n_rhs
         k += len(run.t)
         gap = run.t_fail - run.t_last
-        if not (run.message and run.retry and gap > PIN * max(1.0, abs(run.t_fail))):
+        if not (run.message and run.retry and gap > PIN * max(1.0, abs(run.t_fail))) or run.y_last is None:
             break
         t_start, y_start, cap = run.t_last, run.y_last, min(max_step, gap / 2)
         first = cap  # steps after the first stay within it, so the next failure is at most this far

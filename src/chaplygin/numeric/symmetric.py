@@ -83,7 +83,6 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -93,21 +92,15 @@ from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
 from chaplygin.numeric._loop import EPS, _k_eval, _k_fill, _message
 from chaplygin.numeric._loop import STATUS as _LOOP_STATUS
-from chaplygin.numeric.codegen import (
-    CompiledModel,
-    _import,
-    compile_equations,
-    compile_model,
-    parameter_vector,
-)
+from chaplygin.numeric.cache import import_source
+from chaplygin.numeric.codegen import CompiledModel
 
 if TYPE_CHECKING:
-    from chaplygin.core.system import System
-    from chaplygin.numeric.simulate import Trajectory
+    pass
 
 __all__ = [
     "METHODS", "STATUS", "TRUE_MODELS", "SymmetricResult", "extrapolation", "grid",
-    "integrate_symmetric", "simulate_symmetric", "stepping_module", "tableau",
+    "integrate_symmetric", "stepping_module", "tableau",
 ]
 
 #: the fixed-step symmetric methods, by name → number of Gauss–Legendre stages
@@ -168,7 +161,8 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 # ``_kernel_source``), where ``fill``, ``DIM``, ``N`` and ``N_OBSERVED`` are
 # globals; compiled there by numba for the numba backend, run as Python for the
 # numpy backend.  They are never called from here.
-fill = _k_pivot = None  # placeholders: the generated module defines them
+fill: Any = None  # placeholders
+_k_pivot: Any = None  #: the generated module defines them
 DIM = N = N_OBSERVED = 0
 _GL_EPS = EPS
 
@@ -420,8 +414,8 @@ def stepping_module(compiled: CompiledModel) -> Any:
             f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
             f"Python), not {compiled.backend!r}."
         )
-    source = Path(compiled.module.__file__).read_text(encoding="utf-8")  # type: ignore[arg-type]
-    return _import(source + _kernel_source(compiled.backend == "numba"), f"gauss_{compiled.backend}")
+    source = Path(compiled.module.__file__).read_text(encoding="utf-8")
+    return import_source(source + _kernel_source(compiled.backend == "numba"), f"gauss_{compiled.backend}")
 
 
 # ------------------------------------------------------------------ drivers
@@ -542,7 +536,7 @@ def _tolerant(compiled: CompiledModel) -> CompiledModel:
         except (ArithmeticError, ValueError, np.linalg.LinAlgError):
             return np.full(width, np.nan)
 
-    model.observe = observe  # type: ignore[method-assign]
+    model.observe = observe
     return model
 
 
@@ -560,66 +554,3 @@ def _failure(code: int, method: str, t: float, h: float, max_iterations: int, mo
         return (f"the Newton matrix of the {method} stages is singular at t = {t:.6g} "
                 f"(h = {h:.3g}); try a smaller step")
     return _message(module, code, t, t, y, p, 0)
-
-
-def simulate_symmetric(
-    system: System,
-    model: str,
-    t_span: tuple[float, float],
-    initial: Mapping[Any, float],
-    parameters: Mapping[Any, float] | None,
-    *,
-    method: str,
-    step: float | None,
-    form: str = "classic",
-    samples: int = 1001,
-    backend: str = "numpy",
-    constants: Any = None,
-    multipliers: Any = None,
-) -> Trajectory:
-    """:func:`chaplygin.numeric.simulate.simulate` with a symmetric fixed-step method.
-
-    ``model`` is ``"chetaev"`` (integrated through Voronets' equations, then
-    observed with the multipliers λ), ``"chaplygin"`` or ``"voronets"``.
-    """
-    from chaplygin.numeric.simulate import (
-        _parameters,
-        _trajectory,
-        _vakonomic_setup,
-        initial_state,
-    )
-
-    if model not in TRUE_MODELS:
-        raise ChaplyginError(
-            f"method {method!r} integrates the true (Chetaev) motion: model "
-            f"{', '.join(map(repr, TRUE_MODELS))}, not {model!r}; use DOP853 for the other models."
-        )
-    _vakonomic_setup(system, model, constants, multipliers)  # refuses constants/multipliers
-    if backend not in ("numpy", "numba"):
-        raise ChaplyginError(
-            f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
-            f"Python), not {backend!r}."
-        )
-    t0, t1 = t_span
-    h, _ = grid((t0, t1), samples, step)  # refuses a bad step before any work
-    params = _parameters(system, parameters)
-    q, qd = initial_state(system, initial, params, t0)
-    with_multipliers = not registry.get(model).reduced
-    reduced_model, reduced_form = ("voronets", "classic") if with_multipliers else (model, form)
-    stepper = compile_model(system, reduced_model, reduced_form, backend)
-    p = parameter_vector(stepper.layout, params)
-    y0 = np.concatenate([q, qd[list(system._ind)]])
-    res = integrate_symmetric(stepper, (t0, t1), y0, p, method=method, step=h, samples=samples)
-    # observed with generated plain-Python code (nothing to compile): the reduced model's
-    # own observables, or — for "chetaev" — the multiplier model's (λ among them) at (q, q̇)
-    reduced = _tolerant(compile_model(system, reduced_model, reduced_form, "numpy"))
-    observer, ys = reduced, res.y
-    if with_multipliers:
-        observer = _tolerant(compile_equations(system.equations(model), "numpy"))
-        n = system.n
-        velocities = [reduced.observe(t, y, p)[-n:] for t, y in zip(res.t, res.y)]
-        ys = np.hstack([res.y[:, :n], np.reshape(velocities, (len(res.t), n))])
-    p_obs = parameter_vector(observer.layout, params)
-    tr = _trajectory(observer, res.t, ys, p_obs, params, res.status, res.message, res.n_rhs, system.g)
-    tr.backend = backend
-    return tr
