@@ -235,3 +235,26 @@ def test_bad_options_are_refused(kwargs: dict[str, Any], message: str) -> None:
 def test_unknown_model_is_refused() -> None:
     with pytest.raises(ChaplyginError, match="unknown model 'newton'"):
         export(_system("knife_edge"), "newton")
+
+
+def test_command_line_writes_and_prints(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from chaplygin.cli import app
+
+    runner = CliRunner()
+    out = tmp_path / "deep" / "knife.py"
+    args = ["export", "example:knife-edge", "--model", "chetaev", "--to", "python", "--jacobian", "-o", str(out)]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert "rhs and jacobian of chetaev/classic" in result.stdout
+    module = _python_module(out.read_text(encoding="utf-8"))
+    assert module["STATE"] == ("x", "y", "phi", "x'", "y'", "phi'") and callable(module["jacobian"])
+    again = runner.invoke(app, args)
+    assert again.exit_code == 1 and "pass --force" in again.stderr
+    assert runner.invoke(app, [*args, "--force"]).exit_code == 0
+    printed = runner.invoke(app, ["export", "example:knife-edge", "--to", "c"])  # the true motion
+    assert printed.exit_code == 0 and printed.stdout.startswith("/*")
+    assert "chaplygin/classic equations of Knife edge" in printed.stdout
+    assert runner.invoke(app, ["export", "example:knife-edge", "--to", "fortran"]).exit_code == 2
+    assert runner.invoke(app, ["export", "example:knife-edge", "--to", "c", "--prefix", "1x"]).exit_code == 2
