@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import ctypes
 import subprocess
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -189,6 +190,7 @@ def test_c_export_computes_the_equations(system: str, model: str, form: str, tmp
     s = _system(system)
     ref = Reference(s, model, form)
     state, parameters = _layout_state(export(s, model, "python", form=form))
+    assert list(parameters) == ref.parameters
     source = export(s, model, "c", form=form, jacobian=True)
     assert source.isascii()
     rhs, jac = _c_functions(source, tmp_path, len(state), jacobian=True)

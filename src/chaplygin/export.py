@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from .equations import Equations
     from .system import System
 
-__all__ = ["export", "TARGETS"]
+__all__ = ["TARGETS", "export"]
 
 #: what ``to=`` accepts
 TARGETS = ("c", "python")
@@ -176,8 +176,8 @@ def _header(eqs: Equations, layout: Layout, jacobian: bool, language: str, prefi
         if layout.reactions:
             lines.append(f"The multipliers {', '.join(layout.reactions)} are solved for inside f; they are not in y.")
     elif dependent:
-        lines += ["", f"Not in y: the dependent velocities ({', '.join(q + chr(39) for q in dependent)}); f computes "
-                  "them from the constraints."]
+        velocities = ", ".join(q + "'" for q in dependent)
+        lines += ["", f"Not in y: the dependent velocities ({velocities}); f computes them from the constraints."]
     lines += [
         "",
         "Units: none. f is what the equations say; give every number in one consistent system of units.",
@@ -232,8 +232,8 @@ def _c_source(eqs: Equations, layout: Layout, main: _Block, derivatives: _Block 
     if derivatives is not None:
         parts += [
             "/* R[j*DIM + r] = d(F - M X)_r/dy_j at X = x, and dV[j*N + i] = dV_i/dy_j. */",
-            "static void chaplygin_dfill(double t, const double *y, const double *p, const double *x, "
-            "double *R, double *dV)",
+            ("static void chaplygin_dfill(double t, const double *y, const double *p, const double *x, "
+             "double *R, double *dV)"),
             "{",
             "    (void)p;",
             "    (void)x;",

@@ -773,6 +773,30 @@ class SweepResult:
     def __repr__(self) -> str:
         return f"<SweepResult {self.summary()}>"
 
+    def to_pandas(self) -> Any:
+        """The rows (:meth:`table`) as a ``pandas.DataFrame`` indexed by ``run`` (the run id).
+
+        ``attrs``: the sweep's ``system``, ``model``, ``form``, ``backend``, ``t_end``, … and its
+        fixed parameters and initial values as ``param.NAME``, ``initial.NAME``.  Needs pandas
+        (``pip install 'chaplygin[data]'``).
+        """
+        from ._dataout import sweep_frame
+
+        return sweep_frame(self)
+
+    def to_xarray(self) -> Any:
+        """The rows as an ``xarray.Dataset`` on the grid: one dimension per axis.
+
+        Each axis (``m``, ``theta'``) is a dimension whose coordinate is its values; every
+        other column is a variable over them, and ``run`` the run id (-1 where a run is not in
+        the output yet, whose values are NaN, or ``""`` for ``status``, ``message``).  The
+        attributes are those of :meth:`to_pandas`.  Needs xarray
+        (``pip install 'chaplygin[data]'``).
+        """
+        from ._dataout import sweep_dataset
+
+        return sweep_dataset(self)
+
 
 def _axes(system: System, grid: Mapping[str, Any]) -> tuple[Axis, ...]:
     params = [p.name for p in system.parameters]
