@@ -1,7 +1,7 @@
 """The ``chaplygin`` command line (typer + rich).
 
-Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo`` and
-``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.io.files`) or
+Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo``,
+``export`` and ``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.io.files`) or
 ``example:NAME`` for a built-in example.
 
 Exit status: 0 on success; 1 on a bad file, a failed run or a refused overwrite (a message on
@@ -1046,6 +1046,56 @@ def examples_show(name: str = typer.Argument(..., metavar="NAME", help="The exam
     with _failures():
         text = entry.dumps()
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
+
+
+# ====================================================================== export
+class ExportTarget(str, Enum):
+    c = "c"
+    python = "python"
+
+
+@app.command()
+def export(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    to: ExportTarget = typer.Option(..., "--to", help="c: one C99 file; python: a module that needs only numpy."),
+    model: str | None = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to export; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
+    out: Path | None = typer.Option(None, "--out", "-o", help="The file to write (missing folders are created); default: print the source."),
+    jacobian: bool = typer.Option(False, "--jacobian", help="Also generate jacobian(t, y, p), the exact df/dy."),
+    prefix: str = typer.Option("", "--prefix", help="Put before the names rhs and jacobian (e.g. sphere_)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
+) -> None:
+    """Write one model's dy/dt = f(t, y, p) (and df/dy) as standalone C or Python source.
+
+    The header comment of the generated file lists the entries of y and p in order.
+    """
+    import re
+
+    if prefix and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", prefix):
+        raise typer.BadParameter(f"{prefix!r}: give letters, digits and '_' (not starting with a digit), "
+                                 "e.g. sphere_.", param_hint="--prefix")
+    with _failures():
+        if out is not None:
+            _refuse_existing([out], force)
+        loaded = _load(file)
+        system = loaded.system
+        model = model or registry.true_motion(system)
+        from chaplygin.io.export import export as generate
+
+        with _Steps(1, f"exporting {model}/{form.value}") as steps:
+            steps.step(f"generating {to.value} for {model}/{form.value}")
+            source = generate(system, model, to.value, form=form.value, jacobian=jacobian, prefix=prefix)
+        if out is None:
+            _emit(source)
+            return
+        from chaplygin.numeric.simulate import _atomic_write
+
+        created = _created(out)
+        _atomic_write(out, lambda fh: fh.write(source.encode("utf-8")), text=False)
+        _emit(f"wrote {out}: {prefix}rhs{f' and {prefix}jacobian' if jacobian else ''} of "
+              f"{model}/{form.value} in {to.value}")
+        if created is not None:
+            _emit(f"created {created}: it did not exist")
 
 
 def main(argv: list[str] | None = None) -> int:

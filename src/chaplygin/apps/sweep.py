@@ -774,6 +774,30 @@ class SweepResult:
     def __repr__(self) -> str:
         return f"<SweepResult {self.summary()}>"
 
+    def to_pandas(self) -> Any:
+        """The rows (:meth:`table`) as a ``pandas.DataFrame`` indexed by ``run`` (the run id).
+
+        ``attrs``: the sweep's ``system``, ``model``, ``form``, ``backend``, ``t_end``, … and its
+        fixed parameters and initial values as ``param.NAME``, ``initial.NAME``.  Needs pandas
+        (``pip install 'chaplygin[data]'``).
+        """
+        from chaplygin.numeric._dataout import sweep_frame
+
+        return sweep_frame(self, json.loads((self.path / META_FILE).read_text(encoding="utf-8")))
+
+    def to_xarray(self) -> Any:
+        """The rows as an ``xarray.Dataset`` on the grid: one dimension per axis.
+
+        Each axis (``m``, ``theta'``) is a dimension whose coordinate is its values; every
+        other column is a variable over them, and ``run`` the run id (-1 where a run is not in
+        the output yet, whose values are NaN, or ``""`` for ``status``, ``message``).  The
+        attributes are those of :meth:`to_pandas`.  Needs xarray
+        (``pip install 'chaplygin[data]'``).
+        """
+        from chaplygin.numeric._dataout import sweep_dataset
+
+        return sweep_dataset(self, json.loads((self.path / META_FILE).read_text(encoding="utf-8")))
+
 
 def _axes(system: System, grid: Mapping[str, Any]) -> tuple[Axis, ...]:
     params = [p.name for p in system.parameters]
@@ -920,7 +944,7 @@ def sweep(
     out : path
         The output directory (``results.parquet``).
     model, form, constants :
-        As for :func:`chaplygin.simulate`.
+        As for :func:`chaplygin.numeric.simulate`.
     parameters, initial : mapping, optional
         Fixed values over the file's (or example's) defaults; a ``System``
         given directly needs every parameter and initial value here or in the grid.

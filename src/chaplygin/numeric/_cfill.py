@@ -38,7 +38,7 @@ from chaplygin.numeric._printing import code
 if TYPE_CHECKING:
     from chaplygin.numeric.codegen import Target, _Fill
 
-__all__ = ["FLAGS", "Unavailable", "build", "compiler", "numba_fill", "source"]
+__all__ = ["FLAGS", "Unavailable", "body", "build", "compiler", "numba_fill", "source"]
 
 _SOLVE = """
 /* x = A^-1 b by Gaussian elimination with partial pivoting (A and b are overwritten);
@@ -74,24 +74,34 @@ static void chaplygin_solve(int n, double *A, double *b, double *x)
 """
 
 
+def body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> list[str]:
+    """The statements of ``fill``'s C function (indented lines; also used by :mod:`chaplygin.io.export`).
+
+    ``assigned`` is :func:`chaplygin.numeric.codegen._assignments` of each of
+    ``fill.blocks()``.  Raises :class:`Unavailable` for a function C lacks.
+    """
+    lines = ["    (void)t;"]
+    if fill.solve:
+        g = fill.solve
+        lines += [f"    double Ad[{g * g}] = {{0.0}};", f"    double b[{g}] = {{0.0}};", f"    double d[{g}];"]
+    try:
+        for block, (replacements, stores) in zip(fill.blocks(), assigned):
+            lines += [f"    const double {sym} = {code(e, 'c')};" for sym, e in replacements]
+            lines += [f"    {name}[{i}] = {code(e, 'c')};" for (name, i, _), e in stores]
+            if block is fill.pre:
+                lines.append(f"    chaplygin_solve({fill.solve}, Ad, b, d);")
+    except PrintMethodNotImplementedError as exc:
+        raise Unavailable(f"C has no translation of a function in this model ({exc})") from None
+    return lines
+
+
 def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]], symbol: str) -> str:
     """The C translation unit defining ``void symbol(t, y, p, M, F, V, O)``.
 
     ``assigned`` is :func:`chaplygin.numeric.codegen._assignments` of each of
     ``fill.blocks()``.  Raises :class:`Unavailable` for a function C lacks.
     """
-    body = ["    (void)t;"]
-    if fill.solve:
-        g = fill.solve
-        body += [f"    double Ad[{g * g}] = {{0.0}};", f"    double b[{g}] = {{0.0}};", f"    double d[{g}];"]
-    try:
-        for block, (replacements, stores) in zip(fill.blocks(), assigned):
-            body += [f"    const double {sym} = {code(e, 'c')};" for sym, e in replacements]
-            body += [f"    {name}[{i}] = {code(e, 'c')};" for (name, i, _), e in stores]
-            if block is fill.pre:
-                body.append(f"    chaplygin_solve({fill.solve}, Ad, b, d);")
-    except PrintMethodNotImplementedError as exc:
-        raise Unavailable(f"C has no translation of a function in this model ({exc})") from None
+    statements = body(fill, assigned)
     signature = (
         f"void {symbol}(double t, const double *y, const double *p, "
         "double *M, double *F, double *V, double *O)"
@@ -101,7 +111,7 @@ def source(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]], s
         "#include <math.h>",
         _SOLVE if fill.solve else "",
         f"{signature}\n{{",
-        *body,
+        *statements,
         "}",
         "",
     ])

@@ -34,9 +34,15 @@ if TYPE_CHECKING:
 
     from chaplygin.core.system import System
 
-__all__ = ["Comparison", "compare"]
+__all__ = ["Comparison", "coincide", "compare"]
 
 FIGURES = ("paths", "coordinates", "invariants")
+#: line style and marker of each model, in order: models whose curves coincide stay visible (the
+#: markers are sparse and start at a different sample for each model; earlier lines are wider)
+STYLES = (("-", ""), ("--", "o"), (":", "s"), ("-.", "^"), ((0, (5, 1, 1, 1)), "D"), ((0, (1, 2)), "v"))
+#: two curves coincide "to plotting precision" when they differ nowhere by more than this
+#: fraction of the data's range on either axis (a fraction of a pixel on any usual figure)
+COINCIDE = 1e-3
 
 
 def _parse(model: str | tuple[str, str]) -> tuple[str, str, str]:
@@ -101,43 +107,47 @@ class Comparison:
 
     # ------------------------------------------------------------------ figures
     def figure(self, kind: str = "paths") -> Figure:
-        """A matplotlib figure: ``"paths"``, ``"coordinates"`` or ``"invariants"``."""
+        """A matplotlib figure: ``"paths"``, ``"coordinates"`` or ``"invariants"``.
+
+        Each model has its own line style and marker (:data:`STYLES`), and a curve that
+        coincides with an earlier model's to plotting precision (:data:`COINCIDE`) is labelled
+        ``"lindelof (same as chaplygin)"`` in the legend of its axes, so that no model hides
+        behind another.
+        """
         from matplotlib.figure import Figure
 
         if kind not in FIGURES:
             raise ChaplyginError(f"figure kind {kind!r}: choose one of {', '.join(FIGURES)}.")
+        runs = self.trajectories.items()
         if kind == "paths":
             fig = Figure(figsize=(6, 5), layout="constrained")
             ax = fig.add_subplot()
             if not self.path:
                 raise ChaplyginError("no path coordinates to draw; pass path=('x', 'y') to compare().")
-            for label, tr in self.trajectories.items():
-                ax.plot(tr[self.path[0]], tr[self.path[1]], label=label)
-                ax.plot(tr[self.path[0]][:1], tr[self.path[1]][:1], "ko", ms=3)
-            ax.set(xlabel=self.path[0], ylabel=self.path[1], title=f"{self.system_name}: paths")
+            px, py = self.path
+            _draw(ax, [(label, tr[px], tr[py]) for label, tr in runs], legend=True)
+            for _, tr in runs:
+                ax.plot(tr[px][:1], tr[py][:1], "ko", ms=3)
+            ax.set(xlabel=px, ylabel=py, title=f"{self.system_name}: paths")
             ax.set_aspect("equal", adjustable="datalim")
         elif kind == "coordinates":
             names = list(self.trajectories[self.reference].coordinates)
             fig = Figure(figsize=(7, 1.6 * len(names) + 0.6), layout="constrained")
             axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
-            for ax, name in zip(axes, names):
-                for label, tr in self.trajectories.items():
-                    ax.plot(tr.t, tr[name], label=label)
+            for k, (ax, name) in enumerate(zip(axes, names)):
+                _draw(ax, [(label, tr.t, tr[name]) for label, tr in runs], legend=k == 0)
                 ax.set_ylabel(name)
             axes[-1].set_xlabel("t")
             axes[0].set_title(f"{self.system_name}: coordinates")
-            ax = axes[0]
         else:
             fig = Figure(figsize=(7, 5), layout="constrained")
             top, bottom = fig.subplots(2, 1, sharex=True)
-            for label, tr in self.trajectories.items():
-                e0 = tr.energy[0] if len(tr.energy) else 0.0
-                top.plot(tr.t, np.abs(tr.energy - e0) / max(1.0, abs(e0)) + 1e-18, label=label)
-                bottom.plot(tr.t, tr.constraint_residual + 1e-18, label=label)
+            drift = [(label, tr.t, np.abs(tr.energy - (e0 := tr.energy[0] if len(tr.energy) else 0.0))
+                      / max(1.0, abs(e0)) + 1e-18) for label, tr in runs]
+            _draw(top, drift, legend=True, log=True)
+            _draw(bottom, [(label, tr.t, tr.constraint_residual + 1e-18) for label, tr in runs], legend=False, log=True)
             top.set(yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: invariants")
             bottom.set(yscale="log", ylabel="constraint residual", xlabel="t")
-            ax = top
-        ax.legend(fontsize="small")
         return fig
 
     def save_figures(self, directory: str | Path, *, fmt: str = "svg") -> list[Path]:
@@ -150,6 +160,51 @@ class Comparison:
             target = Path(directory) / f"{kind}.{fmt}"
             out.append(_atomic_write(target, lambda fh, f=fig: f.savefig(fh, format=fmt), text=False))
         return out
+
+
+def _span(values: list[np.ndarray]) -> float:
+    """The range of ``values`` together (at least 1e-9 of their size: round-off on a constant)."""
+    finite = np.concatenate([v[np.isfinite(v)] for v in values]) if values else np.empty(0)
+    if not finite.size:
+        return 0.0
+    return max(float(np.ptp(finite)), 1e-9 * float(np.max(np.abs(finite))))
+
+
+def coincide(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray],
+             spans: tuple[float, float]) -> bool:
+    """Whether curves ``a`` and ``b`` (x, y) are the same to plotting precision: as many points,
+    NaN at the same ones, and nowhere apart by more than :data:`COINCIDE` of ``spans`` (x, y)."""
+    if len(a[0]) != len(b[0]) or not len(a[0]):
+        return False
+    for u, v, span in ((a[0], b[0], spans[0]), (a[1], b[1], spans[1])):
+        u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+        if not np.array_equal(np.isnan(u), np.isnan(v)):
+            return False
+        both = ~np.isnan(u)
+        if np.any(np.abs(u[both] - v[both]) > COINCIDE * span):
+            return False
+    return True
+
+
+def _draw(ax: Any, curves: list[tuple[str, np.ndarray, np.ndarray]], *, legend: bool, log: bool = False) -> None:
+    """Draw one curve per model, each in its own style; a curve that coincides with an earlier
+    one is labelled ``"label (same as earlier)"``.  A legend when asked or when any coincides."""
+    def scaled(y: np.ndarray) -> np.ndarray:  # coincidence as seen on a log axis
+        y = np.asarray(y, dtype=float)
+        return np.log10(np.where(y > 0, y, np.nan)) if log else y
+
+    spans = (_span([np.asarray(x, dtype=float) for _, x, _ in curves]), _span([scaled(y) for _, _, y in curves]))
+    any_same = False
+    for i, (label, x, y) in enumerate(curves):
+        same = next((curves[j][0] for j in range(i)
+                     if coincide((curves[j][1], scaled(curves[j][2])), (x, scaled(y)), spans)), None)
+        any_same |= same is not None
+        linestyle, marker = STYLES[i % len(STYLES)]
+        every = max(1, len(x) // 12)
+        ax.plot(x, y, linestyle=linestyle, marker=marker, ms=4, markevery=(i * every // len(curves), every),
+                lw=max(1.0, 2.2 - 0.4 * i), label=label if same is None else f"{label} (same as {same})")
+    if legend or any_same:
+        ax.legend(fontsize="small")
 
 
 def _default_path(system: System) -> tuple[str, str] | None:
@@ -188,7 +243,7 @@ def compare(
         Model names, optionally with a form: ``["chaplygin", "lindelof/new"]``
         or ``[("chaplygin", "new")]``.  The first is the reference.
     t_span, initial, parameters
-        As for :func:`chaplygin.simulate`.
+        As for :func:`chaplygin.numeric.simulate`.
         A reduced model whose solved constraints have a pole on the path is
         replaced by its multiplier form (the ``fallback`` of its registry entry), with a
         :class:`~chaplygin.errors.ChaplyginWarning` and a note in
@@ -198,7 +253,7 @@ def compare(
         The coordinates whose paths are compared and drawn; by default ``x, y``
         when the system has them, else its first two dependent coordinates.
     rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction
-        Passed to :func:`chaplygin.simulate` for every model (it checks them).
+        Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them).
     """
     options: dict[str, Any] = {
         "rtol": rtol, "atol": atol, "method": method, "samples": samples, "backend": backend,

@@ -129,6 +129,33 @@ class Ensemble:
             f"{failed} failed, {self.wall_time:.3g} s>"
         )
 
+    def to_pandas(self) -> Any:
+        """One row per member as a ``pandas.DataFrame`` indexed by ``run`` (0 … N−1).
+
+        Columns named like a sweep's (:mod:`chaplygin.apps.sweep`): ``param.NAME`` (each member's
+        parameters), ``status``, ``message``, ``t_reached``, ``final.q`` and ``final.q'`` for
+        every coordinate (and ``final.mu_β`` of the vakonomic model), ``energy_initial``,
+        ``energy_final``, ``energy_drift``, ``final.constraint_residual``,
+        ``rhs_evaluations``; ``attrs``: ``model``, ``form``, ``backend``, ``members``,
+        ``failed``, ``wall_time``.  The kept samples are in :meth:`to_xarray`.  Needs pandas
+        (``pip install 'chaplygin[data]'``).
+        """
+        from chaplygin.numeric._dataout import ensemble_frame
+
+        return ensemble_frame(self)
+
+    def to_xarray(self) -> Any:
+        """The members as an ``xarray.Dataset`` with dimension ``run``.
+
+        The columns of :meth:`to_pandas` as variables over ``run``; with ``keep`` samples, a
+        coordinate ``t`` (:attr:`times`) and one variable over ``(run, t)`` per entry of
+        ``layout.state`` (NaN after a member failed).  Needs xarray
+        (``pip install 'chaplygin[data]'``).
+        """
+        from chaplygin.numeric._dataout import ensemble_dataset
+
+        return ensemble_dataset(self)
+
 
 # ------------------------------------------------------------------ inputs
 def _parameter_matrix(

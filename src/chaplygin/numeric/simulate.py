@@ -177,6 +177,54 @@ class Trajectory:
             f"{len(self.t)} samples to t = {self.t[-1] if len(self.t) else float('nan'):g}>"
         )
 
+    def to_pandas(self) -> Any:
+        """The samples as a ``pandas.DataFrame`` indexed by ``t``.
+
+        One column per entry of :attr:`columns` after ``t`` (the names of :meth:`table` and
+        :meth:`to_csv`); ``attrs`` holds ``model``, ``form``, ``backend``, ``status``,
+        ``message``, ``failure``, ``rhs_evaluations`` and ``parameters`` (a dict).  Needs
+        pandas (``pip install 'chaplygin[data]'``).
+        """
+        from chaplygin.numeric._dataout import trajectory_frame
+
+        return trajectory_frame(self)
+
+    def to_xarray(self) -> Any:
+        """The samples as an ``xarray.Dataset`` with coordinate ``t``.
+
+        One variable per entry of :attr:`columns` after ``t``, each with an attribute ``kind``
+        (``coordinate``, ``velocity``, ``invariant``, ``multiplier``); the attributes are those
+        of :meth:`to_pandas` with each parameter as a number ``param.NAME`` (attributes a
+        netCDF file can hold).  Needs xarray (``pip install 'chaplygin[data]'``).
+        """
+        from chaplygin.numeric._dataout import trajectory_dataset
+
+        return trajectory_dataset(self)
+
+    def plot(self, what: str = "coordinates", ax: Any = None, *, path: tuple[str, str] | None = None,
+             **kwargs: Any) -> Any:
+        """Draw the run with matplotlib and return the ``Axes``.
+
+        Parameters
+        ----------
+        what : {"coordinates", "velocities", "invariants", "path"}
+            Every coordinate, or every velocity, against ``t``; the relative energy drift
+            ``|E − E(0)| / max(1, |E(0)|)`` and the constraint residual against ``t`` (log
+            scale); or the path in a plane.  The path is that of the coordinates named ``x``
+            and ``y`` — the contact point or the centre in every built-in example that moves
+            in a plane — drawn with equal scales and its start marked; a trajectory without
+            both draws the pair given as ``path``, and without it is refused.
+        ax : matplotlib Axes, optional
+            Where to draw; by default on a new pyplot figure.
+        path : (str, str), optional
+            The two coordinates of ``what="path"`` (horizontal, vertical).
+        **kwargs
+            Passed to ``Axes.plot`` for every curve (``lw=1``, ``alpha=0.5`` …).
+        """
+        from chaplygin.numeric._dataout import plot_trajectory
+
+        return plot_trajectory(self, what, ax, path, **kwargs)
+
 
 def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Path:
     """Write through a temporary file in the same folder, then rename over ``path``."""
@@ -466,7 +514,7 @@ def simulate(
     step: float | None = None,
     reduction: str = "auto",
 ) -> Trajectory:
-    """Simulate one model of ``system`` (the front door :func:`chaplygin.simulate`).
+    """Simulate one model of ``system`` (the front door :func:`chaplygin.numeric.simulate`).
 
     Inputs that cannot give a motion are refused with an :class:`InputError`
     before anything is derived or compiled: a start or end time that is not
