@@ -30,10 +30,10 @@ sys.path.insert(0, str(ROOT / "src"))
 
 os.environ["CHAPLYGIN_CACHE"] = tempfile.mkdtemp(prefix="chaplygin-bench-bodies-")
 
-from scipy.integrate import solve_ivp  # noqa: E402
-from sympy.physics import mechanics as me  # noqa: E402
+from scipy.integrate import solve_ivp
+from sympy.physics import mechanics as me
 
-from chaplygin.bodies import Ellipsoid, initial_state, rolling_body  # noqa: E402
+from chaplygin.bodies import Ellipsoid, initial_state, rolling_body
 
 P = {"a": 0.2, "b": 0.03, "c": 0.02, "h": 0.01, "m": 1.0, "A": 2e-4, "B": 1.6e-3, "C": 1.7e-3, "D": 2e-5, "g": 9.81}
 T_END, RTOL, ATOL = 20.0, 1e-10, 1e-12
@@ -47,7 +47,7 @@ def rot(axis: str, angle: float) -> np.ndarray:
 
 def chaplygin_route() -> tuple[float, float, np.ndarray, float]:
     t0 = time.perf_counter()
-    I = [[P["A"], P["D"], 0], [P["D"], P["B"], 0], [0, 0, P["C"]]]  # noqa: E741
+    I = [[P["A"], P["D"], 0], [P["D"], P["B"], 0], [0, 0, P["C"]]]
     body = rolling_body(Ellipsoid(P["a"], P["b"], P["c"]), mass=P["m"], inertia=I,
                         center_of_mass=(0, 0, -P["h"]), g=P["g"])
     start = initial_state(body, R=rot("x", 0.01) @ rot("y", 0.01), omega=[0.0, 0.0, 5.0])
@@ -87,7 +87,7 @@ def kane_route() -> tuple[float, float, np.ndarray, float]:
     contact = G.locatenew("P", G_to_P)
     contact.v2pt_theory(G, N, B)
     constraints = [me.dot(contact.vel(N), N.x), me.dot(contact.vel(N), N.y)]
-    I = me.inertia(B, *(sp.nsimplify(P[k]) for k in ("A", "B", "C")), sp.nsimplify(P["D"]), 0, 0)  # noqa: E741
+    I = me.inertia(B, *(sp.nsimplify(P[k]) for k in ("A", "B", "C")), sp.nsimplify(P["D"]), 0, 0)
     body = me.RigidBody("body", G, B, m, (I, G))
     kane = me.KanesMethod(N, q_ind=q, u_ind=u[:3], u_dependent=u[3:], kd_eqs=kd, velocity_constraints=constraints)
     kane.kanes_equations([body], [(G, -m * g * N.z)])

@@ -9,6 +9,7 @@ import re
 import numpy as np
 import pytest
 import sympy as sp
+from randomsystems import matrix, random_state
 from sympy.physics.mechanics import dynamicsymbols
 
 import chaplygin
@@ -25,7 +26,6 @@ from chaplygin.bodies import (
     motion,
     rolling_body,
 )
-from randomsystems import matrix, random_state
 
 t = dynamicsymbols._t
 
@@ -55,7 +55,7 @@ def test_disk_is_the_gallery_disk() -> None:
     m, r, A, C, g = sp.symbols("m r A C g", positive=True)
     built = rolling_body(Disk(r), mass=m, inertia=[A, A, C], g=g)
     disk = examples.rolling_disk()
-    psi, theta, phi, x, y = disk.coordinates
+    psi, theta, _phi, x, y = disk.coordinates
     assert built.angles == "edge" and built.is_chaplygin
     assert sp.simplify(built.potential_energy - disk.potential_energy) == 0
     # The gallery's x, y are the contact point, the builder's the centre: x_G = x + r sinθ sinψ,
@@ -87,7 +87,7 @@ def test_general_shapes_reduce_to_the_special_ones() -> None:
 @pytest.fixture(scope="module")
 def torus() -> chaplygin.System:
     """A rounded disk with an off-centre centre of mass and a full inertia tensor: nothing special."""
-    I = [[3, sp.Rational(1, 5), 0], [sp.Rational(1, 5), 2, sp.Rational(1, 10)], [0, sp.Rational(1, 10), 4]]  # noqa: E741
+    I = [[3, sp.Rational(1, 5), 0], [sp.Rational(1, 5), 2, sp.Rational(1, 10)], [0, sp.Rational(1, 10), 4]]
     return rolling_body(Torus(1, sp.Rational(1, 4)), mass=2, inertia=I,
                         center_of_mass=(sp.Rational(1, 10), 0, sp.Rational(1, 20)), g=sp.Rational(981, 100))
 
@@ -117,7 +117,7 @@ def test_routh_sphere_keeps_energy_jellett_and_routh() -> None:
 
     Jellett: J = (I ω)·s, Routh: ω₃ √(A C + m A (s₁² + s₂²) + m C s₃²), with s = rγ − a e₃ the vector
     from the contact point to the centre of mass and γ the upward vertical, all in body axes
-    (Gray & Nickel 2000, §III; Lynch & Bustamante 2009, §2)."""
+    (Gray & Nickel 2000; Lynch & Bustamante 2009)."""
     r, a, m, A, C = 1.0, 0.3, 1.0, 0.4, 0.6
     body = rolling_body(Sphere(r), mass=m, inertia=[A, A, C], center_of_mass=(0, 0, -a), g=9.81)
     R0 = rot("x", 0.5) @ rot("y", 0.2)
@@ -146,7 +146,7 @@ theirs, z down, by a half turn about x, which flips the sign of the xy product).
 
 def _rattleback(D: float) -> chaplygin.System:
     p = KL
-    I = [[p["A"], D, 0], [D, p["B"], 0], [0, 0, p["C"]]]  # noqa: E741
+    I = [[p["A"], D, 0], [D, p["B"], 0], [0, 0, p["C"]]]
     return rolling_body(Ellipsoid(p["a"], p["b"], p["c"]), mass=p["m"], inertia=I,
                         center_of_mass=(0, 0, -p["h"]), g=p["g"])
 
@@ -174,12 +174,12 @@ def test_rattleback_reverses_one_way_only(rattleback) -> None:
 
 
 def _newton_euler(state: np.ndarray, D: float, p: dict = KL) -> np.ndarray:
-    """γ̇ = γ × ω, and the rolling rigid body about the contact point (Borisov & Mamaev 2002, eq. 1.3):
+    """γ̇ = γ × ω, and the rolling rigid body about the contact point (Borisov & Mamaev 2002):
     [I + m(|r|² − r rᵀ)] ω̇ = −ω × Iω − m r × (ω × ṙ) − m r × (ω × (ω × r)) + m g r × γ,
     r = ∇h(−γ) − c from G to the contact, h the ellipsoid's support function; body axes."""
     gamma, w = state[:3], state[3:]
     A2 = np.array([p["a"], p["b"], p["c"]]) ** 2
-    I = np.array([[p["A"], D, 0], [D, p["B"], 0], [0, 0, p["C"]]]) * p["m"]  # noqa: E741
+    I = np.array([[p["A"], D, 0], [D, p["B"], 0], [0, 0, p["C"]]]) * p["m"]
     m, g, c = p["m"], p["g"], np.array([0, 0, -p["h"]])
     u = -gamma
     h = np.sqrt(A2 @ u**2)
@@ -243,7 +243,7 @@ def test_initial_state_round_trip_in_every_convention() -> None:
         np.testing.assert_allclose(mo.omega[0], w, atol=1e-12)
         np.testing.assert_allclose(mo.centre[0], [0.5, -1.0, 1.0], atol=1e-12)
         np.testing.assert_allclose(mo.contact[:, 2], 0, atol=1e-12)
-        # a homogeneous ball: ω constant in space (Routh 1905, art. 222)
+        # a homogeneous ball: ω constant in space (Routh 1905)
         np.testing.assert_allclose(mo.R[1] @ mo.omega[1], R0 @ w, atol=1e-9)
 
 

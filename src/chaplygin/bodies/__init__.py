@@ -10,20 +10,29 @@ from __future__ import annotations
 
 from .builder import RollingBody, rolling_body
 from .kinematics import Motion, initial_state, motion
-from .shapes import Disk, Ellipsoid, Paraboloid, Revolution, Shape, Sphere, SupportFunction, Torus
+from .shapes import (
+    Disk,
+    Ellipsoid,
+    Paraboloid,
+    Revolution,
+    Shape,
+    Sphere,
+    SupportFunction,
+    Torus,
+)
 
 __all__ = [
-    "Shape",
-    "Sphere",
     "Disk",
-    "Torus",
     "Ellipsoid",
+    "Motion",
     "Paraboloid",
     "Revolution",
-    "SupportFunction",
     "RollingBody",
-    "rolling_body",
+    "Shape",
+    "Sphere",
+    "SupportFunction",
+    "Torus",
     "initial_state",
     "motion",
-    "Motion",
+    "rolling_body",
 ]

@@ -34,7 +34,7 @@ from ..errors import SystemDefinitionError
 from ..system import System
 from .shapes import Shape
 
-__all__ = ["RollingBody", "rolling_body", "ANGLES"]
+__all__ = ["ANGLES", "RollingBody", "rolling_body"]
 
 #: angle conventions: (axis of the third rotation, fixed rotation R_0)
 ANGLES: dict[str, tuple[int, sp.Matrix]] = {}
@@ -95,9 +95,9 @@ def _inertia(value: Any) -> sp.Matrix:
     rows = list(rows)
     if len(rows) == 3 and all(not isinstance(r, (Sequence, np.ndarray)) or isinstance(r, str) for r in rows):
         moments = [_positive(r, f"inertia[{k}]") for k, r in enumerate(rows)]
-        I = sp.diag(*moments)  # noqa: E741
+        I = sp.diag(*moments)
     elif len(rows) == 3 and all(isinstance(r, (Sequence, np.ndarray)) and len(r) == 3 for r in rows):
-        I = sp.Matrix([[_scalar(v, f"inertia[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(rows)])  # noqa: E741
+        I = sp.Matrix([[_scalar(v, f"inertia[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(rows)])
         for i in range(3):
             for j in range(i):
                 if sp.simplify(I[i, j] - I[j, i]) != 0:
@@ -208,7 +208,7 @@ def rolling_body(
     if convention not in ANGLES:
         raise SystemDefinitionError(f"angles={convention!r}: expected one of {', '.join(map(repr, ANGLES))}.")
     m = _positive(mass, "mass")
-    I = _inertia(inertia)  # noqa: E741
+    I = _inertia(inertia)
     gravity = sp.Symbol("g", positive=True) if g is None else _positive(g, "g")
     if isinstance(center_of_mass, (str, sp.Basic)) or not isinstance(center_of_mass, (Sequence, np.ndarray)) or len(center_of_mass) != 3:
         raise SystemDefinitionError("center_of_mass: expected three coordinates (x, y, z) in the shape's axes.")
@@ -222,7 +222,7 @@ def rolling_body(
             )
 
     psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
-    d = lambda q: q.diff(TIME)  # noqa: E731
+    d = lambda q: q.diff(TIME)
     third, R0 = ANGLES[convention]
     R3 = _rot(third, phi)
     tilt = _rot(0, theta) * R3 * R0

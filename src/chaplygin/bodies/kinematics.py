@@ -12,7 +12,7 @@ from .._symbols import TIME
 from ..errors import InputError
 from .builder import ANGLES, RollingBody
 
-__all__ = ["initial_state", "motion", "Motion"]
+__all__ = ["Motion", "initial_state", "motion"]
 
 
 class Motion(NamedTuple):

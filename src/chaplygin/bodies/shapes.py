@@ -3,7 +3,7 @@
 A convex body ``K`` is described by its **support function** ``h(u) = max_{p∈K} p·u``
 (homogeneous of degree one in ``u``). The point of ``K`` furthest in the direction ``u`` is
 the gradient ``∇h(u)`` (Schneider, *Convex Bodies: The Brunn–Minkowski Theory*, 2nd ed., 2014,
-Cor. 1.7.3). A body resting on the plane ``z = 0`` touches it where its outward normal points
+§1.7). A body resting on the plane ``z = 0`` touches it where its outward normal points
 down, so with ``u`` the downward vertical written in body axes the contact point is ``∇h(u)``
 and the height of the reference point above the plane is ``h(u)``. Every shape here gives
 ``h`` and ``∇h`` in closed form; :class:`SupportFunction` takes any ``h``.
@@ -23,14 +23,14 @@ import sympy as sp
 from ..errors import SystemDefinitionError
 
 __all__ = [
-    "Shape",
-    "Sphere",
     "Disk",
-    "Torus",
     "Ellipsoid",
     "Paraboloid",
     "Revolution",
+    "Shape",
+    "Sphere",
     "SupportFunction",
+    "Torus",
 ]
 
 Vector = sp.Matrix
@@ -229,7 +229,7 @@ class Revolution(Shape):
     expressions, or a ``sympy.Lambda``): the distance from the origin (on the axis) to the
     tangent plane whose outward normal makes the angle ``α`` with the downward axis ``−z``
     (``α = 0``: the bottom pole, ``α = π``: the top). This is how Chaplygin (1897) and Routh
-    (1905, art. 240) describe the body: ``p`` is the height of the origin above the plane when
+    (1905) describe the body: ``p`` is the height of the origin above the plane when
     the axis is tilted by ``α``. The meridian point that touches is
 
         ρ = p sin α + p′ cos α,     z = −p cos α + p′ sin α ,
