@@ -9,11 +9,10 @@ import re
 import numpy as np
 import pytest
 import sympy as sp
-from randomsystems import matrix, random_state
 from sympy.physics.mechanics import dynamicsymbols
 
 import chaplygin
-from chaplygin import InputError, SystemDefinitionError, examples
+from chaplygin import InputError, SystemDefinitionError, examples, simulate
 from chaplygin.bodies import (
     Disk,
     Ellipsoid,
@@ -26,6 +25,7 @@ from chaplygin.bodies import (
     motion,
     rolling_body,
 )
+from randomsystems import matrix, random_state
 
 t = dynamicsymbols._t
 
@@ -121,7 +121,7 @@ def test_routh_sphere_keeps_energy_jellett_and_routh() -> None:
     r, a, m, A, C = 1.0, 0.3, 1.0, 0.4, 0.6
     body = rolling_body(Sphere(r), mass=m, inertia=[A, A, C], center_of_mass=(0, 0, -a), g=9.81)
     R0 = rot("x", 0.5) @ rot("y", 0.2)
-    run = body.simulate("chaplygin", 10.0, initial_state(body, R=R0, omega=[1.0, -0.5, 4.0]), {}, samples=201)
+    run = simulate(body, "chaplygin", 10.0, initial_state(body, R=R0, omega=[1.0, -0.5, 4.0]), {}, samples=201)
     assert run.success
     mo = motion(body, run)
     gamma = mo.R[:, 2, :]
@@ -158,7 +158,7 @@ def rattleback() -> chaplygin.System:
 
 def _vertical_spin(body, spin: float, t_end: float):
     start = initial_state(body, R=rot("x", 0.01) @ rot("y", 0.01), omega=[0.0, 0.0, spin])
-    run = body.simulate("chaplygin", t_end, start, {}, samples=int(40 * t_end) + 1)
+    run = simulate(body, "chaplygin", t_end, start, {}, samples=int(40 * t_end) + 1)
     mo = motion(body, run)
     return run, np.einsum("kij,kj->ki", mo.R, mo.omega)[:, 2]
 
@@ -237,7 +237,7 @@ def test_initial_state_round_trip_in_every_convention() -> None:
     for angles in ("cardan", "edge", "euler"):
         body = rolling_body(Sphere(1), mass=1, inertia=[1, 1, 1], angles=angles, g=1)
         start = initial_state(body, R=R0, omega=w, position=(0.5, -1.0))
-        run = body.simulate("chaplygin", 0.1, start, {}, samples=2)
+        run = simulate(body, "chaplygin", 0.1, start, {}, samples=2)
         mo = motion(body, run)
         np.testing.assert_allclose(mo.R[0], R0, atol=1e-12)
         np.testing.assert_allclose(mo.omega[0], w, atol=1e-12)

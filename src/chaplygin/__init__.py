@@ -24,6 +24,18 @@ if TYPE_CHECKING:
         classify,
         compare_models,
     )
+    from chaplygin.bodies import (
+        Disk,
+        Ellipsoid,
+        Paraboloid,
+        Revolution,
+        Sphere,
+        SupportFunction,
+        Torus,
+        initial_state,
+        motion,
+        rolling_body,
+    )
     from chaplygin.core.system import System
     from chaplygin.errors import (
         ChaplyginError,
@@ -44,6 +56,9 @@ if TYPE_CHECKING:
 _HOME = {
     "examples": "chaplygin.examples",
     "System": "chaplygin.core.system",
+    **{name: "chaplygin.bodies" for name in (
+        "Sphere", "Disk", "Torus", "Ellipsoid", "Paraboloid", "Revolution", "SupportFunction",
+        "rolling_body", "initial_state", "motion")},
     "Equations": "chaplygin.models.equations",
     "IntegrabilityReport": "chaplygin.analysis.integrability",
     "EquivalenceReport": "chaplygin.analysis.equivalence",

@@ -8,9 +8,9 @@ between rotations/angular velocities and its coordinates. See ``docs/bodies.md``
 
 from __future__ import annotations
 
-from .builder import RollingBody, rolling_body
-from .kinematics import Motion, initial_state, motion
-from .shapes import (
+from chaplygin.bodies.builder import RollingBody, rolling_body
+from chaplygin.bodies.kinematics import Motion, initial_state, motion
+from chaplygin.bodies.shapes import (
     Disk,
     Ellipsoid,
     Paraboloid,

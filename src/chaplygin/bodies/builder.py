@@ -29,10 +29,10 @@ import numpy as np
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
-from .._symbols import TIME
-from ..errors import SystemDefinitionError
-from ..system import System
-from .shapes import Shape
+from chaplygin.bodies.shapes import Shape
+from chaplygin.core._symbols import TIME
+from chaplygin.core.system import System
+from chaplygin.errors import SystemDefinitionError
 
 __all__ = ["ANGLES", "RollingBody", "rolling_body"]
 
@@ -109,15 +109,15 @@ def _inertia(value: Any) -> sp.Matrix:
             "inertia: expected three principal moments (A, B, C) or a symmetric 3 x 3 tensor about the centre of mass."
         )
     if not I.free_symbols:
-        moments = np.linalg.eigvalsh(np.array(I.tolist(), dtype=float))
-        if moments[0] <= 0:
+        principal = np.linalg.eigvalsh(np.array(I.tolist(), dtype=float))
+        if principal[0] <= 0:
             raise SystemDefinitionError(
-                f"inertia: not positive definite (principal moments {np.round(moments, 12).tolist()}); a rigid body "
+                f"inertia: not positive definite (principal moments {np.round(principal, 12).tolist()}); a rigid body "
                 "has positive principal moments."
             )
-        if moments[2] > moments[0] + moments[1] + 1e-12 * moments[2]:
+        if principal[2] > principal[0] + principal[1] + 1e-12 * principal[2]:
             raise SystemDefinitionError(
-                f"inertia: the principal moments {np.round(moments, 12).tolist()} violate the triangle inequality "
+                f"inertia: the principal moments {np.round(principal, 12).tolist()} violate the triangle inequality "
                 "(each must be at most the sum of the other two, as for every mass distribution)."
             )
     return I

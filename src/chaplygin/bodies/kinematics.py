@@ -8,9 +8,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import sympy as sp
 
-from .._symbols import TIME
-from ..errors import InputError
-from .builder import ANGLES, RollingBody
+from chaplygin.bodies.builder import ANGLES, RollingBody
+from chaplygin.core._symbols import TIME
+from chaplygin.errors import InputError
 
 __all__ = ["Motion", "initial_state", "motion"]
 
@@ -132,7 +132,7 @@ def motion(system: RollingBody, trajectory: Any, parameters: Mapping[Any, float]
     ----------
     system : RollingBody
     trajectory : Trajectory
-        From ``system.simulate(...)``; its parameters are used unless ``parameters`` is given.
+        From ``chaplygin.simulate(system, ...)``; its parameters are used unless ``parameters`` is given.
     parameters : mapping, optional
 
     Returns

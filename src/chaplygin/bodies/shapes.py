@@ -15,12 +15,12 @@ positive symbol ``r``).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
 import sympy as sp
 
-from ..errors import SystemDefinitionError
+from chaplygin.errors import SystemDefinitionError
 
 __all__ = [
     "Disk",
@@ -33,7 +33,8 @@ __all__ = [
     "Torus",
 ]
 
-Vector = sp.Matrix
+#: a 3-vector: a SymPy column Matrix (sympy has no type information, so Any to mypy)
+Vector: TypeAlias = Any
 
 
 def _length(value: Any, key: str) -> sp.Expr:
