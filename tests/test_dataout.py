@@ -19,6 +19,7 @@ from chaplygin.numeric.codegen import Layout
 from chaplygin.numeric.comparison import COINCIDE, coincide
 from chaplygin.numeric.ensemble import Ensemble
 from chaplygin.numeric.simulate import Trajectory
+from chaplygin import simulate
 
 matplotlib.use("Agg")
 
@@ -34,7 +35,7 @@ def knife() -> Any:
 @pytest.fixture(scope="module")
 def run(knife: Any) -> Trajectory:
     """A Chetaev run: coordinates, velocities, invariants and a multiplier λ."""
-    return knife.simulate("chetaev", 1.0, KNIFE_START, KNIFE_PARAMETERS, samples=11, backend="numpy")
+    return simulate(knife, "chetaev", 1.0, KNIFE_START, KNIFE_PARAMETERS, samples=11, backend="numpy")
 
 
 def _axes() -> Any:

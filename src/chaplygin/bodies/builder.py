@@ -222,7 +222,10 @@ def rolling_body(
             )
 
     psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
-    d = lambda q: q.diff(TIME)
+
+    def d(q: Any) -> Any:
+        return q.diff(TIME)
+
     third, R0 = ANGLES[convention]
     R3 = _rot(third, phi)
     tilt = _rot(0, theta) * R3 * R0
