@@ -17,6 +17,7 @@ import numpy as np
 import sympy as sp
 from sympy.physics.vector.printing import vsstrrepr
 
+from chaplygin import _html
 from chaplygin.core._sampling import StateSampler, compile_function, parameter_values
 from chaplygin.core._symbols import TIME, functions_of_time, total_derivative
 from chaplygin.errors import ChaplyginError
@@ -72,6 +73,14 @@ class EquivalenceReport:
         if not self.equivalent and self.worst:
             text += f"; worst at {self.worst['acceleration']}"
         return text
+
+    def _repr_html_(self) -> str:
+        rows = [("verdict", "equivalent" if self.equivalent else "NOT equivalent"),
+                ("method", self.method), ("largest relative difference", f"{self.max_residual:.3g}"),
+                ("samples", str(self.samples)), ("tolerance", f"{self.tolerance:g}")]
+        if not self.equivalent and self.worst:
+            rows.append(("worst at", str(self.worst.get("acceleration", ""))))
+        return _html.fields((label, _html.escape(value)) for label, value in rows)
 
 
 class _Linear:

@@ -26,8 +26,9 @@ from itertools import combinations
 from typing import TYPE_CHECKING
 
 import sympy as sp
-from sympy.physics.vector.printing import vsstrrepr
+from sympy.physics.vector.printing import vlatex, vsstrrepr
 
+from chaplygin import _html
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import TIME, simplify_small
 from chaplygin.models.reduced import Reduction
@@ -68,6 +69,14 @@ class Condition:
             text += f" — {label} = {vsstrrepr(expr)}{more}"
         return text + (f". {self.note}" if self.note else "")
 
+    def _html_row(self) -> list[str]:
+        first = ""
+        if self.failures:
+            label, expr = self.failures[0]
+            more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
+            first = f"{_html.escape(label)} = {_html.math(vlatex(expr))}{_html.escape(more)}"
+        return [_html.escape(self.name), "holds" if self.holds else "fails", first, _html.escape(self.note)]
+
 
 @dataclass
 class IntegrabilityReport:
@@ -103,6 +112,16 @@ class IntegrabilityReport:
             else:
                 lines.append("  No finite relation was found in closed form.")
         return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        head = "integrable (holonomic)" if self.integrable else "not integrable (nonholonomic)"
+        conditions = (self.condition_28, self.condition_33, self.frobenius)
+        text = _html.heading(f"Constraints of {self.system_name}: {head}, by the Frobenius test.")
+        text += _html.table([c._html_row() for c in conditions], ["condition", "verdict", "first failure", "note"])
+        if self.relations:
+            text += "<p>Finite relations (each = constant): "
+            text += ", ".join(_html.math(vlatex(r)) for r in self.relations) + "</p>"
+        return text
 
 
 def _name(system: System, i: int) -> str:

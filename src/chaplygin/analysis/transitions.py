@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
-from sympy.physics.vector.printing import vsstrrepr
+from sympy.physics.vector.printing import vlatex, vsstrrepr
 
+from chaplygin import _html
 from chaplygin.analysis.equivalence import EquationsLike, _Linear, _States
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import simplify_small
@@ -74,6 +75,13 @@ class ModelComparison:
         if self.verdict == "differ":
             lines += [f"  {vsstrrepr(q)}: {vsstrrepr(d)}" for q, d in self.defect.items()]
         return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        rows = [(_html.math(vlatex(q)), _html.math(vlatex(d))) for q, d in self.defect.items()]
+        text = _html.heading(str(self).splitlines()[0])
+        if self.verdict == "differ":
+            text += _html.table(rows, ["coordinate", "Lindelöf defect (15) − (22)"])
+        return text
 
 
 def _require_family(system: System) -> None:
@@ -135,6 +143,11 @@ class Classification:
         }[self.verdict]
         residuals = ", ".join(f"{k}: {v:.2g}" for k, v in self.residuals.items())
         return f"{text}{'; ' + self.note if self.note else ''} (relative differences: {residuals})"
+
+    def _repr_html_(self) -> str:
+        rows = [(_html.escape(k), f"{v:.2g}") for k, v in self.residuals.items()]
+        return (_html.heading(f"Classification: {self.verdict}") + f"<p>{_html.escape(str(self))}</p>"
+                + _html.table(rows, ["candidate model", "relative difference"]))
 
 
 def classify(

@@ -779,6 +779,23 @@ class System:
         """Integrability of the constraints: conditions (28), (33) and Frobenius."""
         return operation("analyze")(self)
 
+    def _repr_html_(self) -> str:
+        from sympy.physics.vector.printing import vlatex
+
+        from chaplygin import _html
+
+        def listed(items: Iterable[Any]) -> str:
+            return ", ".join(_html.math(vlatex(x)) for x in items) or "none"
+
+        constraints = "<br/>".join(_html.math(vlatex(sp.Eq(k, v))) for k, v in self.constraints.items())
+        return _html.heading(f"System {self.name}") + _html.fields([
+            ("coordinates", listed(self.coordinates)),
+            ("dependent", listed(self.dependent)),
+            ("parameters", listed(self.parameters)),
+            ("constraints", constraints or "none"),
+            ("kinetic energy", _html.math("T = " + vlatex(self.kinetic_energy))),
+        ])
+
     def __repr__(self) -> str:
         names = ", ".join(q.func.__name__ for q in self.coordinates)
         deps = ", ".join(q.func.__name__ for q in self.dependent)

@@ -204,7 +204,7 @@ class Equations:
 
     # -------------------------------------------------------------- printing
     def __str__(self) -> str:
-        lines = [f"{self.title} - {self.system.name}"]
+        lines = [self._heading()]
         lines += [f"  {vsstrrepr(e.lhs)} = 0" for e in self.equations]
         return "\n".join(lines)
 
@@ -219,7 +219,7 @@ class Equations:
             body = "\n\n".join(printer.doprint(e) for e in self.equations)
         finally:
             pretty_use_unicode(previous)
-        return f"{self.title} - {self.system.name}\n\n{body}"
+        return f"{self._heading()}\n\n{body}"
 
     def latex(self) -> str:
         """LaTeX of the equations, with dots for time derivatives."""
@@ -229,7 +229,18 @@ class Equations:
         return r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"
 
     def _repr_latex_(self) -> str:
-        return f"$\\displaystyle {self.latex()}$"
+        from chaplygin import _html
+
+        title = _html.latex_text(self._heading())
+        return f"$\\displaystyle \\begin{{array}}{{l}} {title} \\\\ {self.latex()} \\end{{array}}$"
+
+    def _repr_html_(self) -> str:
+        from chaplygin import _html
+
+        return _html.heading(self._heading()) + _html.math(f"\\displaystyle {self.latex()}", display=True)
+
+    def _heading(self) -> str:
+        return f"{self.title} - {self.system.name}"
 
     def __repr__(self) -> str:
         return f"<Equations {self.model}/{self.form} of {self.system.name}: {len(self._residuals)} equations>"

@@ -85,6 +85,14 @@ class Comparison:
         diff = np.array([other[c][:k] - ref[c][:k] for c in names])
         return np.sqrt(np.sum(diff**2, axis=0))
 
+    def _peak(self, label: str) -> tuple[float, float]:
+        """The largest distance of ``label`` from the reference and when (NaN without samples)."""
+        d = self.distance(label)
+        if not len(d):
+            return float("nan"), float("nan")
+        k = int(np.argmax(d))
+        return float(d[k]), float(self.trajectories[label].t[k])
+
     def summary(self) -> str:
         """A table: largest distance from the reference (and when), energy drift, residual."""
         what = f"path ({', '.join(self.path)})" if self.path else "coordinates"
@@ -93,10 +101,9 @@ class Comparison:
             f"  {'model':<22} {'max distance of ' + what:>30} {'at t':>9} {'energy drift':>13} {'max residual':>13}  status",
         ]
         for label, tr in self.trajectories.items():
-            d = self.distance(label)
-            k = int(np.argmax(d)) if len(d) else 0
+            peak, when = self._peak(label)
             lines.append(
-                f"  {label:<22} {d[k] if len(d) else float('nan'):>30.6g} {tr.t[k] if len(d) else float('nan'):>9.4g} "
+                f"  {label:<22} {peak:>30.6g} {when:>9.4g} "
                 f"{tr.energy_drift():>13.3g} {np.max(tr.constraint_residual, initial=0.0):>13.3g}  {tr.status}"
             )
         lines += [f"  note: {note}" for note in self.notes]
@@ -104,6 +111,21 @@ class Comparison:
 
     def __str__(self) -> str:
         return self.summary()
+
+    def _repr_html_(self) -> str:
+        from chaplygin import _html
+
+        what = f"path ({', '.join(self.path)})" if self.path else "coordinates"
+        rows = []
+        for label, tr in self.trajectories.items():
+            peak, when = self._peak(label)
+            cells = (label, f"{peak:.6g}", f"{when:.4g}", f"{tr.energy_drift():.3g}",
+                     f"{np.max(tr.constraint_residual, initial=0.0):.3g}", tr.status)
+            rows.append([_html.escape(c) for c in cells])
+        header = ["model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"]
+        text = _html.heading(f"{self.system_name}: models compared with {self.reference}")
+        text += _html.table(rows, header) + "".join(f"<p>note: {_html.escape(n)}</p>" for n in self.notes)
+        return text + (_html.png(self.figure("paths"), alt="paths") if self.path else "")
 
     # ------------------------------------------------------------------ figures
     def figure(self, kind: str = "paths") -> Figure:

@@ -177,6 +177,23 @@ class Trajectory:
             f"{len(self.t)} samples to t = {self.t[-1] if len(self.t) else float('nan'):g}>"
         )
 
+    def _repr_html_(self) -> str:
+        from matplotlib.figure import Figure
+
+        from chaplygin import _html
+
+        span = f"{self.t[0]:g} … {self.t[-1]:g}" if len(self.t) else "none"
+        residual = float(np.max(self.constraint_residual, initial=0.0))
+        rows = [("model", f"{self.model}/{self.form}"), ("backend", self.backend),
+                ("status", f"{self.status} {self.message}".strip()), ("t", span),
+                ("samples", str(len(self.t))), ("max energy drift", f"{self.energy_drift():.3g}"),
+                ("max constraint residual", f"{residual:.3g}")]
+        text = _html.fields((label, _html.escape(value)) for label, value in rows)
+        if len(self.t):
+            ax = self.plot("coordinates", ax=Figure(figsize=(5, 3), layout="constrained").add_subplot())
+            text += _html.png(ax.figure, alt=f"{self.model}/{self.form}: coordinates")
+        return text
+
     def to_pandas(self) -> Any:
         """The samples as a ``pandas.DataFrame`` indexed by ``t``.
 
