@@ -29,6 +29,20 @@
 never evaluated as code; every problem is a :class:`SystemFileError` that names
 the key, shows the text with a caret and says what is allowed.  The format is
 described in ``docs/system-files.md``.
+
+A rolling rigid body can be given by its shape instead, in a ``[body]`` table (no
+``coordinates``, ``[energy]``, ``[forces]`` or ``[constraints]``); it is built by
+:func:`chaplygin.bodies.rolling_body`::
+
+    name = "Routh's sphere"
+    [body]
+    shape = "sphere"              # sphere, disk, torus, ellipsoid, paraboloid
+    radius = "r"                  # the shape's keys (see BODY_SHAPES)
+    mass = "m"
+    inertia = ["A", "A", "C"]     # principal moments, or a 3 x 3 list of lists
+    center_of_mass = [0, 0, "-e"] # optional, default the shape's origin
+    angles = "euler"              # optional: cardan, edge or euler
+    g = "g"                       # optional, default the parameter g
 """
 
 from __future__ import annotations
@@ -48,6 +62,8 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 from sympy.printing.str import StrPrinter
 
+from chaplygin.bodies import Disk, Ellipsoid, Paraboloid, Shape, Sphere, Torus, rolling_body
+from chaplygin.bodies.builder import ANGLES
 from chaplygin.core._symbols import TIME
 from chaplygin.core.system import System
 from chaplygin.errors import SystemDefinitionError
@@ -68,6 +84,8 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = [
+    "BODY_KEYS",
+    "BODY_SHAPES",
     "MAX_COORDINATES",
     "MAX_FILE_SIZE",
     "MAX_PARAMETERS",
@@ -91,7 +109,20 @@ MAX_PARAMETERS = 256
 MAX_SYSTEM_NAME_LENGTH = 200
 
 #: The top-level keys and tables of a system file.
-SECTIONS = ("name", "coordinates", "parameters", "energy", "forces", "constraints", "initial")
+SECTIONS = ("name", "coordinates", "parameters", "energy", "forces", "constraints", "initial", "body")
+#: The shapes of a ``[body]`` table: shape name → (class, its keys, in the constructor's order).
+BODY_SHAPES: dict[str, tuple[type[Shape], tuple[str, ...]]] = {
+    "sphere": (Sphere, ("radius",)),
+    "disk": (Disk, ("radius",)),
+    "torus": (Torus, ("R", "r")),
+    "ellipsoid": (Ellipsoid, ("a", "b", "c")),
+    "paraboloid": (Paraboloid, ("rho1", "rho2")),
+}
+#: The keys of a ``[body]`` table besides the shape's own.
+BODY_KEYS = ("shape", "mass", "inertia", "center_of_mass", "angles", "g")
+#: The coordinates of a system built from a ``[body]`` table (see :func:`chaplygin.bodies.rolling_body`).
+BODY_COORDINATES = ("psi", "theta", "phi", "x", "y")
+_NOT_WITH_BODY = ("coordinates", "energy", "forces", "constraints")
 _ENERGY_KEYS = ("T", "V", "U")
 _IMPLICIT_KEYS = ("implicit", "dependent")
 _FEW_CHOICES = 500  # below this many choices of dependent coordinates, System's own check is quick
@@ -120,6 +151,8 @@ class SystemFile:
         The path it was read from, or ``"<string>"``.
     defaulted : tuple of str
         The keys of :attr:`initial` that ``[initial]`` did not give (set to 0).
+    body : dict or None
+        The ``[body]`` table as read (TOML values), for a system built from a body.
     """
 
     system: System
@@ -128,10 +161,19 @@ class SystemFile:
     name: str
     source: str
     defaulted: tuple[str, ...] = ()
+    body: dict[str, Any] | None = None
 
     def dumps(self) -> str:
-        """This file written back as TOML (see :func:`dumps`)."""
-        return dumps(self.system, self.parameters, self.initial)
+        """This file written back as TOML: its ``[body]`` table if it has one, else as :func:`dumps`."""
+        if self.body is None:
+            return dumps(self.system, self.parameters, self.initial)
+        out = [f"# chaplygin system file: {self.name}", f"name = {_toml_string(self.name)}", "", "[body]"]
+        out += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in self.body.items()]
+        out += ["", "[parameters]"]
+        out += [f"{_toml_key(k)} = {_toml_number(v, f'the parameter {k}')}" for k, v in self.parameters.items()]
+        out += ["", "[initial]"]
+        out += [f"{_toml_key(k)} = {_toml_number(v, f'the initial value of {k}')}" for k, v in self.initial.items()]
+        return "\n".join(out) + "\n"
 
 
 # ---------------------------------------------------------------------------- reading
@@ -273,6 +315,8 @@ class _Reader:
                     allowed="Allowed top-level keys and tables: " + ", ".join(SECTIONS) + ".",
                 )
         name = self.read_name()
+        if "body" in self.data:
+            return self.read_body_file(name)
         coordinates = self.read_coordinates()
         parameters = self.read_parameters(coordinates)
         names = Names.build(parameters, coordinates)
@@ -280,19 +324,122 @@ class _Reader:
         kwargs["forces"] = self.read_forces(names) or None
         constraints, dependent = self.read_constraints(names)
         system = self.build(names, constraints, dependent, name, kwargs)
+        return self.finish(system, parameters, name)
+
+    def finish(self, system: System, parameters: dict[str, float], name: str,
+               body: dict[str, Any] | None = None) -> SystemFile:
         used = {p.name for p in system.parameters}
         unused = [p for p in parameters if p not in used]
         if unused:
             raise self.error(
                 f"{unused[0]} is not used in any expression of the system",
                 _key("parameters", unused[0]),
-                allowed="Every parameter in [parameters] must appear in the energy, forces or constraints; "
-                "remove the unused ones.",
+                allowed="Every parameter in [parameters] must appear in the "
+                + ("[body] table" if body is not None else "energy, forces or constraints")
+                + "; remove the unused ones.",
             )
         initial = self.read_initial(system)
         given = self.table("initial")
         return SystemFile(system, parameters, initial, name, self.source,
-                          tuple(k for k in initial if k not in given))
+                          tuple(k for k in initial if k not in given), body)
+
+    # ------------------------------------------------------------ [body]
+    def read_body_file(self, name: str) -> SystemFile:
+        """A rolling body: ``[body]``, ``[parameters]`` and ``[initial]``, built by ``rolling_body``."""
+        for key in _NOT_WITH_BODY:
+            if key in self.data:
+                raise self.error(
+                    f"{key} cannot be given with a [body] table: the body's coordinates, energy and "
+                    "constraints are built from its shape", _key(None, key),
+                    allowed="A [body] file has name, [body], [parameters] and [initial]; remove "
+                    f"{key}, or remove [body] and describe the system by hand.",
+                )
+        body = self.table("body")
+        parameters = self.read_parameters(list(BODY_COORDINATES))
+        names = Names.build(parameters, time=False)
+        shape_name = body.get("shape")
+        if not isinstance(shape_name, str) or shape_name not in BODY_SHAPES:
+            got = "missing" if shape_name is None else f"{_describe(shape_name)}, not a known shape"
+            raise self.error(f"shape is {got}", "[body] shape", allowed=_SECTION_HELP["body"])
+        cls, shape_keys = BODY_SHAPES[shape_name]
+        allowed_keys = shape_keys + BODY_KEYS
+        for key in body:
+            if key not in allowed_keys:
+                raise self.error(
+                    _unknown(key, allowed_keys, f"[body] (shape {shape_name})"), _key("body", key),
+                    allowed=f"A {shape_name} has the keys " + ", ".join(shape_keys) + "; every shape has "
+                    + ", ".join(BODY_KEYS) + " (center_of_mass, angles and g optional).",
+                )
+        for key in (*shape_keys, "mass", "inertia"):
+            if key not in body:
+                raise self.error(
+                    f"{key} is missing", "[body]",
+                    allowed=f"A {shape_name} needs " + ", ".join(shape_keys) + ", mass and inertia.",
+                )
+        values: dict[str, Any] = {k: self.expression(body[k], _key("body", k), names) for k in (*shape_keys, "mass")}
+        values["inertia"] = self.body_list(body["inertia"], "inertia", names, nested=True)
+        values["center_of_mass"] = (
+            self.body_list(body["center_of_mass"], "center_of_mass", names) if "center_of_mass" in body else [0, 0, 0]
+        )
+        angles = body.get("angles")
+        if angles is not None and angles not in ANGLES:
+            raise self.error(
+                f"angles = {_describe(angles)} is not an angle convention", "[body] angles",
+                allowed="angles is one of " + ", ".join(map(json.dumps, ANGLES))
+                + " (default: \"edge\" for a disk or torus, else \"cardan\").",
+            )
+        if "g" in body:
+            values["g"] = self.expression(body["g"], _key("body", "g"), names)
+        elif "g" in parameters:
+            values["g"] = names.parameters["g"]
+        else:
+            raise self.error(
+                "the gravity g is not given", "[body] g",
+                allowed="Give g in [parameters] (g = 9.81), or a value in [body] (g = 9.81 or g = \"g0\").",
+            )
+        system = self.build_body(cls, shape_keys, values, angles, name)
+        numeric = {names.parameters[k]: sp.nsimplify(v) for k, v in parameters.items()}
+        if system.parameters and numeric:  # the checks of rolling_body, at the [parameters] values
+            def at_defaults(v: Any) -> Any:
+                return [at_defaults(e) for e in v] if isinstance(v, list) else sp.S(v).xreplace(numeric)
+            self.build_body(cls, shape_keys, {k: at_defaults(v) for k, v in values.items()}, angles, name,
+                            " (with the values of [parameters])")
+        return self.finish(system, parameters, name, dict(body))
+
+    def body_list(self, value: Any, key: str, names: Names, nested: bool = False) -> list[Any]:
+        what = ("three principal moments [\"A\", \"B\", \"C\"] or a symmetric 3 x 3 list of lists "
+                "(about the centre of mass, body axes)" if nested else
+                "three coordinates [x, y, z] in the shape's axes, from its centre (a paraboloid: its vertex)")
+        if not isinstance(value, list) or len(value) != 3:
+            got = f"a list of {len(value)}" if isinstance(value, list) else _describe(value)
+            raise self.error(f"{key} must be a list of three, got {got}", _key("body", key),
+                             allowed=f"{key} is {what}.")
+        out: list[Any] = []
+        for i, item in enumerate(value):
+            if nested and isinstance(item, list):
+                if len(item) != 3 or any(isinstance(v, list) for v in item):
+                    raise self.error(f"{key}[{i}] must be a row of three, got {_describe(item)}",
+                                     f"[body] {key}[{i}]", allowed=f"{key} is {what}.")
+                out.append([self.expression(v, f"[body] {key}[{i}][{j}]", names) for j, v in enumerate(item)])
+            else:
+                out.append(self.expression(item, f"[body] {key}[{i}]", names))
+        if nested and any(isinstance(v, list) for v in out) and not all(isinstance(v, list) for v in out):
+            raise self.error(f"{key} mixes numbers and rows", _key("body", key), allowed=f"{key} is {what}.")
+        return out
+
+    def build_body(self, cls: type[Shape], shape_keys: tuple[str, ...], values: dict[str, Any],
+                   angles: str | None, name: str, note: str = "") -> System:
+        try:
+            shape = cls(*(values[k] for k in shape_keys))
+            return rolling_body(shape, mass=values["mass"], inertia=values["inertia"],
+                                center_of_mass=values["center_of_mass"], g=values["g"], name=name, angles=angles)
+        except SystemDefinitionError as exc:
+            message = str(exc)
+            m = re.match(r"[A-Za-z_0-9]+(\[\d\](\[\d\])?)?", message)
+            key = m.group(0) if m and m.group(0).split("[")[0] in (*shape_keys, *BODY_KEYS) else None
+            message = message.removeprefix(f"{key}: ") if key else message
+            raise self.error(message.rstrip(".") + note, f"[body] {key}" if key else "[body]",
+                             allowed=_SECTION_HELP["body"]) from None
 
     # ------------------------------------------------------------ sections
     def read_name(self) -> str:
@@ -613,6 +760,10 @@ _SECTION_HELP = {
     "constraints": "[constraints] has either solved constraints, \"y'\" = \"tan(phi)*x'\" (one per dependent "
     "velocity), or implicit = [\"sin(phi)*x' - cos(phi)*y'\"] (each = 0) with dependent = [\"y\"].",
     "initial": "[initial] gives coordinates and independent velocities: theta = 1.0, \"theta'\" = 0.4.",
+    "body": "[body] has shape = " + " | ".join(map(json.dumps, BODY_SHAPES)) + " with its keys ("
+    + "; ".join(f"{k}: {', '.join(v[1])}" for k, v in BODY_SHAPES.items())
+    + "), mass, inertia = [A, B, C] or a 3 x 3 list, and optionally center_of_mass = [x, y, z], "
+    "angles = \"cardan\" | \"edge\" | \"euler\" and g (default: the parameter g).",
 }
 
 
@@ -721,6 +872,15 @@ def _toml_number(value: float, what: str) -> str:
     if not math.isfinite(number):
         raise SystemFileError(f"cannot write {what}: {number} is not a finite number")
     return repr(number)
+
+
+def _toml_value(value: Any) -> str:
+    """A ``[body]`` value (string, number or list of them) in TOML."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return _toml_string(value)
+    return repr(value) if isinstance(value, int) else _toml_number(value, "a [body] value")
 
 
 def _key_name(system: System, key: Any) -> str:
