@@ -40,10 +40,10 @@ if "--src" in sys.argv[:-1]:  # time another checkout of chaplygin (e.g. a git w
     _SRC = Path(sys.argv[sys.argv.index("--src") + 1]).resolve()
 sys.path.insert(0, str(_SRC))  # this working tree by default, also when not installed
 
-import peer_rolling_disk  # noqa: E402  (this folder)
+import peer_rolling_disk
 
-import chaplygin  # noqa: E402
-from chaplygin import examples  # noqa: E402
+import chaplygin
+from chaplygin import examples
 
 
 # --------------------------------------------------------------------------- tasks

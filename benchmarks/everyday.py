@@ -49,13 +49,13 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))  # this working tree, also when not installed
 sys.path.insert(0, str(ROOT / "tests"))  # the random systems of the property tests
 
-import peer_rolling_disk  # noqa: E402  (this folder)
+import peer_rolling_disk
 
 from chaplygin import (
-    examples,  # noqa: E402
+    examples,
     simulate,
 )
-from chaplygin.io.files import load  # noqa: E402
+from chaplygin.io.files import load
 
 PYTHON = sys.executable
 CLI = [PYTHON, "-m", "chaplygin"]
@@ -86,7 +86,7 @@ def ops(exprs: object) -> int:
 
 # --------------------------------------------------------------------------- 1. symbolic
 def part_symbolic(repeat: int) -> None:
-    say("1. Solved accelerations (in process; best of %d, SymPy cache cleared each time)" % repeat)
+    say(f"1. Solved accelerations (in process; best of {repeat}, SymPy cache cleared each time)")
     peer_rolling_disk.kane_disk(rhs=True), examples.rolling_disk().equations("chetaev").accelerations  # imports
     kane_t, kane = best(lambda: peer_rolling_disk.kane_disk(rhs=True)[0].rhs(), repeat)
     RESULTS["kane rhs"] = kane_t
@@ -111,6 +111,7 @@ def part_symbolic(repeat: int) -> None:
         say(f"   {'unicycle + pendulum (5 coordinates), ' + model + ', load+derive+print':58s} {t:7.3f} s  ops {ops(acc):6d}")
 
     from hypothesis import HealthCheck, given, settings
+
     from randomsystems import systems
 
     specs: list = []
@@ -128,7 +129,7 @@ def part_symbolic(repeat: int) -> None:
         t, _ = best(lambda: (lambda e: (e.equations, e.accelerations))(spec.system.equations("voronets")), 1)
         times.append(t)
     RESULTS["voronets random max"] = max(times)
-    say(f"   {'Voronets, %d random 4-coordinate systems: median / max' % len(times):58s} "
+    say(f"   {f'Voronets, {len(times)} random 4-coordinate systems: median / max':58s} "
         f"{statistics.median(times):7.3f} / {max(times):.3f} s")
 
 

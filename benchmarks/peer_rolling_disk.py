@@ -21,13 +21,13 @@ import time
 
 _start = time.perf_counter()
 
-import argparse  # noqa: E402
-import json  # noqa: E402
+import argparse
+import json
 
-import numpy as np  # noqa: E402
-import sympy as sp  # noqa: E402
-from scipy.integrate import solve_ivp  # noqa: E402
-from sympy.physics.mechanics import (  # noqa: E402
+import numpy as np
+import sympy as sp
+from scipy.integrate import solve_ivp
+from sympy.physics.mechanics import (
     KanesMethod,
     Point,
     ReferenceFrame,

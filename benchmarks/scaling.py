@@ -60,19 +60,19 @@ from sympy.core.cache import clear_cache
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from chaplygin import examples  # noqa: E402
-from chaplygin.numeric.codegen import compile_model  # noqa: E402
+from chaplygin import examples
+from chaplygin.numeric.codegen import compile_model
 
 
 class OverBudget(Exception):
     pass
 
 
-def _alarm(signum, frame):  # noqa: ANN001
+def _alarm(signum, frame):
     raise OverBudget
 
 
-def timed(budget: float, fn, *args):  # noqa: ANN001, ANN201
+def timed(budget: float, fn, *args):
     """(seconds, value), or (inf, None) past the budget."""
     signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, budget)
@@ -86,7 +86,7 @@ def timed(budget: float, fn, *args):  # noqa: ANN001, ANN201
     return time.perf_counter() - start, value
 
 
-def per_call(fn, *args, seconds: float = 0.3) -> float:  # noqa: ANN001
+def per_call(fn, *args, seconds: float = 0.3) -> float:
     """µs per call (best of 3 batches)."""
     fn(*args)
     reps, start = 0, time.perf_counter()
@@ -104,7 +104,7 @@ def per_call(fn, *args, seconds: float = 0.3) -> float:  # noqa: ANN001
 
 
 # ---------------------------------------------------------------- KanesMethod
-def kane_chain(n: int):  # noqa: ANN201
+def kane_chain(n: int):
     """The same chain for KanesMethod; returns (KanesMethod, q, u, parameters)."""
     q = me.dynamicsymbols(f"x y theta0:{n + 1}")
     u = me.dynamicsymbols(f"u0:{n + 3}")
@@ -133,24 +133,24 @@ def kane_chain(n: int):  # noqa: ANN201
     return km, q, u, [m, inertia, length]
 
 
-def kane_derive(n: int):  # noqa: ANN201
+def kane_derive(n: int):
     km, q, u, params = kane_chain(n)
     return km.mass_matrix_full, km.forcing_full, q, u, params
 
 
-def kane_codegen(derived):  # noqa: ANN001, ANN201
+def kane_codegen(derived):
     M, F, q, u, params = derived
     args = [*q, *u, *params]
     return sp.lambdify(args, M, cse=True), sp.lambdify(args, F, cse=True), len(q), len(u)
 
 
 # ---------------------------------------------------------------- chaplygin
-def chaplygin_chetaev(system):  # noqa: ANN001, ANN201
+def chaplygin_chetaev(system):
     eqs = system.equations("chetaev")
     return eqs.mass_matrix, eqs.forcing
 
 
-def chaplygin_voronets(system):  # noqa: ANN001, ANN201
+def chaplygin_voronets(system):
     eqs = system.equations("voronets")
     return eqs.mass_matrix, eqs.forcing
 
@@ -206,7 +206,7 @@ def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> d
     return row
 
 
-def fmt(value) -> str:  # noqa: ANN001
+def fmt(value) -> str:
     if value is None:
         return "-"
     if isinstance(value, float) and math.isinf(value):

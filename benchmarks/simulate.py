@@ -167,7 +167,7 @@ def part_rhs(disk, eqs, y0, p) -> None:
     @njit
     def drive_rhs(y, p, calls):
         s = 0.0
-        for i in range(calls):
+        for _i in range(calls):
             y[1] += 1e-12
             s += generated_rhs(0.0, y, p)[6]
         return s
@@ -175,7 +175,7 @@ def part_rhs(disk, eqs, y0, p) -> None:
     @njit
     def drive_eval(y, p, calls, f, M, b, V, O):
         s = 0.0
-        for i in range(calls):
+        for _i in range(calls):
             y[1] += 1e-12
             k_eval(0.0, y, p, f, M, b, V, O)
             s += f[6]

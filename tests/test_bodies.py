@@ -208,7 +208,7 @@ def _growth_chaplygin(body, spin: float) -> float:
     psi, theta, phi = body.independent
     state = [theta, phi, psi.diff(t), theta.diff(t), phi.diff(t)]
     order = [list(eqs.unknowns).index(q.diff(t, 2)) for q in (psi, theta, phi)]
-    f_mf = sp.lambdify(state + [psi], [eqs.mass_matrix, eqs.forcing], "numpy")
+    f_mf = sp.lambdify([*state, psi], [eqs.mass_matrix, eqs.forcing], "numpy")
 
     def f(x: np.ndarray) -> np.ndarray:
         M, F = (np.asarray(v, dtype=float) for v in f_mf(*x, 0.0))

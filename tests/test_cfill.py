@@ -11,13 +11,13 @@ import pytest
 import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from randomsystems import Spec, systems
 
 from chaplygin import examples
 from chaplygin.numeric import _cfill, codegen
 from chaplygin.numeric.codegen import compile_model
 from chaplygin.numeric.ensemble import simulate_ensemble
 from chaplygin.numeric.simulate import simulate
+from randomsystems import Spec, systems
 
 try:
     _cfill.compiler()

@@ -14,12 +14,11 @@ import pytest
 import xarray as xr
 from matplotlib.figure import Figure
 
-from chaplygin import ChaplyginError, compare, examples
+from chaplygin import ChaplyginError, compare, examples, simulate
 from chaplygin.numeric.codegen import Layout
 from chaplygin.numeric.comparison import COINCIDE, coincide
 from chaplygin.numeric.ensemble import Ensemble
 from chaplygin.numeric.simulate import Trajectory
-from chaplygin import simulate
 
 matplotlib.use("Agg")
 

@@ -11,7 +11,6 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from sympy.physics.mechanics import dynamicsymbols
-from test_parser import watched
 
 from chaplygin import System, equivalent, examples, simulate
 from chaplygin.errors import ChaplyginError
@@ -25,6 +24,7 @@ from chaplygin.io.files import (
     loads,
 )
 from chaplygin.io.parser import ParseError
+from test_parser import watched
 
 t = dynamicsymbols._t
 

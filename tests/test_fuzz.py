@@ -18,13 +18,13 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-import fuzzgrammar as fg
 import mpmath
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sympy.core.parameters import global_parameters
 
+import fuzzgrammar as fg
 from chaplygin.io.files import SystemFileError, loads
 from chaplygin.io.parser import ParseError, parse_constant, parse_expression
 

@@ -12,10 +12,10 @@ from sympy.physics.mechanics import (
     dynamicsymbols,
     inertia,
 )
-from test_rolling_disk import Mechanics
 
 from chaplygin import SystemDefinitionError, equivalent, examples
 from chaplygin.io.mechanics import from_mechanics
+from test_rolling_disk import Mechanics
 
 t = dynamicsymbols._t
 

@@ -8,9 +8,9 @@ import pytest
 import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from randomsystems import Spec, matrix, number, random_state, systems, t
 
 from chaplygin import equivalent
+from randomsystems import Spec, matrix, number, random_state, systems, t
 
 
 def multiplier_solution(spec: Spec, values: dict) -> dict:

@@ -18,7 +18,6 @@ import symengine as se
 import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from randomsystems import Spec, matrix, random_state, systems
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
@@ -26,6 +25,7 @@ from chaplygin import System, examples
 from chaplygin.core._native import chetaev_matrices, is_quadratic, linear_split, momenta
 from chaplygin.core._symbols import linear_coefficients
 from chaplygin.numeric._printing import code
+from randomsystems import Spec, matrix, random_state, systems
 
 t = dynamicsymbols._t
 

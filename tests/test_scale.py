@@ -8,11 +8,11 @@ import pytest
 import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from randomsystems import Spec, systems
 
 from chaplygin import ChaplyginError, examples, simulate
 from chaplygin.core._fast import cse
 from chaplygin.numeric.codegen import compile_model
+from randomsystems import Spec, systems
 
 
 def rhs_pair(system, model: str, backend: str = "numpy"):

@@ -21,17 +21,17 @@ pq = pytest.importorskip("pyarrow.parquet")
 distributed = pytest.importorskip("distributed")
 dask = pytest.importorskip("dask")
 
-import cloudpickle  # noqa: E402  (a dependency of distributed)
+import cloudpickle
 
-from chaplygin.apps.cli import app  # noqa: E402
-from chaplygin.apps.sweep import (  # noqa: E402
+from chaplygin.apps.cli import app
+from chaplygin.apps.sweep import (
     SCHEMA,
     SweepOutputExists,
     parse_grid,
     read_results,
     sweep,
 )
-from chaplygin.errors import ChaplyginError  # noqa: E402
+from chaplygin.errors import ChaplyginError
 
 runner = CliRunner()
 DISK = "example:vertical-rolling-disk"

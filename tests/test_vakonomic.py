@@ -11,9 +11,9 @@ import pytest
 import sympy as sp
 from hypothesis import given
 from hypothesis import strategies as st
-from randomsystems import Spec, matrix, number, random_state, systems, t
 
 from chaplygin import ModelError, System, classify, compare_models, equivalent, examples
+from randomsystems import Spec, matrix, number, random_state, systems, t
 
 chaplygin_systems = systems(chaplygin=True, dependent_forces=False)
 
