@@ -36,21 +36,35 @@ from sympy.physics import mechanics as me
 from chaplygin import simulate
 from chaplygin.bodies import Ellipsoid, initial_state, rolling_body
 
-P = {"a": 0.2, "b": 0.03, "c": 0.02, "h": 0.01, "m": 1.0, "A": 2e-4, "B": 1.6e-3, "C": 1.7e-3, "D": 2e-5, "g": 9.81}
+P = {
+    "a": 0.2,
+    "b": 0.03,
+    "c": 0.02,
+    "h": 0.01,
+    "m": 1.0,
+    "A": 2e-4,
+    "B": 1.6e-3,
+    "C": 1.7e-3,
+    "D": 2e-5,
+    "g": 9.81,
+}
 T_END, RTOL, ATOL = 20.0, 1e-10, 1e-12
 
 
 def rot(axis: str, angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
-    return {"x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]),
-            "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])}[axis]
+    return {
+        "x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]),
+        "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+    }[axis]
 
 
 def chaplygin_route() -> tuple[float, float, np.ndarray, float]:
     t0 = time.perf_counter()
     I = [[P["A"], P["D"], 0], [P["D"], P["B"], 0], [0, 0, P["C"]]]
-    body = rolling_body(Ellipsoid(P["a"], P["b"], P["c"]), mass=P["m"], inertia=I,
-                        center_of_mass=(0, 0, -P["h"]), g=P["g"])
+    body = rolling_body(
+        Ellipsoid(P["a"], P["b"], P["c"]), mass=P["m"], inertia=I, center_of_mass=(0, 0, -P["h"]), g=P["g"]
+    )
     start = initial_state(body, R=rot("x", 0.01) @ rot("y", 0.01), omega=[0.0, 0.0, 5.0])
     simulate(body, "chaplygin", 1e-6, start, {}, samples=2)  # derive, generate, compile
     build = time.perf_counter() - t0
@@ -90,7 +104,9 @@ def kane_route() -> tuple[float, float, np.ndarray, float]:
     constraints = [me.dot(contact.vel(N), N.x), me.dot(contact.vel(N), N.y)]
     I = me.inertia(B, *(sp.nsimplify(P[k]) for k in ("A", "B", "C")), sp.nsimplify(P["D"]), 0, 0)
     body = me.RigidBody("body", G, B, m, (I, G))
-    kane = me.KanesMethod(N, q_ind=q, u_ind=u[:3], u_dependent=u[3:], kd_eqs=kd, velocity_constraints=constraints)
+    kane = me.KanesMethod(
+        N, q_ind=q, u_ind=u[:3], u_dependent=u[3:], kd_eqs=kd, velocity_constraints=constraints
+    )
     kane.kanes_equations([body], [(G, -m * g * N.z)])
     f = sp.lambdify([*q, *u], [kane.mass_matrix_full, kane.forcing_full], "numpy", cse=True)
     energy = sp.lambdify([*q, *u], body.kinetic_energy(N) + m * g * zG, "numpy", cse=True)
@@ -101,7 +117,13 @@ def kane_route() -> tuple[float, float, np.ndarray, float]:
         return np.linalg.solve(np.asarray(M, dtype=float), np.asarray(F, dtype=float).reshape(-1))
 
     I_num = [[P["A"], P["D"], 0], [P["D"], P["B"], 0], [0, 0, P["C"]]]
-    ref = rolling_body(Ellipsoid(P["a"], P["b"], P["c"]), mass=P["m"], inertia=I_num, center_of_mass=(0, 0, -P["h"]), g=P["g"])
+    ref = rolling_body(
+        Ellipsoid(P["a"], P["b"], P["c"]),
+        mass=P["m"],
+        inertia=I_num,
+        center_of_mass=(0, 0, -P["h"]),
+        g=P["g"],
+    )
     start = initial_state(ref, R=rot("x", 0.01) @ rot("y", 0.01), omega=[0.0, 0.0, 5.0])
     qd0 = [start["psi'"], start["theta'"], start["phi'"]]
     # dependent speeds from the constraints at the start
@@ -111,7 +133,9 @@ def kane_route() -> tuple[float, float, np.ndarray, float]:
     dep = np.linalg.solve(Ac[:, 3:], -Ac[:, :3] @ np.array(qd0))
     s0 = np.array([start[k] for k in ("psi", "theta", "phi", "x", "y")] + qd0 + list(dep))
     t0 = time.perf_counter()
-    sol = solve_ivp(rhs, (0, T_END), s0, method="DOP853", rtol=RTOL, atol=ATOL, t_eval=np.linspace(0, T_END, 201))
+    sol = solve_ivp(
+        rhs, (0, T_END), s0, method="DOP853", rtol=RTOL, atol=ATOL, t_eval=np.linspace(0, T_END, 201)
+    )
     sim = time.perf_counter() - t0
     e = energy(*sol.y)
     final = np.concatenate([sol.y[:5, -1], sol.y[5:8, -1]])
@@ -120,11 +144,18 @@ def kane_route() -> tuple[float, float, np.ndarray, float]:
 
 def main() -> None:
     cb, cs, cf, cd = chaplygin_route()
-    print(f"chaplygin  build+derive+compile {cb:7.3f} s   simulate 20 s {cs:7.3f} s   energy error {cd:.2e}", flush=True)
+    print(
+        f"chaplygin  build+derive+compile {cb:7.3f} s   simulate 20 s {cs:7.3f} s   energy error {cd:.2e}",
+        flush=True,
+    )
     kb, ks, kf, kdr = kane_route()
-    print(f"KanesMethod build+derive+lambdify {kb:7.3f} s   solve_ivp 20 s {ks:7.3f} s   energy error {kdr:.2e}")
-    print(f"speed-up: build {kb / cb:.1f}x, simulation {ks / cs:.1f}x;  largest difference of the final states "
-          f"{np.max(np.abs(cf - kf)):.2e}")
+    print(
+        f"KanesMethod build+derive+lambdify {kb:7.3f} s   solve_ivp 20 s {ks:7.3f} s   energy error {kdr:.2e}"
+    )
+    print(
+        f"speed-up: build {kb / cb:.1f}x, simulation {ks / cs:.1f}x;  largest difference of the final states "
+        f"{np.max(np.abs(cf - kf)):.2e}"
+    )
 
 
 if __name__ == "__main__":

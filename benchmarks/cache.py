@@ -30,9 +30,12 @@ def wall(args: list[str], env: dict[str, str]) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--targets", nargs="+",
-                    default=["example:rolling-disk:chaplygin", "example:rolling-sphere:chaplygin"],
-                    help="SOURCE:MODEL pairs (SOURCE an example: name or a system file)")
+    ap.add_argument(
+        "--targets",
+        nargs="+",
+        default=["example:rolling-disk:chaplygin", "example:rolling-sphere:chaplygin"],
+        help="SOURCE:MODEL pairs (SOURCE an example: name or a system file)",
+    )
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     print(f"{'target':40} {'--no-cache [s]':>15} {'first [s]':>10} {'cached [s]':>11} {'ratio':>7}")

@@ -84,10 +84,16 @@ TASKS: dict[str, Callable[[], object]] = {
     "disk:   KanesMethod (M/F full, rhs())": lambda: kane_disk(True),
 }
 RATIOS = [
-    ("KanesMethod / chaplygin, disk, equations (M, F)",
-     "disk:   KanesMethod (M/F full)", "disk:   chaplygin  (eqs, M/F)"),
-    ("KanesMethod / chaplygin, disk, solved accelerations",
-     "disk:   KanesMethod (M/F full, rhs())", "disk:   chaplygin  (eqs, M/F, accelerations)"),
+    (
+        "KanesMethod / chaplygin, disk, equations (M, F)",
+        "disk:   KanesMethod (M/F full)",
+        "disk:   chaplygin  (eqs, M/F)",
+    ),
+    (
+        "KanesMethod / chaplygin, disk, solved accelerations",
+        "disk:   KanesMethod (M/F full, rhs())",
+        "disk:   chaplygin  (eqs, M/F, accelerations)",
+    ),
 ]
 
 
@@ -129,10 +135,15 @@ def machine() -> list[str]:
     except OSError:
         pass
     try:
-        rev = subprocess.run(["git", "-C", str(_SRC), "rev-parse", "--short", "HEAD"],
-                             capture_output=True, text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(_SRC), "status", "--porcelain", "."],
-                               capture_output=True, text=True, check=True).stdout.strip()
+        rev = subprocess.run(
+            ["git", "-C", str(_SRC), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(_SRC), "status", "--porcelain", "."], capture_output=True, text=True, check=True
+        ).stdout.strip()
         rev = f"git {rev}" + (" (with uncommitted changes)" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         rev = "no git checkout"
@@ -148,10 +159,14 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=7, help="repeats per task (best is reported)")
     parser.add_argument("--warm-cache", action="store_true", help="do not clear SymPy's cache")
     parser.add_argument("--task-timeout", type=int, default=300, help="seconds per run of a task")
-    parser.add_argument("--src", default=str(ROOT / "src"),
-                        help="directory holding the chaplygin package to time (default: ./src)")
-    parser.add_argument("--profile", action="store_true",
-                        help="cProfile one cold run of chaplygin's disk derivation")
+    parser.add_argument(
+        "--src",
+        default=str(ROOT / "src"),
+        help="directory holding the chaplygin package to time (default: ./src)",
+    )
+    parser.add_argument(
+        "--profile", action="store_true", help="cProfile one cold run of chaplygin's disk derivation"
+    )
     args = parser.parse_args()
 
     # imports and one untimed run of each, so that module loading is not timed

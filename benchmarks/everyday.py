@@ -87,15 +87,22 @@ def ops(exprs: object) -> int:
 # --------------------------------------------------------------------------- 1. symbolic
 def part_symbolic(repeat: int) -> None:
     say(f"1. Solved accelerations (in process; best of {repeat}, SymPy cache cleared each time)")
-    peer_rolling_disk.kane_disk(rhs=True), examples.rolling_disk().equations("chetaev").accelerations  # imports
+    (
+        peer_rolling_disk.kane_disk(rhs=True),
+        examples.rolling_disk().equations("chetaev").accelerations,
+    )  # imports
     kane_t, kane = best(lambda: peer_rolling_disk.kane_disk(rhs=True)[0].rhs(), repeat)
     RESULTS["kane rhs"] = kane_t
-    say(f"   {'rolling disk, KanesMethod kanes_equations + rhs()':58s} {kane_t:7.3f} s  ops {ops(list(kane)):6d}")
+    say(
+        f"   {'rolling disk, KanesMethod kanes_equations + rhs()':58s} {kane_t:7.3f} s  ops {ops(list(kane)):6d}"
+    )
     for model in MODELS:
         t, acc = best(lambda: examples.rolling_disk().equations(model).accelerations, repeat)
         RESULTS[f"disk {model}"] = t
-        say(f"   {'rolling disk, chaplygin ' + model:58s} {t:7.3f} s  ops {ops(acc):6d}"
-            f"  {t / kane_t:5.2f}x Kane's time")
+        say(
+            f"   {'rolling disk, chaplygin ' + model:58s} {t:7.3f} s  ops {ops(acc):6d}"
+            f"  {t / kane_t:5.2f}x Kane's time"
+        )
     for model in ("chaplygin", "chetaev", "vakonomic", "lindelof"):
         t, acc = best(lambda: examples.rolling_sphere().equations(model).accelerations, repeat)
         RESULTS[f"sphere {model}"] = t
@@ -108,7 +115,9 @@ def part_symbolic(repeat: int) -> None:
     for model in ("chaplygin", "chetaev"):
         t, (_, acc) = best(lambda: unicycle(model), repeat)
         RESULTS[f"unicycle {model}"] = t
-        say(f"   {'unicycle + pendulum (5 coordinates), ' + model + ', load+derive+print':58s} {t:7.3f} s  ops {ops(acc):6d}")
+        say(
+            f"   {'unicycle + pendulum (5 coordinates), ' + model + ', load+derive+print':58s} {t:7.3f} s  ops {ops(acc):6d}"
+        )
 
     from hypothesis import HealthCheck, given, settings
 
@@ -116,8 +125,13 @@ def part_symbolic(repeat: int) -> None:
 
     specs: list = []
 
-    @settings(max_examples=200, database=None, derandomize=True, deadline=None,
-              suppress_health_check=list(HealthCheck))
+    @settings(
+        max_examples=200,
+        database=None,
+        derandomize=True,
+        deadline=None,
+        suppress_health_check=list(HealthCheck),
+    )
     @given(spec=systems(chaplygin=False))
     def collect(spec: object) -> None:
         if spec.system.n == 4 and len(specs) < 8:  # type: ignore[attr-defined]
@@ -129,8 +143,10 @@ def part_symbolic(repeat: int) -> None:
         t, _ = best(lambda: (lambda e: (e.equations, e.accelerations))(spec.system.equations("voronets")), 1)
         times.append(t)
     RESULTS["voronets random max"] = max(times)
-    say(f"   {f'Voronets, {len(times)} random 4-coordinate systems: median / max':58s} "
-        f"{statistics.median(times):7.3f} / {max(times):.3f} s")
+    say(
+        f"   {f'Voronets, {len(times)} random 4-coordinate systems: median / max':58s} "
+        f"{statistics.median(times):7.3f} / {max(times):.3f} s"
+    )
 
 
 # --------------------------------------------------------------------------- 2. processes
@@ -155,21 +171,37 @@ def median_wall(cmd: list[str], repeat: int, cold: bool, warm_dir: str) -> float
 def part_processes(repeat: int, work: Path) -> None:
     say(f"\n2. Whole processes (median of {repeat} wall times)")
     peer_out = work / "peer.npz"
-    peer_t = statistics.median(run([PYTHON, str(ROOT / "benchmarks" / "peer_rolling_disk.py"),
-                                     "--out", str(peer_out)]) for _ in range(repeat))
+    peer_t = statistics.median(
+        run([PYTHON, str(ROOT / "benchmarks" / "peer_rolling_disk.py"), "--out", str(peer_out)])
+        for _ in range(repeat)
+    )
     RESULTS["peer process"] = peer_t
     say(f"   {'peer: KanesMethod + lambdify + solve_ivp, t = 100 (one script)':58s} {peer_t:7.3f} s")
     warm_dir = str(work / "cache")
     ours = work / "ours.npz"
     for backend in ("auto", "c", "numpy", "numba"):
-        cmd = [*CLI, "simulate", "example:rolling-disk", "-m", "chaplygin", "-t", "100",
-               "-o", str(ours), "--force", "-b", backend]
+        cmd = [
+            *CLI,
+            "simulate",
+            "example:rolling-disk",
+            "-m",
+            "chaplygin",
+            "-t",
+            "100",
+            "-o",
+            str(ours),
+            "--force",
+            "-b",
+            backend,
+        ]
         run(cmd, {**os.environ, "CHAPLYGIN_CACHE": warm_dir})  # fills the warm cache
         for label, cold in (("cold", True), ("warm", False)):
             t = median_wall(cmd, repeat, cold, warm_dir)
             RESULTS[f"simulate {backend} {label}"] = t
-            say(f"   {'chaplygin simulate -t 100 -b ' + backend + ', ' + label + ' cache':58s} {t:7.3f} s"
-                f"  {t / peer_t:5.2f}x the peer")
+            say(
+                f"   {'chaplygin simulate -t 100 -b ' + backend + ', ' + label + ' cache':58s} {t:7.3f} s"
+                f"  {t / peer_t:5.2f}x the peer"
+            )
     a, b = np.load(peer_out), np.load(ours)
     diff = max(abs(a[k][-1] - b[k][-1]) for k in ("psi", "theta", "phi", "x", "y"))
     say(f"   (final states of the peer and chaplygin differ by at most {diff:.1e})")
@@ -199,20 +231,26 @@ def part_long(t_end: float) -> None:
         return np.linalg.solve(M, F).ravel()
 
     t0 = time.perf_counter()
-    solve_ivp(fun, (0, t_end), y0, method="DOP853", rtol=1e-10, atol=1e-12,
-              t_eval=np.linspace(0, t_end, 1001))
+    solve_ivp(
+        fun, (0, t_end), y0, method="DOP853", rtol=1e-10, atol=1e-12, t_eval=np.linspace(0, t_end, 1001)
+    )
     peer = time.perf_counter() - t0
     say(f"   {'peer: lambdify(M, F) + solve_ivp DOP853':58s} {peer:7.3f} s")
     disk = examples.get("rolling-disk")
     system = disk.constructor()
     for backend in ("c", "numba"):
+
         def go() -> object:
-            return simulate(system, "chaplygin", t_end, disk.initial, disk.parameters, samples=1001, backend=backend)
+            return simulate(
+                system, "chaplygin", t_end, disk.initial, disk.parameters, samples=1001, backend=backend
+            )
 
         go()  # compile (or load) first
         t = best(go, 3)[0]
         RESULTS[f"long {backend}"] = t
-        say(f"   {'chaplygin simulate(backend=' + repr(backend) + ')':58s} {t:7.3f} s  {peer / t:6.0f}x faster")
+        say(
+            f"   {'chaplygin simulate(backend=' + repr(backend) + ')':58s} {t:7.3f} s  {peer / t:6.0f}x faster"
+        )
 
 
 def machine() -> str:
@@ -222,8 +260,10 @@ def machine() -> str:
             model = line.split(":", 1)[1].strip()
             break
     load_avg = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    return (f"cpu: {model}, {os.cpu_count()} logical CPUs, load average {load_avg:.1f}; "
-            f"python {platform.python_version()}, sympy {sp.__version__}, numpy {np.__version__}")
+    return (
+        f"cpu: {model}, {os.cpu_count()} logical CPUs, load average {load_avg:.1f}; "
+        f"python {platform.python_version()}, sympy {sp.__version__}, numpy {np.__version__}"
+    )
 
 
 def main() -> None:

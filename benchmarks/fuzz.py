@@ -166,7 +166,11 @@ def main() -> int:
             for kind, items in result["examples"].items():
                 examples[kind].extend(items[: EXAMPLES - len(examples[kind])])
             if done % 50 == 0:
-                print(f"  {done * CHUNK} inputs, {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
+                print(
+                    f"  {done * CHUNK} inputs, {time.perf_counter() - start:.0f} s",
+                    file=sys.stderr,
+                    flush=True,
+                )
     wall = time.perf_counter() - start
 
     by_family: dict[str, collections.Counter[str]] = collections.defaultdict(collections.Counter)
@@ -188,15 +192,23 @@ def main() -> int:
 
     valid = sum(by_family["valid"].values()) + sum(by_family["constant"].values())
     accepted = by_family["valid"]["ok"] + by_family["constant"]["ok"]
-    print(f"chaplygin parser fuzz: {args.count} inputs, seed {args.seed}, {args.workers} workers, "
-          f"timeout {args.timeout} s per input")
-    print(f"machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
-          f"wall time {wall:.0f} s ({wall / max(args.count, 1) * 1e3 * args.workers:.2f} ms per input per worker)")
-    print(f"valid inputs (grammar): {valid}, accepted {accepted}, refused for a limit "
-          f"{by_family['valid']['limit'] + by_family['constant']['limit']}, for a value "
-          f"{by_family['valid']['value'] + by_family['constant']['value']}")
-    print(f"other inputs: {args.count - valid}, accepted "
-          f"{sum(by_family[f]['ok'] for f in ('mutated', 'soup', 'noise'))}")
+    print(
+        f"chaplygin parser fuzz: {args.count} inputs, seed {args.seed}, {args.workers} workers, "
+        f"timeout {args.timeout} s per input"
+    )
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
+        f"wall time {wall:.0f} s ({wall / max(args.count, 1) * 1e3 * args.workers:.2f} ms per input per worker)"
+    )
+    print(
+        f"valid inputs (grammar): {valid}, accepted {accepted}, refused for a limit "
+        f"{by_family['valid']['limit'] + by_family['constant']['limit']}, for a value "
+        f"{by_family['valid']['value'] + by_family['constant']['value']}"
+    )
+    print(
+        f"other inputs: {args.count - valid}, accepted "
+        f"{sum(by_family[f]['ok'] for f in ('mutated', 'soup', 'noise'))}"
+    )
     print()
     outcomes = ["ok", "syntax", "name", "limit", "value", *FAILURES[:-1]]
     print(f"{'family':10}" + "".join(f"{o:>15}" for o in outcomes))
@@ -212,11 +224,23 @@ def main() -> int:
             if detail:
                 print(f"        {detail[:300]}")
     if args.json:
-        args.json.write_text(json.dumps({
-            "count": args.count, "seed": args.seed, "workers": args.workers, "timeout": args.timeout,
-            "wall_s": wall, "by_family": by_family, "failures": failures, "examples": examples,
-            "hangs_retimed": retimed,
-        }, indent=1), encoding="utf-8")
+        args.json.write_text(
+            json.dumps(
+                {
+                    "count": args.count,
+                    "seed": args.seed,
+                    "workers": args.workers,
+                    "timeout": args.timeout,
+                    "wall_s": wall,
+                    "by_family": by_family,
+                    "failures": failures,
+                    "examples": examples,
+                    "hangs_retimed": retimed,
+                },
+                indent=1,
+            ),
+            encoding="utf-8",
+        )
     failures["hang"] = len(confirmed)
     return 1 if any(failures.values()) else 0
 

@@ -89,16 +89,25 @@ def options(extra: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def measure(system: Any, model: str, t_end: float, start: dict[str, float],
-            params: dict[str, float], extra: dict[str, Any]) -> dict[str, Any]:
+def measure(
+    system: Any,
+    model: str,
+    t_end: float,
+    start: dict[str, float],
+    params: dict[str, float],
+    extra: dict[str, Any],
+) -> dict[str, Any]:
     begin = time.perf_counter()
     tr = simulate(system, model, t_end, start, params, **options(extra))
     wall = time.perf_counter() - begin
     error = np.abs(tr.energy - tr.energy[0])
     tenth = max(1, len(error) // 10)
     return {
-        "status": tr.status, "wall_s": wall, "rhs": tr.rhs_evaluations,
-        "energy_max": float(np.max(error)), "energy_first": float(np.max(error[:tenth])),
+        "status": tr.status,
+        "wall_s": wall,
+        "rhs": tr.rhs_evaluations,
+        "energy_max": float(np.max(error)),
+        "energy_first": float(np.max(error[:tenth])),
         "energy_last": float(np.max(error[-tenth:])),
         "residual_max": float(np.max(tr.constraint_residual)),
     }
@@ -115,8 +124,11 @@ def main() -> None:
     import numba
     import scipy
 
-    print(f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
-          f"numba {numba.__version__}; {platform.machine()}, t = 0 … {t_end:g}, 1001 samples", flush=True)
+    print(
+        f"Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}, "
+        f"numba {numba.__version__}; {platform.machine()}, t = 0 … {t_end:g}, 1001 samples",
+        flush=True,
+    )
     results: dict[str, dict[str, Any]] = {}
     for name, (system, start, params) in problems().items():
         if args.only and name != args.only:
@@ -125,16 +137,21 @@ def main() -> None:
         for _label, model, extra, _quick in runs:  # compile (and load) every path first
             simulate(system, model, 1.0, start, params, **options({**extra, "samples": 11}))
         print(f"\n== {name}, t = 0 … {t_end:g} ==", flush=True)
-        print(f"  {'method':34s} {'wall [s]':>9s} {'RHS evals':>10s} {'max|ΔE|':>9s} "
-              f"{'first 10%':>9s} {'last 10%':>9s} {'residual':>9s}", flush=True)
+        print(
+            f"  {'method':34s} {'wall [s]':>9s} {'RHS evals':>10s} {'max|ΔE|':>9s} "
+            f"{'first 10%':>9s} {'last 10%':>9s} {'residual':>9s}",
+            flush=True,
+        )
         results[name] = {}
         for label, model, extra, _quick in runs:
             row = measure(system, model, t_end, start, params, extra)
             results[name][label] = row
             flag = "" if row["status"] == "success" else f"  ({row['status']})"
-            print(f"  {label:34s} {row['wall_s']:9.2f} {row['rhs']:10d} {row['energy_max']:9.2e} "
-                  f"{row['energy_first']:9.2e} {row['energy_last']:9.2e} {row['residual_max']:9.1e}{flag}",
-                  flush=True)
+            print(
+                f"  {label:34s} {row['wall_s']:9.2f} {row['rhs']:10d} {row['energy_max']:9.2e} "
+                f"{row['energy_first']:9.2e} {row['energy_last']:9.2e} {row['residual_max']:9.1e}{flag}",
+                flush=True,
+            )
     if args.json:
         args.json.write_text(json.dumps({"t_end": t_end, "results": results}, indent=2))
 

@@ -67,8 +67,14 @@ def kane_disk(rhs: bool = True) -> tuple[KanesMethod, list, list, list, list]:
     slip = centre.vel(N) + D.ang_vel_in(N).cross(contact.pos_from(centre))
     to_u = dict(zip([qi.diff(t) for qi in q], u))
     constraints = [sp.expand(slip.dot(e).xreplace(to_u)) for e in (N.x, N.y)]
-    km = KanesMethod(N, q_ind=q, u_ind=u[:3], kd_eqs=[qi.diff(t) - ui for qi, ui in zip(q, u)],
-                     u_dependent=u[3:], velocity_constraints=constraints)
+    km = KanesMethod(
+        N,
+        q_ind=q,
+        u_ind=u[:3],
+        kd_eqs=[qi.diff(t) - ui for qi, ui in zip(q, u)],
+        u_dependent=u[3:],
+        velocity_constraints=constraints,
+    )
     km.kanes_equations([disk], [(centre, -m * g * N.z)])
     if rhs:
         km.rhs()
@@ -107,10 +113,18 @@ def main() -> None:
     integrated = time.perf_counter()
     if args.out:
         np.savez(args.out, t=sol.t, **{qi.name: sol.y[i] for i, qi in enumerate(q)})
-    print(json.dumps({
-        "import": imported - _start, "derive": derived - imported, "lambdify": lambdified - derived,
-        "integrate": integrated - lambdified, "rhs_calls": calls, "success": bool(sol.success),
-    }))
+    print(
+        json.dumps(
+            {
+                "import": imported - _start,
+                "derive": derived - imported,
+                "lambdify": lambdified - derived,
+                "integrate": integrated - lambdified,
+                "rhs_calls": calls,
+                "success": bool(sol.success),
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -126,8 +126,12 @@ def kane_chain(n: int):
         bodies.append(body)
         constraints.append(point.vel(frame).dot(body_frame.y))
     km = me.KanesMethod(
-        frame, q_ind=q, u_ind=[u[0], u[2]], u_dependent=[u[1], *u[3:]],
-        kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)], velocity_constraints=constraints,
+        frame,
+        q_ind=q,
+        u_ind=[u[0], u[2]],
+        u_dependent=[u[1], *u[3:]],
+        kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)],
+        velocity_constraints=constraints,
     )
     km.kanes_equations(bodies, [])
     return km, q, u, [m, inertia, length]
@@ -164,16 +168,18 @@ def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> d
     clear_cache()
     system = examples.sleigh_chain(n)  # fresh: nothing derived yet
     clear_cache()
-    row["codegen"], compiled = timed(budget, lambda: compile_model(system, "voronets", backend="numpy",
-                                                                   reduction="numeric"))
+    row["codegen"], compiled = timed(
+        budget, lambda: compile_model(system, "voronets", backend="numpy", reduction="numeric")
+    )
     y = rng.uniform(-0.3, 0.3, len(compiled.layout.state))
     values = {"m": 1.0, "I": 0.5, "L": 1.0}
     p = np.array([values[name] for name in compiled.layout.parameters])
     row["rhs_numpy_us"] = per_call(compiled.rhs, 0.0, y, p)
     fresh = examples.sleigh_chain(n)
     clear_cache()
-    row["jit"], jitted = timed(budget, lambda: compile_model(fresh, "voronets", backend="numba",
-                                                             reduction="numeric"))
+    row["jit"], jitted = timed(
+        budget, lambda: compile_model(fresh, "voronets", backend="numba", reduction="numeric")
+    )
     if jitted is not None:
         extra, _ = timed(budget, jitted.rhs, 0.0, y, p)
         row["jit"] += extra
@@ -186,7 +192,7 @@ def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> d
         if funcs is not None:
             fM, fF, nq, nu = funcs
             # the same admissible state: chaplygin's full velocities as Kane's speeds
-            qd = compiled.observe(0.0, y, p)[-system.n:]
+            qd = compiled.observe(0.0, y, p)[-system.n :]
             args = [*y[: system.n], *qd, values["m"], values["I"], values["L"]]
 
             def kane_rhs() -> np.ndarray:
@@ -194,8 +200,8 @@ def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> d
 
             row["rhs_kane_us"] = per_call(kane_rhs)
             # Kane's u̇ are ordered independent (x, θ0) first, like chaplygin's state
-            udot = kane_rhs()[nq:nq + 2]
-            got = compiled.rhs(0.0, y, p)[system.n:]
+            udot = kane_rhs()[nq : nq + 2]
+            got = compiled.rhs(0.0, y, p)[system.n :]
             row["max_difference_vs_kane"] = float(np.max(np.abs(udot - got)))
     row["compiled"] = row["build"] + row["jit"]
     ours = row["build"] + row["codegen"]
@@ -226,16 +232,34 @@ def main() -> None:
         os.environ["CHAPLYGIN_CACHE"] = tempfile.mkdtemp(prefix="chaplygin-scaling-")
         atexit.register(shutil.rmtree, os.environ["CHAPLYGIN_CACHE"], ignore_errors=True)
     rng = np.random.default_rng(1)
-    cols = ["N", "build", "chetaev", "voronets", "codegen", "jit", "compiled", "chaplygin_total", "kane_derive",
-            "kane_codegen", "kane_total", "ratio_total", "ratio_symbolic", "rhs_numpy_us", "rhs_numba_us", "rhs_kane_us",
-            "max_difference_vs_kane"]
+    cols = [
+        "N",
+        "build",
+        "chetaev",
+        "voronets",
+        "codegen",
+        "jit",
+        "compiled",
+        "chaplygin_total",
+        "kane_derive",
+        "kane_codegen",
+        "kane_total",
+        "ratio_total",
+        "ratio_symbolic",
+        "rhs_numpy_us",
+        "rhs_numba_us",
+        "rhs_kane_us",
+        "max_difference_vs_kane",
+    ]
     print(" ".join(f"{c:>14}" for c in cols), flush=True)
     rows = []
     for n in args.sizes:
         row = run(n, args.budget, args.symbolic_max, rng)
         rows.append(row)
         print(" ".join(f"{fmt(row.get(c)):>14}" for c in cols), flush=True)
-    finite = [(r["N"], r["chaplygin_total"]) for r in rows if r["N"] >= 4 and math.isfinite(r["chaplygin_total"])]
+    finite = [
+        (r["N"], r["chaplygin_total"]) for r in rows if r["N"] >= 4 and math.isfinite(r["chaplygin_total"])
+    ]
     if len(finite) >= 2:
         slope = np.polyfit(np.log([a for a, _ in finite]), np.log([b for _, b in finite]), 1)[0]
         print(f"\nchaplygin build + numeric-Voronets codegen grows like N^{slope:.2f} (N >= 4)")

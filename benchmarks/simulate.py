@@ -139,7 +139,9 @@ def naive_lambdify(disk):
         qdot = np.empty(n)
         qdot[ind_pos] = uu
         qdot[dep_pos] = V(qq, uu, p)
-        udot = np.linalg.solve(np.asarray(M(qq, uu, p), dtype=float), np.asarray(F(qq, uu, p), dtype=float).ravel())
+        udot = np.linalg.solve(
+            np.asarray(M(qq, uu, p), dtype=float), np.asarray(F(qq, uu, p), dtype=float).ravel()
+        )
         return np.concatenate([qdot, udot])
 
     return rhs
@@ -152,7 +154,12 @@ def part_rhs(disk, eqs, y0, p) -> None:
     baseline = naive_lambdify(disk)
     rows.append(("lambdify (no chaplygin), from Python", per_call_us(lambda: baseline(0.0, y0), 5000)))
     numpy_model = compile_equations(eqs, "numpy")
-    rows.append(("numpy backend (generated, CSE), from Python", per_call_us(lambda: numpy_model.rhs(0.0, y0, p), 5000)))
+    rows.append(
+        (
+            "numpy backend (generated, CSE), from Python",
+            per_call_us(lambda: numpy_model.rhs(0.0, y0, p), 5000),
+        )
+    )
     numba_model = compile_equations(eqs, "numba")
     numba_model.rhs(0.0, y0, p)
     rows.append(("numba backend rhs, from Python", per_call_us(lambda: numba_model.rhs(0.0, y0, p), 50000)))
@@ -181,21 +188,33 @@ def part_rhs(disk, eqs, y0, p) -> None:
             s += f[6]
         return s
 
-    work = (np.empty(8), np.empty((module.DIM, module.DIM)), np.empty(module.DIM), np.empty(module.N),
-            np.empty(module.N_OBSERVED))
+    work = (
+        np.empty(8),
+        np.empty((module.DIM, module.DIM)),
+        np.empty(module.DIM),
+        np.empty(module.N),
+        np.empty(module.N_OBSERVED),
+    )
     drive_rhs(y0.copy(), p, 10)
     drive_eval(y0.copy(), p, 10, *work)
     calls = 1_000_000
-    rows.append(("numba backend rhs, inside numba",
-                 best_of(lambda: drive_rhs(y0.copy(), p, calls), 3) / calls * 1e6))
-    rows.append(("numba loop's allocation-free rhs (fill + elimination), inside numba",
-                 best_of(lambda: drive_eval(y0.copy(), p, calls, *work), 3) / calls * 1e6))
+    rows.append(
+        ("numba backend rhs, inside numba", best_of(lambda: drive_rhs(y0.copy(), p, calls), 3) / calls * 1e6)
+    )
+    rows.append(
+        (
+            "numba loop's allocation-free rhs (fill + elimination), inside numba",
+            best_of(lambda: drive_eval(y0.copy(), p, calls, *work), 3) / calls * 1e6,
+        )
+    )
     try:
         import jax
 
         jax_model = compile_equations(eqs, "jax")
         jax_model.rhs(0.0, y0, p)
-        rows.append(("jax backend rhs (jitted), from Python", per_call_us(lambda: jax_model.rhs(0.0, y0, p), 5000)))
+        rows.append(
+            ("jax backend rhs (jitted), from Python", per_call_us(lambda: jax_model.rhs(0.0, y0, p), 5000))
+        )
         rhs_jax = jax_model.module.rhs_jax
 
         @jax.jit
@@ -203,13 +222,21 @@ def part_rhs(disk, eqs, y0, p) -> None:
             return jax.lax.fori_loop(0, 100_000, lambda i, yy: yy + 1e-9 * rhs_jax(0.0, yy, p), y)
 
         chain(y0, p).block_until_ready()
-        rows.append(("jax rhs inside jit (sequential fori_loop)",
-                     best_of(lambda: chain(y0, p).block_until_ready(), 3) / 100_000 * 1e6))
+        rows.append(
+            (
+                "jax rhs inside jit (sequential fori_loop)",
+                best_of(lambda: chain(y0, p).block_until_ready(), 3) / 100_000 * 1e6,
+            )
+        )
         batch = jax.jit(jax.vmap(rhs_jax, in_axes=(None, 0, None)))
         Y = np.tile(y0, (10_000, 1)) + 1e-3 * np.random.default_rng(0).standard_normal((10_000, 8))
         batch(0.0, Y, p).block_until_ready()
-        rows.append(("jax rhs vmapped over 10^4 states, per state",
-                     best_of(lambda: batch(0.0, Y, p).block_until_ready(), 5) / 10_000 * 1e6))
+        rows.append(
+            (
+                "jax rhs vmapped over 10^4 states, per state",
+                best_of(lambda: batch(0.0, Y, p).block_until_ready(), 5) / 10_000 * 1e6,
+            )
+        )
     except ImportError:
         say("  (jax not installed: pip install 'chaplygin[jax]')")
     for name, us in rows:
@@ -254,15 +281,24 @@ def part_trajectory(disk, eqs, y0, p, t_end: float) -> None:
     integrate_dop853(model, (0.0, t_end), y0, p, times, rtol=RTOL, atol=ATOL)
     wall = best_of(lambda: integrate_dop853(model, (0.0, t_end), y0, p, times, rtol=RTOL, atol=ATOL), 3)
     res = integrate_dop853(model, (0.0, t_end), y0, p, times, rtol=RTOL, atol=ATOL)
-    rows.append(("compiled DOP853 loop alone (integrate_dop853)", wall, 0.0, res.n_rhs,
-                 float(np.max(np.abs(res.y - ref.y.T)))))
+    rows.append(
+        (
+            "compiled DOP853 loop alone (integrate_dop853)",
+            wall,
+            0.0,
+            res.n_rhs,
+            float(np.max(np.abs(res.y - ref.y.T))),
+        )
+    )
     try:
         import jax  # noqa: F401
 
         runs("jax", "simulate(backend='jax'): diffrax Dopri8 (jit)", 1)
     except ImportError:
         pass
-    say(f"  {'path':<52s} {'wall [s]':>9s} {'speed-up':>9s} {'setup [s]':>9s} {'RHS evals':>10s} {'max |Δy|':>9s}")
+    say(
+        f"  {'path':<52s} {'wall [s]':>9s} {'speed-up':>9s} {'setup [s]':>9s} {'RHS evals':>10s} {'max |Δy|':>9s}"
+    )
     for name, wall, setup, nfev, diff in rows:
         say(f"  {name:<52s} {wall:9.3f} {base_wall / wall:8.1f}× {setup:9.3f} {nfev:10d} {diff:9.1e}")
     say("  (setup: lambdify for the baseline, compile_equations (code generation, CSE) for simulate;")
@@ -270,8 +306,14 @@ def part_trajectory(disk, eqs, y0, p, t_end: float) -> None:
     fastest = min(rows[1:], key=lambda r: r[1])
     say(f"  fastest path: {fastest[0]}: {base_wall / fastest[1]:.0f}× faster than the baseline")
     RESULTS["trajectory"] = [
-        {"path": r[0], "wall_s": r[1], "speedup": base_wall / r[1], "setup_s": r[2], "rhs_evaluations": int(r[3]),
-         "max_diff": r[4]}
+        {
+            "path": r[0],
+            "wall_s": r[1],
+            "speedup": base_wall / r[1],
+            "setup_s": r[2],
+            "rhs_evaluations": int(r[3]),
+            "max_diff": r[4],
+        }
         for r in rows
     ]
 
@@ -307,18 +349,44 @@ def part_ensemble(disk, eqs, n: int, t_end: float, backends: list[str]) -> None:
         kwargs = {"threads": how} if backend == "numba" else {}
         simulate_ensemble(disk, "chaplygin", t_end, Y0[:8], PARAMS, backend=backend, **kwargs)  # compile
         ens = simulate_ensemble(disk, "chaplygin", t_end, Y0, PARAMS, backend=backend, **kwargs)
-        label = f"{backend} ({how} thread{'s' if how != 1 else ''})" if backend == "numba" else f"jax vmap ({how})"
-        rows.append((label, ens.wall_time, n / ens.wall_time, int(np.count_nonzero(ens.code)),
-                     float(np.max(ens.energy_drift())), float(ens.rhs_evaluations.mean())))
-    say(f"  {'engine':<24s} {'wall [s]':>9s} {'traj/s':>10s} {'failed':>7s} {'max drift':>10s} {'RHS/member':>11s}")
+        label = (
+            f"{backend} ({how} thread{'s' if how != 1 else ''})"
+            if backend == "numba"
+            else f"jax vmap ({how})"
+        )
+        rows.append(
+            (
+                label,
+                ens.wall_time,
+                n / ens.wall_time,
+                int(np.count_nonzero(ens.code)),
+                float(np.max(ens.energy_drift())),
+                float(ens.rhs_evaluations.mean()),
+            )
+        )
+    say(
+        f"  {'engine':<24s} {'wall [s]':>9s} {'traj/s':>10s} {'failed':>7s} {'max drift':>10s} {'RHS/member':>11s}"
+    )
     for label, wall, rate, failed, drift, evals in rows:
         say(f"  {label:<24s} {wall:9.2f} {rate:10.1f} {failed:7d} {drift:10.1e} {evals:11.0f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux → GiB
     say(f"  peak resident memory of this process so far: {peak:.2f} GiB")
-    RESULTS["ensemble"] = {"n": n, "t_end": t_end, "peak_rss_gib": peak, "rows": [
-        {"engine": r[0], "wall_s": r[1], "trajectories_per_s": r[2], "failed": r[3], "max_energy_drift": r[4],
-         "rhs_per_member": r[5]} for r in rows
-    ]}
+    RESULTS["ensemble"] = {
+        "n": n,
+        "t_end": t_end,
+        "peak_rss_gib": peak,
+        "rows": [
+            {
+                "engine": r[0],
+                "wall_s": r[1],
+                "trajectories_per_s": r[2],
+                "failed": r[3],
+                "max_energy_drift": r[4],
+                "rhs_per_member": r[5],
+            }
+            for r in rows
+        ],
+    }
 
 
 def main() -> int:

@@ -26,9 +26,7 @@ settings.register_profile(
     derandomize=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-settings.register_profile(
-    "thorough", parent=settings.get_profile("ci"), max_examples=200, derandomize=False
-)
+settings.register_profile("thorough", parent=settings.get_profile("ci"), max_examples=200, derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 # ---------------------------------------------------------------- caches
@@ -52,14 +50,31 @@ if _WORKER and "NUMBA_CACHE_DIR" not in os.environ:
 #: the workers; every other module goes to one worker as a whole, so that its module-scoped
 #: fixtures, and the models its tests compile, are built once
 SPREAD = {
-    "test_cache.py", "test_cfill.py", "test_docs.py", "test_files.py", "test_integrability.py",
-    "test_mechanics.py", "test_models_property.py", "test_native.py", "test_parser.py",
-    "test_scale.py", "test_validation.py",
+    "test_cache.py",
+    "test_cfill.py",
+    "test_docs.py",
+    "test_files.py",
+    "test_integrability.py",
+    "test_mechanics.py",
+    "test_models_property.py",
+    "test_native.py",
+    "test_parser.py",
+    "test_scale.py",
+    "test_validation.py",
 }
 #: the longest modules, started first so that no worker is left running one at the end
-FIRST = ("test_symmetric.py", "test_backends.py", "test_sweep.py", "test_vakonomic.py",
-         "test_gallery.py", "test_rolling_disk.py", "test_cli.py", "test_models_property.py",
-         "test_cfill.py", "test_docs.py")
+FIRST = (
+    "test_symmetric.py",
+    "test_backends.py",
+    "test_sweep.py",
+    "test_vakonomic.py",
+    "test_gallery.py",
+    "test_rolling_disk.py",
+    "test_cli.py",
+    "test_models_property.py",
+    "test_cfill.py",
+    "test_docs.py",
+)
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:

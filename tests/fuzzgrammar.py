@@ -129,7 +129,9 @@ class _Writer:
         base = self.primary(depth)
         if self.room(depth) and chance(self.s, 20):
             self.level += 1
-            exponent = self.unary(depth - 2) if chance(self.s, 50) else pick(self.s, ["2", "3", "-1", "0.5", "1000"])
+            exponent = (
+                self.unary(depth - 2) if chance(self.s, 50) else pick(self.s, ["2", "3", "-1", "0.5", "1000"])
+            )
             self.level -= 1
             return base + self.space() + pick(self.s, ["^", "**"]) + self.space() + exponent
         return base
@@ -146,7 +148,15 @@ class _Writer:
                 return "(" + self.space() + self.expression(depth - 1) + self.space() + ")"
             function = pick(self.s, _FUNCTIONS)
             args = [self.expression(depth - 1) for _ in range(FUNCTIONS[function])]
-            return function + self.space() + "(" + self.space() + ("," + self.space()).join(args) + self.space() + ")"
+            return (
+                function
+                + self.space()
+                + "("
+                + self.space()
+                + ("," + self.space()).join(args)
+                + self.space()
+                + ")"
+            )
         finally:
             self.level -= 1
 
@@ -165,10 +175,66 @@ class _Writer:
 
 # ---------------------------------------------------------------------------- anything
 _TOKENS = [
-    "x", "theta", "q2", "m", "Mass", "t", "pi", "E", "x'", "'", "''", " '", "0", "1", "1e400", "1e-400",
-    "9", "0.5", ".", "e", "+", "-", "*", "/", "^", "**", "***", "(", ")", ",", ", )", " ", "\t", "sin(",
-    "sqrt(", "atan2(", "exp(", "sinh(", "tan(", "log(", "abs(", "sign(", "acos(", "foo(", "_", "__import__",
-    "[", "]", "=", "\"", "lambda", ":", ";", "#", "\\", "θ", "\x00", "9^9^9^9", "(" * 30, ")" * 30,
+    "x",
+    "theta",
+    "q2",
+    "m",
+    "Mass",
+    "t",
+    "pi",
+    "E",
+    "x'",
+    "'",
+    "''",
+    " '",
+    "0",
+    "1",
+    "1e400",
+    "1e-400",
+    "9",
+    "0.5",
+    ".",
+    "e",
+    "+",
+    "-",
+    "*",
+    "/",
+    "^",
+    "**",
+    "***",
+    "(",
+    ")",
+    ",",
+    ", )",
+    " ",
+    "\t",
+    "sin(",
+    "sqrt(",
+    "atan2(",
+    "exp(",
+    "sinh(",
+    "tan(",
+    "log(",
+    "abs(",
+    "sign(",
+    "acos(",
+    "foo(",
+    "_",
+    "__import__",
+    "[",
+    "]",
+    "=",
+    '"',
+    "lambda",
+    ":",
+    ";",
+    "#",
+    "\\",
+    "θ",
+    "\x00",
+    "9^9^9^9",
+    "(" * 30,
+    ")" * 30,
 ]
 _ALPHABET = "x'()^*+-/0123456789.eE sinhcoqrtbgpaxm,_\t\n"
 
@@ -186,7 +252,9 @@ def noise(source: Source) -> str:
         return bytes(source.integer(0, 255) for _ in range(n)).decode("latin-1")
     if kind == 1:
         return "".join(pick(source, _ALPHABET) for _ in range(n))
-    return "".join(chr(c) for c in (source.integer(0, 0x10FFFF) for _ in range(n)) if not 0xD800 <= c < 0xE000)
+    return "".join(
+        chr(c) for c in (source.integer(0, 0x10FFFF) for _ in range(n)) if not 0xD800 <= c < 0xE000
+    )
 
 
 def mutated(source: Source) -> str:

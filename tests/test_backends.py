@@ -30,7 +30,16 @@ except Unavailable:  # pragma: no cover - every CI machine has a C compiler
 DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
 DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
 SPHERE_P = {"m": 1.0, "a": 1.0}
-SPHERE_0 = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0, "psi'": 0.5, "theta'": 0.4, "phi'": -0.7}
+SPHERE_0 = {
+    "psi": 0.3,
+    "theta": 1.0,
+    "phi": 0.1,
+    "x": 0.0,
+    "y": 0.0,
+    "psi'": 0.5,
+    "theta'": 0.4,
+    "phi'": -0.7,
+}
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +100,12 @@ def test_loop_derivative_equals_generated_rhs(disk):
         # one sample at t0 and a tiny first step: the first derivative is what we compare
         first = np.empty(8)
         module = model.module
-        M, b, V, O = np.empty((module.DIM, module.DIM)), np.empty(module.DIM), np.empty(module.N), np.empty(module.N_OBSERVED)
+        M, b, V, O = (
+            np.empty((module.DIM, module.DIM)),
+            np.empty(module.DIM),
+            np.empty(module.N),
+            np.empty(module.N_OBSERVED),
+        )
         assert module._k_eval(0.0, y0, p, first, M, b, V, O) == 0
         np.testing.assert_allclose(first, module.rhs(0.0, y0, p), rtol=1e-13, atol=1e-13)
     result = integrate_dop853(model, (0.0, 1.0), y0, p, times)
@@ -159,7 +173,9 @@ def test_blow_up_is_a_status_with_partial_trajectory(failing, backend):
 def test_singular_mass_matrix_is_a_status_with_partial_trajectory(failing, backend, samples):
     """The mass of y drops to 0 at t = 0.5: every sample before it is kept, whatever steps the
     integrator took (a step that fails is retried with smaller ones until the failure is pinned)."""
-    run = simulate(failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend=backend, samples=samples)
+    run = simulate(
+        failing, "chaplygin", 2.0, FAILING_0, {"a": 0.5, "k": 0.0}, backend=backend, samples=samples
+    )
     assert run.status == "failed"
     assert "singular" in run.message.lower() and "t = 0.5" in run.message, run.message
     times = np.linspace(0.0, 2.0, samples)
@@ -227,13 +243,17 @@ def test_ensemble_dict_states_equal_array_states(disk):
     """Mappings are prepared in one vectorised step: the same states as an array in layout order,
     and the dependent velocities (and vakonomic μ(0)) of simulate's one-state path."""
     rng = np.random.default_rng(7)
-    starts = [{**DISK_0, "theta": th, "psi": ps, "phi'": w}
-              for th, ps, w in zip(rng.uniform(0.1, 0.4, 6), rng.uniform(-1, 1, 6), rng.uniform(3, 6, 6))]
+    starts = [
+        {**DISK_0, "theta": th, "psi": ps, "phi'": w}
+        for th, ps, w in zip(rng.uniform(0.1, 0.4, 6), rng.uniform(-1, 1, 6), rng.uniform(3, 6, 6))
+    ]
     layout = compile_equations(disk.equations("chaplygin"), "numpy").layout
     Y0 = np.array([[s[name] for name in layout.state] for s in starts])
     from_dicts = simulate_ensemble(disk, "chaplygin", 0.5, starts, DISK_P, keep=2)
     from_array = simulate_ensemble(disk, "chaplygin", 0.5, Y0, DISK_P, keep=2)
-    assert np.array_equal(from_dicts.samples, from_array.samples) and np.array_equal(from_dicts.y, from_array.y)
+    assert np.array_equal(from_dicts.samples, from_array.samples) and np.array_equal(
+        from_dicts.y, from_array.y
+    )
     assert np.array_equal(from_dicts.samples[:, 0], Y0)
     # all velocities integrated: the dependent ones (x', y') follow from the constraints (the
     # preparation itself, chaplygin.numeric.ensemble._states: the same for every backend, and it spares
@@ -271,11 +291,16 @@ def test_ensemble_dict_errors_name_the_member_and_key(disk):
 
     others = [DISK_0] * 3
     assert error([*others, {**DISK_0, "psy": 0.1}]).startswith(
-        "initial_states[3]: 'psy' is neither a coordinate nor a velocity of")
+        "initial_states[3]: 'psy' is neither a coordinate nor a velocity of"
+    )
     lacking = {k: v for k, v in DISK_0.items() if k != "theta'"}
-    assert error([DISK_0, DISK_0, lacking]).startswith("initial_states[2]: missing theta'; give every coordinate")
+    assert error([DISK_0, DISK_0, lacking]).startswith(
+        "initial_states[2]: missing theta'; give every coordinate"
+    )
     assert error([DISK_0, {**DISK_0, "x": "east"}]) == "initial_states[1]: 'x' = 'east' is not a number."
-    assert error([DISK_0, {**DISK_0, "x'": 3.0}]).startswith("initial_states[1]: x' = 3 violates the constraints")
+    assert error([DISK_0, {**DISK_0, "x'": 3.0}]).startswith(
+        "initial_states[1]: x' = 3 violates the constraints"
+    )
     assert error([DISK_0, np.zeros(10)]).startswith("initial_states[1]: expected a mapping")
     _, qd = initial_state(disk, DISK_0, DISK_P, 0.0)  # a given dependent velocity that agrees is accepted
     agreeing = {**DISK_0, "x'": float(qd[3]), "y'": float(qd[4])}
@@ -299,7 +324,9 @@ def test_jax_functions_equal_generated_code(disk, jax_disk):
     for _ in range(3):
         y = rng.uniform(-1, 1, 8)
         np.testing.assert_allclose(jax_disk.rhs(0.0, y, p), ref.rhs(0.0, y, p), rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(jax_disk.observe(0.0, y, p), ref.observe(0.0, y, p), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(
+            jax_disk.observe(0.0, y, p), ref.observe(0.0, y, p), rtol=1e-12, atol=1e-12
+        )
 
 
 def test_jax_simulate_agrees_with_scipy(disk, jax_disk):

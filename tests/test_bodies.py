@@ -32,9 +32,11 @@ t = dynamicsymbols._t
 
 def rot(axis: str, angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
-    return {"x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]),
-            "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
-            "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])}[axis]
+    return {
+        "x": np.array([[1, 0, 0], [0, c, -s], [0, s, c]]),
+        "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]),
+        "z": np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]),
+    }[axis]
 
 
 # ---------------------------------------------------------------- identity with the gallery
@@ -47,7 +49,9 @@ def test_sphere_is_the_papers_sphere() -> None:
     for vel, rhs in paper.constraints.items():
         assert sp.simplify(built.constraints[vel] - rhs) == 0
     # ... and the reduced equations are the same dynamics.
-    report = chaplygin.equivalent(paper, paper.equations("chaplygin"), list(built.equations("chaplygin").equations))
+    report = chaplygin.equivalent(
+        paper, paper.equations("chaplygin"), list(built.equations("chaplygin").equations)
+    )
     assert report, report
 
 
@@ -65,7 +69,9 @@ def test_disk_is_the_gallery_disk() -> None:
         expected = disk.constraints[q.diff(t)] + shift[q].diff(t)
         assert sp.simplify(built.constraints[q.diff(t)] - expected) == 0
     # The reduced equations contain only ψ, θ, φ: same accelerations at matched states.
-    report = chaplygin.equivalent(disk, disk.equations("chaplygin"), list(built.equations("chaplygin").equations))
+    report = chaplygin.equivalent(
+        disk, disk.equations("chaplygin"), list(built.equations("chaplygin").equations)
+    )
     assert report, report
 
 
@@ -74,13 +80,19 @@ def test_general_shapes_reduce_to_the_special_ones() -> None:
     r = sp.Symbol("r", positive=True)
     inertia, com = [1, 1, sp.Rational(3, 2)], (0, 0, -sp.Rational(1, 5))
     sphere = rolling_body(Sphere(r), mass=1, inertia=inertia, center_of_mass=com)
-    revolution = rolling_body(Revolution(lambda alpha: r + 0 * alpha), mass=1, inertia=inertia, center_of_mass=com)
-    assert chaplygin.equivalent(sphere, sphere.equations("chaplygin"), list(revolution.equations("chaplygin").equations))
+    revolution = rolling_body(
+        Revolution(lambda alpha: r + 0 * alpha), mass=1, inertia=inertia, center_of_mass=com
+    )
+    assert chaplygin.equivalent(
+        sphere, sphere.equations("chaplygin"), list(revolution.equations("chaplygin").equations)
+    )
     a, b, c = 3, 2, 1
     ellipsoid = rolling_body(Ellipsoid(a, b, c), mass=1, inertia=[2, 3, 4])
     h = SupportFunction(lambda u1, u2, u3: sp.sqrt(a**2 * u1**2 + b**2 * u2**2 + c**2 * u3**2))
     general = rolling_body(h, mass=1, inertia=[2, 3, 4])
-    assert chaplygin.equivalent(ellipsoid, ellipsoid.equations("chaplygin"), list(general.equations("chaplygin").equations))
+    assert chaplygin.equivalent(
+        ellipsoid, ellipsoid.equations("chaplygin"), list(general.equations("chaplygin").equations)
+    )
 
 
 # ---------------------------------------------------------------- reduced forms vs multipliers
@@ -88,8 +100,13 @@ def test_general_shapes_reduce_to_the_special_ones() -> None:
 def torus() -> chaplygin.System:
     """A rounded disk with an off-centre centre of mass and a full inertia tensor: nothing special."""
     I = [[3, sp.Rational(1, 5), 0], [sp.Rational(1, 5), 2, sp.Rational(1, 10)], [0, sp.Rational(1, 10), 4]]
-    return rolling_body(Torus(1, sp.Rational(1, 4)), mass=2, inertia=I,
-                        center_of_mass=(sp.Rational(1, 10), 0, sp.Rational(1, 20)), g=sp.Rational(981, 100))
+    return rolling_body(
+        Torus(1, sp.Rational(1, 4)),
+        mass=2,
+        inertia=I,
+        center_of_mass=(sp.Rational(1, 10), 0, sp.Rational(1, 20)),
+        g=sp.Rational(981, 100),
+    )
 
 
 def _solve(eqs, values) -> dict:
@@ -106,8 +123,13 @@ def test_reduced_forms_match_the_multiplier_systems(torus) -> None:
             for acc, value in _solve(torus.equations(model, form), values).items():
                 assert value == pytest.approx(truth[acc], rel=1e-8, abs=1e-8), (model, form, acc)
     # Lindelöf's equations (22) are the vakonomic multiplier system with μ = −∂T/∂q̇_dep (c = 0).
-    report = chaplygin.equivalent(torus, torus.equations("lindelof"), torus.equations("vakonomic"),
-                                  multipliers=torus.integrated_multipliers([0, 0]), samples=6)
+    report = chaplygin.equivalent(
+        torus,
+        torus.equations("lindelof"),
+        torus.equations("vakonomic"),
+        multipliers=torus.integrated_multipliers([0, 0]),
+        samples=6,
+    )
     assert report, report
 
 
@@ -121,7 +143,9 @@ def test_routh_sphere_keeps_energy_jellett_and_routh() -> None:
     r, a, m, A, C = 1.0, 0.3, 1.0, 0.4, 0.6
     body = rolling_body(Sphere(r), mass=m, inertia=[A, A, C], center_of_mass=(0, 0, -a), g=9.81)
     R0 = rot("x", 0.5) @ rot("y", 0.2)
-    run = simulate(body, "chaplygin", 10.0, initial_state(body, R=R0, omega=[1.0, -0.5, 4.0]), {}, samples=201)
+    run = simulate(
+        body, "chaplygin", 10.0, initial_state(body, R=R0, omega=[1.0, -0.5, 4.0]), {}, samples=201
+    )
     assert run.success
     mo = motion(body, run)
     gamma = mo.R[:, 2, :]
@@ -130,7 +154,7 @@ def test_routh_sphere_keeps_energy_jellett_and_routh() -> None:
     routh = mo.omega[:, 2] * np.sqrt(A * C + m * A * (s[:, 0] ** 2 + s[:, 1] ** 2) + m * C * s[:, 2] ** 2)
     assert np.ptp(jellett) < 1e-8 * np.max(np.abs(jellett))
     assert np.ptp(routh) < 1e-8 * np.max(np.abs(routh))
-    assert np.ptp(mo.omega[:, 2]) > 1e-3      # ω₃ alone is not conserved: the test can fail
+    assert np.ptp(mo.omega[:, 2]) > 1e-3  # ω₃ alone is not conserved: the test can fail
     assert run.energy_drift() < 1e-9
     assert np.max(np.abs(mo.contact[:, 2])) < 1e-12
     np.testing.assert_allclose(mo.R[0], R0, atol=1e-12)
@@ -138,7 +162,18 @@ def test_routh_sphere_keeps_energy_jellett_and_routh() -> None:
 
 
 # ---------------------------------------------------------------- the rattleback
-KL = {"a": 0.2, "b": 0.03, "c": 0.02, "h": 0.01, "m": 1.0, "A": 2e-4, "B": 1.6e-3, "C": 1.7e-3, "D": 2e-5, "g": 9.81}
+KL = {
+    "a": 0.2,
+    "b": 0.03,
+    "c": 0.02,
+    "h": 0.01,
+    "m": 1.0,
+    "A": 2e-4,
+    "B": 1.6e-3,
+    "C": 1.7e-3,
+    "D": 2e-5,
+    "g": 9.81,
+}
 """Kane & Levinson (1982): ellipsoid semi-axes a, b, c; the centre of mass h below the centre;
 central moments A, B, C per unit mass and the product D (here in axes with z up, obtained from
 theirs, z down, by a half turn about x, which flips the sign of the xy product)."""
@@ -147,8 +182,9 @@ theirs, z down, by a half turn about x, which flips the sign of the xy product).
 def _rattleback(D: float) -> chaplygin.System:
     p = KL
     I = [[p["A"], D, 0], [D, p["B"], 0], [0, 0, p["C"]]]
-    return rolling_body(Ellipsoid(p["a"], p["b"], p["c"]), mass=p["m"], inertia=I,
-                        center_of_mass=(0, 0, -p["h"]), g=p["g"])
+    return rolling_body(
+        Ellipsoid(p["a"], p["b"], p["c"]), mass=p["m"], inertia=I, center_of_mass=(0, 0, -p["h"]), g=p["g"]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -166,11 +202,11 @@ def _vertical_spin(body, spin: float, t_end: float):
 def test_rattleback_reverses_one_way_only(rattleback) -> None:
     run, wz = _vertical_spin(rattleback, 5.0, 4.0)
     assert run.success and run.energy_drift() <= 1e-9
-    assert np.min(wz) < -1.0                       # spun counter-clockwise, it turns round
+    assert np.min(wz) < -1.0  # spun counter-clockwise, it turns round
     assert np.argmax(wz < 0) * (run.t[1] - run.t[0]) < 3.0
     run, wz = _vertical_spin(rattleback, -5.0, 6.0)
     assert run.success and run.energy_drift() <= 1e-9
-    assert np.all(wz < -2.0)                       # clockwise: still clockwise after 6 s
+    assert np.all(wz < -2.0)  # clockwise: still clockwise after 6 s
 
 
 def _newton_euler(state: np.ndarray, D: float, p: dict = KL) -> np.ndarray:
@@ -188,7 +224,11 @@ def _newton_euler(state: np.ndarray, D: float, p: dict = KL) -> np.ndarray:
     gamma_dot = np.cross(gamma, w)
     r_dot = hess @ (-gamma_dot)
     M = I + m * (r @ r * np.eye(3) - np.outer(r, r))
-    rhs = -np.cross(w, I @ w) - m * np.cross(r, np.cross(w, r_dot)) - m * np.cross(r, np.cross(w, np.cross(w, r)))
+    rhs = (
+        -np.cross(w, I @ w)
+        - m * np.cross(r, np.cross(w, r_dot))
+        - m * np.cross(r, np.cross(w, np.cross(w, r)))
+    )
     rhs += m * g * np.cross(r, gamma)
     return np.concatenate([gamma_dot, np.linalg.solve(M, rhs)])
 
@@ -224,7 +264,7 @@ def test_rattleback_growth_rate_matches_newton_euler(rattleback) -> None:
         assert _growth_chaplygin(rattleback, spin) == pytest.approx(expected, rel=1e-4, abs=1e-6)
     # the spin that reverses first in the simulation grows much faster
     assert _growth_newton_euler(5.0, KL["D"]) > 5 * _growth_newton_euler(-5.0, KL["D"]) > 0
-    assert abs(_growth_newton_euler(5.0, 0.0)) < 1e-9   # no product of inertia: no preferred sense
+    assert abs(_growth_newton_euler(5.0, 0.0)) < 1e-9  # no product of inertia: no preferred sense
     # the mirror rule: the mirror image (y → −y flips D) spun the other way behaves the same
     mirror = _rattleback(-KL["D"])
     assert _growth_chaplygin(mirror, -5.0) == pytest.approx(_growth_newton_euler(5.0, KL["D"]), rel=1e-4)
@@ -257,11 +297,20 @@ def test_initial_state_round_trip_in_every_convention() -> None:
         (lambda: Paraboloid(1, sp.Symbol("k", negative=True)), "rho2"),
         (lambda: rolling_body("sphere", mass=1, inertia=[1, 1, 1]), "Sphere, Disk"),
         (lambda: rolling_body(Sphere(1), mass=0, inertia=[1, 1, 1]), "mass"),
-        (lambda: rolling_body(Sphere(1), mass=1, inertia=[[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]), "inertia[1][0]"),
-        (lambda: rolling_body(Sphere(1), mass=1, inertia=[[1, 2, 0], [2, 1, 0], [0, 0, 1]]), "positive definite"),
+        (
+            lambda: rolling_body(Sphere(1), mass=1, inertia=[[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]),
+            "inertia[1][0]",
+        ),
+        (
+            lambda: rolling_body(Sphere(1), mass=1, inertia=[[1, 2, 0], [2, 1, 0], [0, 0, 1]]),
+            "positive definite",
+        ),
         (lambda: rolling_body(Sphere(1), mass=1, inertia=[1, 1, 3]), "triangle inequality"),
         (lambda: rolling_body(Sphere(1), mass=1, inertia=[1, 1, 1], center_of_mass=(0, 0, 2)), "outside"),
-        (lambda: rolling_body(Paraboloid(1, 2), mass=1, inertia=[1, 1, 1], center_of_mass=(1, 0, 0)), "outside"),
+        (
+            lambda: rolling_body(Paraboloid(1, 2), mass=1, inertia=[1, 1, 1], center_of_mass=(1, 0, 0)),
+            "outside",
+        ),
         (lambda: rolling_body(Sphere(1), mass=1, inertia=[1, 1, 1], angles="zyz"), "angles='zyz'"),
         (lambda: Revolution(lambda al: 1 - sp.cos(al) ** 2 * 3), "not convex"),
         (lambda: SupportFunction(lambda a, b, c: a**2 + b**2 + c**2), "homogeneous"),

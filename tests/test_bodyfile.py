@@ -67,8 +67,13 @@ theta = 0.1
 
 def positive(expr: Any) -> Any:
     """``expr`` with the file's real parameter symbols replaced by positive ones of the same name."""
-    return expr.xreplace({s: sp.Symbol(s.name, positive=True) for s in expr.free_symbols
-                          if isinstance(s, sp.Symbol) and s != T_})
+    return expr.xreplace(
+        {
+            s: sp.Symbol(s.name, positive=True)
+            for s in expr.free_symbols
+            if isinstance(s, sp.Symbol) and s != T_
+        }
+    )
 
 
 def same_dynamics(reference: chaplygin.System, loaded: chaplygin.System) -> None:
@@ -125,7 +130,9 @@ def test_body_file_round_trips() -> None:
     assert again.system.constraints == loaded.system.constraints
 
 
-@pytest.mark.parametrize("command", [["check"], ["derive"], ["simulate", "-t", "0.5", "-n", "5", "-b", "numpy"]])
+@pytest.mark.parametrize(
+    "command", [["check"], ["derive"], ["simulate", "-t", "0.5", "-n", "5", "-b", "numpy"]]
+)
 def test_cli_accepts_a_body_file(command: list[str], tmp_path: Path) -> None:
     path = tmp_path / "routh.toml"
     path.write_text(ROUTH, encoding="utf-8")
@@ -138,8 +145,14 @@ def test_cli_accepts_a_body_file(command: list[str], tmp_path: Path) -> None:
 
 def body(**changes: Any) -> str:
     """ROUTH with [body] keys changed (None removes one); values are TOML text."""
-    table = {"shape": '"sphere"', "radius": '"r"', "mass": '"m"', "inertia": '["A", "A", "C"]',
-             "center_of_mass": '[0, 0, "-e"]', "angles": '"euler"'}
+    table = {
+        "shape": '"sphere"',
+        "radius": '"r"',
+        "mass": '"m"',
+        "inertia": '["A", "A", "C"]',
+        "center_of_mass": '[0, 0, "-e"]',
+        "angles": '"euler"',
+    }
     table.update(changes)
     lines = [f"{k} = {v}" for k, v in table.items() if v is not None]
     params = "r = 1.0\nm = 1.0\nA = 0.4\nC = 0.5\ne = 0.1\ng = 9.81"
@@ -150,7 +163,7 @@ BAD = [
     (body(shape='"cube"'), "[body] shape", '"sphere" | "disk" | "torus"'),
     (body(shape=None), "[body] shape", "ellipsoid"),
     (body(radius=None), "radius is missing", "radius"),
-    (body(shape='"torus"'), '[body] radius', "torus has the keys R, r"),
+    (body(shape='"torus"'), "[body] radius", "torus has the keys R, r"),
     (body(radius="-1", center_of_mass=None), "[body] radius", "> 0"),
     (body(radius='"-r"', center_of_mass=None), "[body] radius", "with the values of [parameters]"),
     (body(mass="0"), "[body] mass", "> 0"),
@@ -163,11 +176,11 @@ BAD = [
     (body(center_of_mass="[0, 0, 2]"), "[body] center_of_mass", "outside"),
     (body(center_of_mass='[0, 0, "-20*e"]'), "[body] center_of_mass", "outside"),
     (body(angles='"zyz"'), "[body] angles", '"cardan", "edge", "euler"'),
-    (body(colour='"red"'), '[body] colour', "mass, inertia"),
-    (body(mass='"m*x"'), "[body] mass", "x"),                        # a coordinate is not a parameter
+    (body(colour='"red"'), "[body] colour", "mass, inertia"),
+    (body(mass='"m*x"'), "[body] mass", "x"),  # a coordinate is not a parameter
     (body(mass='"__import__(1)"'), "[body] mass", ""),
     ('coordinates = ["x"]\n' + body(), "coordinates", "[body]"),
-    (body().replace("[parameters]", "[energy]\nT = \"1\"\n[parameters]"), "energy", "[body]"),
+    (body().replace("[parameters]", '[energy]\nT = "1"\n[parameters]'), "energy", "[body]"),
     (body().replace("g = 9.81", ""), "[body] g", "g = 9.81"),
     (body().replace("g = 9.81", "g = 9.81\nk = 2.0"), "[parameters] k", "[body]"),
 ]

@@ -60,7 +60,9 @@ def derivations(monkeypatch: pytest.MonkeyPatch) -> list[tuple]:
     return calls
 
 
-def test_second_derive_reads_the_entry_and_prints_the_same(cache_dir: Path, tmp_path: Path, derivations) -> None:
+def test_second_derive_reads_the_entry_and_prints_the_same(
+    cache_dir: Path, tmp_path: Path, derivations
+) -> None:
     f = tmp_path / "knife.toml"
     f.write_text(KNIFE)
     first = derive(f)
@@ -71,15 +73,19 @@ def test_second_derive_reads_the_entry_and_prints_the_same(cache_dir: Path, tmp_
     assert not list(cache_dir.glob(".*.tmp"))  # written atomically, nothing left over
 
 
-@pytest.mark.parametrize("spec, model, form", [
-    ("knife", "chaplygin", "classic"),
-    ("example:knife-edge", "chetaev", "classic"),            # multipliers
-    ("example:knife-edge", "vakonomic_family", "classic"),   # constants c_1
-    ("example:rolling-sphere", "lindelof", "new"),
-    ("example:turntable-ball", "voronets", "classic"),      # affine constraints
-])
-def test_one_derivation_serves_every_format(spec: str, model: str, form: str, cache_dir: Path,
-                                            tmp_path: Path, derivations) -> None:
+@pytest.mark.parametrize(
+    "spec, model, form",
+    [
+        ("knife", "chaplygin", "classic"),
+        ("example:knife-edge", "chetaev", "classic"),  # multipliers
+        ("example:knife-edge", "vakonomic_family", "classic"),  # constants c_1
+        ("example:rolling-sphere", "lindelof", "new"),
+        ("example:turntable-ball", "voronets", "classic"),  # affine constraints
+    ],
+)
+def test_one_derivation_serves_every_format(
+    spec: str, model: str, form: str, cache_dir: Path, tmp_path: Path, derivations
+) -> None:
     """json, then text, latex and --no-accelerations: derived once, printed as if never cached."""
     if spec == "knife":
         spec = str(tmp_path / "knife.toml")
@@ -137,9 +143,9 @@ def test_changed_file_or_options_miss(cache_dir: Path, tmp_path: Path, derivatio
 
 
 DAMAGES = [
-    lambda raw: raw[: len(raw) // 2],                                  # truncated
-    lambda raw: raw.replace(b"phi", b"psi"),                           # edited body
-    lambda raw: b"0" * 64 + raw[64:],                                  # wrong digest
+    lambda raw: raw[: len(raw) // 2],  # truncated
+    lambda raw: raw.replace(b"phi", b"psi"),  # edited body
+    lambda raw: b"0" * 64 + raw[64:],  # wrong digest
     lambda raw: b"not json at all",
     lambda raw: b"",
 ]
@@ -216,8 +222,13 @@ def test_expressions_round_trip_exactly() -> None:
     from chaplygin import examples
 
     eqs = examples.turntable_ball().equations("chetaev")
-    exprs = [*eqs.equations, *eqs.accelerations, *eqs.accelerations.values(), sp.pi * sp.E + sp.I,
-             sp.Rational(-3, 7) * sp.Abs(sp.Symbol("w", real=True)) ** sp.Rational(1, 2)]
+    exprs = [
+        *eqs.equations,
+        *eqs.accelerations,
+        *eqs.accelerations.values(),
+        sp.pi * sp.E + sp.I,
+        sp.Rational(-3, 7) * sp.Abs(sp.Symbol("w", real=True)) ** sp.Rational(1, 2),
+    ]
     data = cache.expressions_to_data(exprs)
     assert data is not None
     back = cache.expressions_from_data(json.loads(json.dumps(data)))
@@ -233,17 +244,20 @@ def test_expressions_it_cannot_store_are_not_cached() -> None:
     assert cache.expressions_to_data([sp.Heaviside(sp.Symbol("x"))]) is None
 
 
-@pytest.mark.parametrize("data, why", [
-    ({"nodes": [["eval", "1"]], "roots": [0]}, "unknown kind"),
-    ({"nodes": [["Symbol", "x", {}], ["Add", 0, 2]], "roots": [1]}, "out of range"),   # a later node
-    ({"nodes": [["Symbol", "x", {}]], "roots": [1]}, "out of range"),
-    ({"nodes": [["Symbol", "x", {"real": "yes"}]], "roots": [0]}, "assumptions"),
-    ({"nodes": [["Symbol", "", {}]], "roots": [0]}, "name"),
-    ({"nodes": [["Rational", 1, 0]], "roots": [0]}, "rational"),
-    ({"nodes": [["Constant", "__class__"]], "roots": [0]}, "constant"),
-    ({"nodes": [["Add"]]}, "KeyError"),
-    ("nodes", "TypeError"),
-])
+@pytest.mark.parametrize(
+    "data, why",
+    [
+        ({"nodes": [["eval", "1"]], "roots": [0]}, "unknown kind"),
+        ({"nodes": [["Symbol", "x", {}], ["Add", 0, 2]], "roots": [1]}, "out of range"),  # a later node
+        ({"nodes": [["Symbol", "x", {}]], "roots": [1]}, "out of range"),
+        ({"nodes": [["Symbol", "x", {"real": "yes"}]], "roots": [0]}, "assumptions"),
+        ({"nodes": [["Symbol", "", {}]], "roots": [0]}, "name"),
+        ({"nodes": [["Rational", 1, 0]], "roots": [0]}, "rational"),
+        ({"nodes": [["Constant", "__class__"]], "roots": [0]}, "constant"),
+        ({"nodes": [["Add"]]}, "KeyError"),
+        ("nodes", "TypeError"),
+    ],
+)
 def test_malformed_expression_data_is_refused(data, why: str) -> None:
     with pytest.raises(ValueError, match=why):
         cache.expressions_from_data(data)

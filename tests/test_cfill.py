@@ -90,20 +90,31 @@ def test_compiled_loop_and_symmetric_method_run_on_a_c_fill(monkeypatch) -> None
     chain = examples.sleigh_chain(2)  # one instance: its numba model is compiled once, for every path
     runs = {}
     for backend in ("numba", "numpy"):
-        runs[backend] = simulate(chain, "voronets", 2.0, init, par, backend=backend,
-                                 samples=5, reduction="numeric")
+        runs[backend] = simulate(
+            chain, "voronets", 2.0, init, par, backend=backend, samples=5, reduction="numeric"
+        )
         assert runs[backend].status == "success"
     assert uses_c(compile_model(chain, "voronets", backend="numba", reduction="numeric"))
     for name, values in runs["numba"].coordinates.items():
         np.testing.assert_allclose(values, runs["numpy"].coordinates[name], rtol=1e-8, atol=1e-10)
-    gauss = simulate(chain, "voronets", 2.0, init, par, backend="numba", samples=5,
-                     reduction="numeric", method="gauss4", step=0.01)
+    gauss = simulate(
+        chain,
+        "voronets",
+        2.0,
+        init,
+        par,
+        backend="numba",
+        samples=5,
+        reduction="numeric",
+        method="gauss4",
+        step=0.01,
+    )
     for name, values in gauss.coordinates.items():
         np.testing.assert_allclose(values, runs["numpy"].coordinates[name], atol=1e-6)
     ens = simulate_ensemble(chain, "voronets", 2.0, [init, init], par, reduction="numeric")
     final = np.array([runs["numpy"].coordinates[name][-1] for name in ens.layout.coordinates])
     for member in ens.y:
-        np.testing.assert_allclose(member[:len(final)], final, rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(member[: len(final)], final, rtol=1e-8, atol=1e-10)
 
 
 @needs_cc
@@ -128,15 +139,18 @@ def test_no_compiler_warns_and_numba_compiles_the_python_fill(always_c, monkeypa
     with pytest.warns(RuntimeWarning, match="CHAPLYGIN_CC='none' switches it off"):
         compiled = compile_model(examples.knife_edge(), "chaplygin", backend="numba")
     assert not uses_c(compiled)
-    assert compiled.rhs(0.0, np.array([0.0, 0.0, 0.1, 1.0, 0.5]), np.ones(len(compiled.layout.parameters))).shape
+    assert compiled.rhs(
+        0.0, np.array([0.0, 0.0, 0.1, 1.0, 0.5]), np.ones(len(compiled.layout.parameters))
+    ).shape
 
 
 @pytest.mark.parametrize(
     "command, message",
     [("/nonexistent/bin/cc", "could not run"), ("false", r"failed \(exit 1\): \(no output\)")],
 )
-def test_a_failing_compiler_is_reported_and_nothing_is_left(command, message, always_c, monkeypatch,
-                                                            tmp_path) -> None:
+def test_a_failing_compiler_is_reported_and_nothing_is_left(
+    command, message, always_c, monkeypatch, tmp_path
+) -> None:
     monkeypatch.setenv("CHAPLYGIN_CC", command)
     monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path))
     with pytest.warns(RuntimeWarning, match=message):

@@ -46,7 +46,17 @@ def test_trajectory_to_pandas(run: Trajectory) -> None:
     frame = run.to_pandas()
     assert isinstance(frame, pd.DataFrame) and frame.index.name == "t"
     np.testing.assert_array_equal(frame.index.to_numpy(), run.t)
-    assert list(frame.columns) == ["x", "y", "phi", "x'", "y'", "phi'", "energy", "constraint_residual", "lambda_1"]
+    assert list(frame.columns) == [
+        "x",
+        "y",
+        "phi",
+        "x'",
+        "y'",
+        "phi'",
+        "energy",
+        "constraint_residual",
+        "lambda_1",
+    ]
     assert list(frame.columns) == run.columns[1:]  # the names of table() and to_csv()
     for name in frame.columns:
         np.testing.assert_array_equal(frame[name].to_numpy(), run[name])
@@ -82,11 +92,14 @@ def test_missing_pandas_or_xarray_says_which_extra(run: Trajectory, monkeypatch:
 
 
 # ------------------------------------------------------------------ plots
-@pytest.mark.parametrize(("what", "labels"), [
-    ("coordinates", ["x", "y", "phi"]),
-    ("velocities", ["x'", "y'", "phi'"]),
-    ("invariants", ["|E − E(0)| / max(1, |E(0)|)", "constraint residual"]),
-])
+@pytest.mark.parametrize(
+    ("what", "labels"),
+    [
+        ("coordinates", ["x", "y", "phi"]),
+        ("velocities", ["x'", "y'", "phi'"]),
+        ("invariants", ["|E − E(0)| / max(1, |E(0)|)", "constraint residual"]),
+    ],
+)
 def test_plot_against_time(run: Trajectory, what: str, labels: list[str]) -> None:
     ax = _axes()
     assert run.plot(what, ax=ax, lw=0.5) is ax
@@ -112,13 +125,26 @@ def test_plot_path_draws_y_against_x(run: Trajectory) -> None:
 
 def test_plot_path_without_x_and_y_needs_the_pair() -> None:
     t = np.linspace(0.0, 1.0, 3)
-    tr = Trajectory("chetaev", "classic", "numpy", t, {"a": t, "b": 2 * t}, {"a'": t, "b'": t}, {},
-                    np.zeros(3), np.zeros(3))
+    tr = Trajectory(
+        "chetaev",
+        "classic",
+        "numpy",
+        t,
+        {"a": t, "b": 2 * t},
+        {"a'": t, "b'": t},
+        {},
+        np.zeros(3),
+        np.zeros(3),
+    )
     with pytest.raises(ChaplyginError, match=r"no coordinates named x and y \(a, b\).*path=\('a', 'b'\)"):
         tr.plot("path", ax=_axes())
-    with pytest.raises(ChaplyginError, match=r"path=\('a', 'c'\): give two coordinates of this trajectory \(a, b\)"):
+    with pytest.raises(
+        ChaplyginError, match=r"path=\('a', 'c'\): give two coordinates of this trajectory \(a, b\)"
+    ):
         tr.plot("path", ax=_axes(), path=("a", "c"))
-    np.testing.assert_array_equal(tr.plot("path", ax=_axes(), path=("a", "b")).get_lines()[0].get_ydata(), 2 * t)
+    np.testing.assert_array_equal(
+        tr.plot("path", ax=_axes(), path=("a", "b")).get_lines()[0].get_ydata(), 2 * t
+    )
     with pytest.raises(ChaplyginError, match="what='speed': choose one of 'coordinates'"):
         tr.plot("speed")
 
@@ -147,8 +173,9 @@ def test_coincident_models_stay_visible() -> None:
     """Lindelöf's equations are right for the vertical rolling disk: its curves are the true ones."""
     disk = examples.vertical_rolling_disk()
     entry = examples.get("vertical-rolling-disk")
-    result = compare(disk, ["chaplygin", "lindelof"], 2.0, entry.initial, entry.parameters,
-                     samples=41, backend="numpy")
+    result = compare(
+        disk, ["chaplygin", "lindelof"], 2.0, entry.initial, entry.parameters, samples=41, backend="numpy"
+    )
     fig = result.figure("paths")
     ax = fig.axes[0]
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
@@ -158,8 +185,9 @@ def test_coincident_models_stay_visible() -> None:
 
 
 def test_models_that_differ_are_not_called_the_same(knife: Any) -> None:
-    result = compare(knife, ["chaplygin", "lindelof"], 1.0, KNIFE_START, KNIFE_PARAMETERS,
-                     samples=21, backend="numpy")
+    result = compare(
+        knife, ["chaplygin", "lindelof"], 1.0, KNIFE_START, KNIFE_PARAMETERS, samples=21, backend="numpy"
+    )
     assert np.max(result.distance("lindelof")) > 1e-2  # visibly apart
     labels = [t.get_text() for t in result.figure("paths").axes[0].get_legend().get_texts()]
     assert labels == ["chaplygin", "lindelof"]
@@ -173,11 +201,23 @@ def _ensemble() -> Ensemble:
     samples = np.arange(3 * 3 * 5, dtype=float).reshape(3, 3, 5)
     samples[2, 2] = np.nan  # member 2 failed before the last time
     return Ensemble(
-        "vakonomic", "classic", "numba", layout, np.array([1.0, 1.0, 0.7]), y,
-        {"x": y[:, 0], "y": y[:, 1]}, {"x'": y[:, 2], "y'": y[:, 3]},
-        np.array([1.5, 2.5, 3.5]), np.array([1.0, 2.0, 4.0]), np.array([0.0, 1e-12, 1e-3]),
-        np.array([0, 0, 2]), np.array([40, 41, 99]), times=np.array([0.0, 0.5, 1.0]), samples=samples,
-        wall_time=0.25, parameters={"m": np.array([1.0, 2.0, 3.0])},
+        "vakonomic",
+        "classic",
+        "numba",
+        layout,
+        np.array([1.0, 1.0, 0.7]),
+        y,
+        {"x": y[:, 0], "y": y[:, 1]},
+        {"x'": y[:, 2], "y'": y[:, 3]},
+        np.array([1.5, 2.5, 3.5]),
+        np.array([1.0, 2.0, 4.0]),
+        np.array([0.0, 1e-12, 1e-3]),
+        np.array([0, 0, 2]),
+        np.array([40, 41, 99]),
+        times=np.array([0.0, 0.5, 1.0]),
+        samples=samples,
+        wall_time=0.25,
+        parameters={"m": np.array([1.0, 2.0, 3.0])},
     )
 
 
@@ -217,9 +257,18 @@ def test_sweep_to_pandas_and_xarray(knife: Any, tmp_path: Path) -> None:
     from chaplygin.apps.sweep import sweep
 
     start = {k: v for k, v in KNIFE_START.items() if k != "x'"}
-    result = sweep(knife, {"m": [1.0, 2.0], "x'": [0.5, 1.0, 2.0]}, model="chaplygin", t_end=0.5,
-                   parameters={"J": 0.5}, initial=start, out=tmp_path / "knife.parquet", backend="numpy",
-                   samples=3, scheduler="serial")
+    result = sweep(
+        knife,
+        {"m": [1.0, 2.0], "x'": [0.5, 1.0, 2.0]},
+        model="chaplygin",
+        t_end=0.5,
+        parameters={"J": 0.5},
+        initial=start,
+        out=tmp_path / "knife.parquet",
+        backend="numpy",
+        samples=3,
+        scheduler="serial",
+    )
     frame = result.to_pandas()
     assert frame.index.name == "run" and list(frame.index) == list(range(6))
     assert list(frame["grid.x'"]) == [0.5, 1.0, 2.0, 0.5, 1.0, 2.0]  # C order: the last axis fastest

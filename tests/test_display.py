@@ -76,7 +76,9 @@ def knife() -> System:
 # ---------------------------------------------------------------- the helper
 def test_helper_escapes_text_and_latex() -> None:
     assert escape(HOSTILE) == "&lt;script&gt;alert(1)&lt;/script&gt;"
-    assert table([["<b>1</b>"]], ["a<b"]) == "<table><tr><th>a&lt;b</th></tr><tr><td><b>1</b></td></tr></table>"
+    assert (
+        table([["<b>1</b>"]], ["a<b"]) == "<table><tr><th>a&lt;b</th></tr><tr><td><b>1</b></td></tr></table>"
+    )
     assert latex_text("a_b {c} 50% $x$ \\") == r"\text{a\_b \{c\} 50\% \$x\$ \textbackslash{}}"
 
 
@@ -98,18 +100,23 @@ def test_system(knife: System) -> None:
     markup = knife._repr_html_()
     text = text_of(markup)
     assert "System Knife edge" in text and "kinetic energy" in text
-    assert "$x$, $y$, $\\phi$" in text            # the coordinates
+    assert "$x$, $y$, $\\phi$" in text  # the coordinates
     assert "dependent" in text and "$J$, $m$" in text  # the parameters
-    assert "\\dot{y} =" in text                     # the constraint, form B
+    assert "\\dot{y} =" in text  # the constraint, form B
 
 
 def test_hostile_names_are_escaped() -> None:
     q = dynamicsymbols("q1 q2")
     k = sp.Symbol("k")
-    system = System(q, k * (q[0].diff() ** 2 + q[1].diff() ** 2) / 2, {q[1].diff(): q[0] * q[0].diff()},
-                    name=HOSTILE)
-    for markup in (system._repr_html_(), system.equations("chetaev")._repr_html_(),
-                   system.integrability()._repr_html_(), compare_models(system)._repr_html_()):
+    system = System(
+        q, k * (q[0].diff() ** 2 + q[1].diff() ** 2) / 2, {q[1].diff(): q[0] * q[0].diff()}, name=HOSTILE
+    )
+    for markup in (
+        system._repr_html_(),
+        system.equations("chetaev")._repr_html_(),
+        system.integrability()._repr_html_(),
+        compare_models(system)._repr_html_(),
+    ):
         assert "<script" not in markup
         checker = parse(markup)
         assert "script" not in checker.tags and HOSTILE in "".join(checker.text)
@@ -149,18 +156,34 @@ def test_trajectory(knife: System) -> None:
     run = simulate(knife, "chaplygin", 2.0, KNIFE_START, KNIFE_PARAMETERS, samples=51, backend="numpy")
     markup = run._repr_html_()
     text = text_of(markup)
-    for expected in ("chaplygin/classic", "numpy", "success", "0 … 2", "51", "max energy drift",
-                     "max constraint residual"):
+    for expected in (
+        "chaplygin/classic",
+        "numpy",
+        "success",
+        "0 … 2",
+        "51",
+        "max energy drift",
+        "max constraint residual",
+    ):
         assert expected in text
     assert png_bytes(markup).startswith(PNG_MAGIC)
 
 
 def test_comparison() -> None:
     sphere = examples.rolling_sphere()
-    start = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
-             "psi'": 0.5, "theta'": 0.2, "phi'": 0.4}
-    result = compare(sphere, ["chaplygin", "lindelof"], 2.0, start, {"m": 1.0, "a": 1.0},
-                     samples=41, backend="numpy")
+    start = {
+        "psi": 0.3,
+        "theta": 1.0,
+        "phi": 0.1,
+        "x": 0.0,
+        "y": 0.0,
+        "psi'": 0.5,
+        "theta'": 0.2,
+        "phi'": 0.4,
+    }
+    result = compare(
+        sphere, ["chaplygin", "lindelof"], 2.0, start, {"m": 1.0, "a": 1.0}, samples=41, backend="numpy"
+    )
     markup = result._repr_html_()
     text = text_of(markup)
     assert "models compared with chaplygin" in text and "lindelof" in text

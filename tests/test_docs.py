@@ -54,8 +54,26 @@ SCHEME = re.compile(r"([A-Za-z][A-Za-z0-9+.-]*):")
 EXTERNAL_SCHEMES = {"http", "https", "mailto"}
 #: Unicode categories github-slugger strips from a heading (all but letters, marks, decimal and
 #: letter numbers, `_`, `-` and the space, which becomes `-`).
-SLUG_DROP = {"No", "Pd", "Ps", "Pe", "Pi", "Pf", "Po", "Sm", "Sc", "Sk", "So", "Cc", "Cf", "Co", "Cn",
-             "Zs", "Zl", "Zp"}
+SLUG_DROP = {
+    "No",
+    "Pd",
+    "Ps",
+    "Pe",
+    "Pi",
+    "Pf",
+    "Po",
+    "Sm",
+    "Sc",
+    "Sk",
+    "So",
+    "Cc",
+    "Cf",
+    "Co",
+    "Cn",
+    "Zs",
+    "Zl",
+    "Zp",
+}
 
 
 def _prose_lines(text: str) -> list[tuple[int, str]]:
@@ -229,17 +247,34 @@ def test_broken_links_are_reported(tmp_path: Path) -> None:
         encoding="utf-8",
     )
     good = [
-        "[a](other.md)", "[a](other.md#other-page)", "[a](other.md#lindelöfs-equations-22)",
-        "[a](other.md#lindel%C3%B6fs-equations-22)", "[a](other.md#notes-1)",
-        "[a](other.md#setext-heading)", "[a](#this-page)", "[a](../docs/other.md)",
-        "[a](https://example.org/x_(y))", "<https://example.org>", "[a](mailto:a@example.org)",
-        "![i](other.md 'title')", "`[not a link](../../nowhere.md)`",
+        "[a](other.md)",
+        "[a](other.md#other-page)",
+        "[a](other.md#lindelöfs-equations-22)",
+        "[a](other.md#lindel%C3%B6fs-equations-22)",
+        "[a](other.md#notes-1)",
+        "[a](other.md#setext-heading)",
+        "[a](#this-page)",
+        "[a](../docs/other.md)",
+        "[a](https://example.org/x_(y))",
+        "<https://example.org>",
+        "[a](mailto:a@example.org)",
+        "![i](other.md 'title')",
+        "`[not a link](../../nowhere.md)`",
     ]
     bad = [
-        "[a](../../outside.md)", "[a](file:///etc/passwd)", "[a](/etc/passwd)",
-        "[a](C:/Users/x.md)", "[a](missing.md)", "[a](other.md#missing)",
-        "[a](other.md#notes-2)", "[a](other.md#not-a-heading)", "[a](#nowhere)", "[a](other.md#)",
-        '<a href="../../outside.md">a</a>', "[r]: ../../outside.md", "<file:///tmp/x>",
+        "[a](../../outside.md)",
+        "[a](file:///etc/passwd)",
+        "[a](/etc/passwd)",
+        "[a](C:/Users/x.md)",
+        "[a](missing.md)",
+        "[a](other.md#missing)",
+        "[a](other.md#notes-2)",
+        "[a](other.md#not-a-heading)",
+        "[a](#nowhere)",
+        "[a](other.md#)",
+        '<a href="../../outside.md">a</a>',
+        "[r]: ../../outside.md",
+        "<file:///tmp/x>",
         "[a](~/notes.md)",
     ]
     page = root / "docs" / "page.md"

@@ -55,15 +55,23 @@ def test_known_accelerations_of_the_free_sphere(sphere) -> None:
 
 
 def test_parameters_can_be_fixed(sphere) -> None:
-    report = equivalent(sphere, sphere.equations("chaplygin"), sphere.equations("chetaev"), parameters={"a": 2.0, "m": 3.0})
+    report = equivalent(
+        sphere, sphere.equations("chaplygin"), sphere.equations("chetaev"), parameters={"a": 2.0, "m": 3.0}
+    )
     assert report.method == "numeric" and report
 
 
 def test_bad_inputs(sphere) -> None:
     with pytest.raises(ChaplyginError, match="not linear"):
-        equivalent(sphere, [psi.diff(t, 2) ** 2, theta.diff(t, 2), phi.diff(t, 2)], sphere.equations("chetaev"))
+        equivalent(
+            sphere, [psi.diff(t, 2) ** 2, theta.diff(t, 2), phi.diff(t, 2)], sphere.equations("chetaev")
+        )
     with pytest.raises(ChaplyginError, match="unknown symbol"):
-        equivalent(sphere, [psi.diff(t, 2) - sp.Symbol("g"), theta.diff(t, 2), phi.diff(t, 2)], sphere.equations("chetaev"))
+        equivalent(
+            sphere,
+            [psi.diff(t, 2) - sp.Symbol("g"), theta.diff(t, 2), phi.diff(t, 2)],
+            sphere.equations("chetaev"),
+        )
     with pytest.raises(ChaplyginError, match="do not determine"):
         equivalent(sphere, [psi.diff(t, 2)], sphere.equations("chetaev"))
     with pytest.raises(ChaplyginError, match="another system"):

@@ -86,8 +86,15 @@ class Reference:
             qd[self.dependent] = self.velocity(t, *q, *qd, *mu, *p)
         return t, q, qd, mu, p
 
-    def derivative(self, t: float, q: np.ndarray, qd: np.ndarray, mu: np.ndarray, p: np.ndarray,
-                   layout_state: tuple[str, ...]) -> np.ndarray:
+    def derivative(
+        self,
+        t: float,
+        q: np.ndarray,
+        qd: np.ndarray,
+        mu: np.ndarray,
+        p: np.ndarray,
+        layout_state: tuple[str, ...],
+    ) -> np.ndarray:
         """dy/dt in the exported layout: velocities, then q'' of the integrated velocities, then μ'."""
         values = dict(zip(self.keys, self.acc(t, *q, *qd, *mu, *p)))
         by_name = {}
@@ -128,9 +135,26 @@ def _c_functions(source: str, tmp: Path, ny: int, jacobian: bool) -> tuple[Calla
     cc = _c_compiler()
     c_file, library = tmp / "model.c", tmp / "model.so"
     c_file.write_text(source, encoding="ascii")  # the exported C is plain ASCII
-    run = subprocess.run([*cc, "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O1", "-fPIC",
-                          "-shared", str(c_file), "-o", str(library), "-lm"],
-                         capture_output=True, text=True, check=False)
+    run = subprocess.run(
+        [
+            *cc,
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-pedantic",
+            "-Werror",
+            "-O1",
+            "-fPIC",
+            "-shared",
+            str(c_file),
+            "-o",
+            str(library),
+            "-lm",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert run.returncode == 0, run.stderr
     lib = ctypes.CDLL(str(library))
     vec = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
@@ -155,8 +179,9 @@ def _c_functions(source: str, tmp: Path, ny: int, jacobian: bool) -> tuple[Calla
     return rhs, jac
 
 
-def _check(rhs: Callable[..., np.ndarray], jac: Callable[..., np.ndarray], ref: Reference,
-           state: tuple[str, ...]) -> None:
+def _check(
+    rhs: Callable[..., np.ndarray], jac: Callable[..., np.ndarray], ref: Reference, state: tuple[str, ...]
+) -> None:
     rng = np.random.default_rng(RNG_SEED)
     n = len(ref.names)
     for _ in range(5):
@@ -200,8 +225,15 @@ def test_c_export_computes_the_equations(system: str, model: str, form: str, tmp
 def test_header_documents_the_layout() -> None:
     knife = _system("knife_edge")
     source = export(knife, "chaplygin", "c")
-    for line in ("y[0]  x     coordinate", "y[3]  x'    velocity", "y[4]  phi'  velocity",
-                 "p[0]  J", "p[1]  m", "Units: none", "dependent velocities (y')"):
+    for line in (
+        "y[0]  x     coordinate",
+        "y[3]  x'    velocity",
+        "y[4]  phi'  velocity",
+        "p[0]  J",
+        "p[1]  m",
+        "Units: none",
+        "dependent velocities (y')",
+    ):
         assert line in source, line
     assert "jacobian" not in source  # only when asked
     family = export(knife, "vakonomic_family", "python")
@@ -224,11 +256,14 @@ def test_python_module_refuses_a_wrong_state() -> None:
         module["rhs"](0.0, [0.0, 0.0, 0.1], [1.0, 1.0])
 
 
-@pytest.mark.parametrize(("kwargs", "message"), [
-    ({"to": "fortran"}, "to='fortran': export writes 'c' or 'python'"),
-    ({"to": "c", "prefix": "2x"}, "prefix='2x': give letters, digits and '_'"),
-    ({"to": "c", "prefix": "a b"}, "prefix='a b'"),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"to": "fortran"}, "to='fortran': export writes 'c' or 'python'"),
+        ({"to": "c", "prefix": "2x"}, "prefix='2x': give letters, digits and '_'"),
+        ({"to": "c", "prefix": "a b"}, "prefix='a b'"),
+    ],
+)
 def test_bad_options_are_refused(kwargs: dict[str, Any], message: str) -> None:
     with pytest.raises(ChaplyginError, match=message.replace("(", r"\(").replace(")", r"\)")):
         export(_system("knife_edge"), "chaplygin", **kwargs)
@@ -246,7 +281,17 @@ def test_command_line_writes_and_prints(tmp_path: Path) -> None:
 
     runner = CliRunner()
     out = tmp_path / "deep" / "knife.py"
-    args = ["export", "example:knife-edge", "--model", "chetaev", "--to", "python", "--jacobian", "-o", str(out)]
+    args = [
+        "export",
+        "example:knife-edge",
+        "--model",
+        "chetaev",
+        "--to",
+        "python",
+        "--jacobian",
+        "-o",
+        str(out),
+    ]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     assert "rhs and jacobian of chetaev/classic" in result.stdout

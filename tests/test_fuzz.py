@@ -31,7 +31,10 @@ from chaplygin.io.parser import ParseError, parse_constant, parse_expression
 #: Seconds an input may run before it counts as a hang: far above the milliseconds inputs take.
 HANG = 10.0
 FUZZ = settings(
-    max_examples=300, derandomize=True, deadline=None, database=None,
+    max_examples=300,
+    derandomize=True,
+    deadline=None,
+    database=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 

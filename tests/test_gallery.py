@@ -33,7 +33,9 @@ def dd(q: sp.Expr) -> sp.Expr:
 
 def at(expr: sp.Expr, values: dict) -> float:
     """``expr`` at numbers: derivatives are replaced before the coordinates."""
-    order = sorted(values, key=lambda k: -int(isinstance(k, sp.Derivative)) - int(getattr(k, "derivative_count", 0)))
+    order = sorted(
+        values, key=lambda k: -int(isinstance(k, sp.Derivative)) - int(getattr(k, "derivative_count", 0))
+    )
     return float(expr.subs([(k, values[k]) for k in order]))
 
 
@@ -44,9 +46,19 @@ def system(name: str, **parameters: float) -> System:
 
 
 # ============================================================================ catalogue
-GALLERY = ["rolling-sphere", "knife-edge", "vertical-rolling-disk", "rolling-disk", "chaplygin-sleigh",
-           "turntable-ball", "chaplygin-ball", "heisenberg", "contact-oscillator", "differential-drive",
-           "sleigh-chain"]
+GALLERY = [
+    "rolling-sphere",
+    "knife-edge",
+    "vertical-rolling-disk",
+    "rolling-disk",
+    "chaplygin-sleigh",
+    "turntable-ball",
+    "chaplygin-ball",
+    "heisenberg",
+    "contact-oscillator",
+    "differential-drive",
+    "sleigh-chain",
+]
 
 
 def test_catalogue_is_the_gallery() -> None:
@@ -57,9 +69,9 @@ def test_catalogue_is_the_gallery() -> None:
         assert f"gallery/{name}.md" in (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
 
 
-CHARTS = {   # (low, high, only the reduced forms: the multiplier forms use form A, with no pole)
-    "chaplygin-sleigh": {"theta": (-0.5, 0.5, True)},               # ẏ = tan θ ẋ
-    "turntable-ball": {"theta": (0.2, np.pi - 0.2, False)},         # z-x-z Euler angles
+CHARTS = {  # (low, high, only the reduced forms: the multiplier forms use form A, with no pole)
+    "chaplygin-sleigh": {"theta": (-0.5, 0.5, True)},  # ẏ = tan θ ẋ
+    "turntable-ball": {"theta": (0.2, np.pi - 0.2, False)},  # z-x-z Euler angles
     "chaplygin-ball": {"theta": (0.3, np.pi - 0.3, False)},
     "sleigh-chain": {"theta0": (-0.5, 0.5, True)},
 }
@@ -79,8 +91,8 @@ def test_catalogue_state_simulates_in_every_model(name: str) -> None:
         assert np.max(np.abs(tr.constraint_residual)) < 1e-7, (model, form)
         if not s.is_affine:
             assert tr.energy_drift() < 1e-8, (model, form)
-        for coordinate, (low, high, reduced_only) in CHARTS.get(name, {}).items():   # away from poles
-            if reduced_only and model in ("chetaev", "vakonomic"):        # form A: no pole there
+        for coordinate, (low, high, reduced_only) in CHARTS.get(name, {}).items():  # away from poles
+            if reduced_only and model in ("chetaev", "vakonomic"):  # form A: no pole there
                 continue
             assert low < np.min(tr[coordinate]) and np.max(tr[coordinate]) < high, (model, form, coordinate)
 
@@ -110,7 +122,10 @@ def test_knife_edge_lindelof_runs_away_from_the_blade_direction() -> None:
     s = system("knife_edge")
     x, _, phi = s.coordinates
     m, J = s.parameter("m"), s.parameter("J")
-    assert sp.simplify(s.reduced_kinetic_energy - (m * d(x) ** 2 / (2 * sp.cos(phi) ** 2) + J * d(phi) ** 2 / 2)) == 0
+    assert (
+        sp.simplify(s.reduced_kinetic_energy - (m * d(x) ** 2 / (2 * sp.cos(phi) ** 2) + J * d(phi) ** 2 / 2))
+        == 0
+    )
     comparison = compare_models(s)
     assert comparison.verdict == "differ" and s.integrability().integrable is False
     assert s.integrability().frobenius.failures == [("[X_x, X_phi] along ∂y", -1 / sp.cos(phi) ** 2)]
@@ -123,7 +138,7 @@ def test_knife_edge_lindelof_runs_away_from_the_blade_direction() -> None:
     rate = 0.1 * np.sqrt(1 / 4)
     assert np.allclose(tr["phi"], 1e-3 / rate * np.sinh(rate * tr.t), rtol=1e-4, atol=1e-9)
     true = simulate(k, "chaplygin", 20.0, {"x": 0, "y": 0, "phi": 0.0, "x'": 0.1, "phi'": 1e-3}, samples=21)
-    assert np.allclose(true["phi"], 1e-3 * true.t, atol=1e-12)    # the true blade turns uniformly
+    assert np.allclose(true["phi"], 1e-3 * true.t, atol=1e-12)  # the true blade turns uniformly
 
 
 # ============================================================================ Chaplygin sleigh
@@ -213,12 +228,13 @@ def test_vertical_disk_rolls_round_a_circle() -> None:
     assert equivalent(s, s.equations("lindelof"), true)
     assert not equivalent(s, s.equations("vakonomic_family", constants=[1, 0]), true)
     n = system("vertical_rolling_disk", m=1, R=0.5, I=0.5, J=0.25)
-    tr = simulate(n, "chaplygin", 10.0, {"theta": 0, "phi": 0.2, "x": 0, "y": 0, "theta'": 2.0, "phi'": 0.4},
-                    samples=21)
+    tr = simulate(
+        n, "chaplygin", 10.0, {"theta": 0, "phi": 0.2, "x": 0, "y": 0, "theta'": 2.0, "phi'": 0.4}, samples=21
+    )
     rho = 0.5 * 2.0 / 0.4
     assert np.allclose(tr["x"], rho * (np.sin(0.2 + 0.4 * tr.t) - np.sin(0.2)), atol=1e-8)
     assert np.allclose(tr["y"], -rho * (np.cos(0.2 + 0.4 * tr.t) - np.cos(0.2)), atol=1e-8)
-    entry = examples.get("vertical-rolling-disk")                  # R θ̇/φ̇ = 1 · 1/0.2 = 5
+    entry = examples.get("vertical-rolling-disk")  # R θ̇/φ̇ = 1 · 1/0.2 = 5
     tr = simulate(entry.system(), "chaplygin", 20.0, entry.initial, entry.parameters, samples=41)
     assert np.allclose(np.hypot(tr["x"], tr["y"] - 5.0), 5.0)
 
@@ -233,7 +249,8 @@ def steady_spin(theta: float, Omega: float, p: dict) -> float:
     by Newton–Euler on the page; Routh 1905, art. 244; O'Reilly 1996)."""
     m, r, A, C, g = p["m"], p["r"], p["A"], p["C"], p["g"]
     return (A * Omega**2 * np.sin(theta) * np.cos(theta) - m * g * r * np.sin(theta)) / (
-        (C + m * r**2) * Omega * np.cos(theta))
+        (C + m * r**2) * Omega * np.cos(theta)
+    )
 
 
 @pytest.mark.parametrize("theta, Omega", [(0.3, 2.0), (-0.5, 3.0), (1.0, -4.0)])
@@ -242,13 +259,28 @@ def test_rolling_disk_steady_rolling_relation(theta: float, Omega: float) -> Non
     psi, th, phi, *_ = s.coordinates
     spin = steady_spin(theta, Omega, DISK)
     phid = spin - Omega * np.sin(theta)
-    state = {**{s.parameter(k): v for k, v in DISK.items()}, psi: 0.4, th: theta, phi: 0.1,
-             d(psi): Omega, d(th): 0.0, d(phi): phid}
-    for model in ("chaplygin", "lindelof"):          # the defect is ∝ θ̇: both models keep these
+    state = {
+        **{s.parameter(k): v for k, v in DISK.items()},
+        psi: 0.4,
+        th: theta,
+        phi: 0.1,
+        d(psi): Omega,
+        d(th): 0.0,
+        d(phi): phid,
+    }
+    for model in ("chaplygin", "lindelof"):  # the defect is ∝ θ̇: both models keep these
         acc = s.equations(model).accelerations
         assert all(abs(at(acc[dd(q)], state)) < 1e-9 for q in (psi, th, phi)), model
-    start = {"psi": 0.0, "theta": theta, "phi": 0.0, "x": 0.0, "y": 0.0,
-             "psi'": Omega, "theta'": 0.0, "phi'": phid}
+    start = {
+        "psi": 0.0,
+        "theta": theta,
+        "phi": 0.0,
+        "x": 0.0,
+        "y": 0.0,
+        "psi'": Omega,
+        "theta'": 0.0,
+        "phi'": phid,
+    }
     tr = simulate(s, "chaplygin", 5.0, start, DISK, samples=26)
     assert np.ptp(tr["theta"]) < 1e-9 and np.ptp(tr["psi'"]) < 1e-9 and np.ptp(tr["phi'"]) < 1e-9
     # the contact point runs round a circle of radius r φ̇/Ω, the centre round one of radius r s/Ω
@@ -257,7 +289,7 @@ def test_rolling_disk_steady_rolling_relation(theta: float, Omega: float) -> Non
     assert np.allclose(tr["y"], -rho * (np.cos(Omega * tr.t) - 1), atol=1e-8)
     gx = tr["x"] + np.sin(theta) * np.sin(tr["psi"])
     gy = tr["y"] - np.sin(theta) * np.cos(tr["psi"])
-    radius = np.hypot(gx, gy - rho)                 # about the same centre (0, r φ̇/Ω)
+    radius = np.hypot(gx, gy - rho)  # about the same centre (0, r φ̇/Ω)
     assert np.ptp(radius) < 1e-8 and radius[0] == pytest.approx(abs(DISK["r"] * spin / Omega), abs=1e-8)
 
 
@@ -281,8 +313,14 @@ def test_rolling_disk_upright_rolling_and_spinning_are_steady() -> None:
     vertical diameter)."""
     s = system("rolling_disk")
     for start in ({"psi'": 0.0, "phi'": 3.0}, {"psi'": 5.0, "phi'": 0.0}):
-        tr = simulate(s, "chaplygin", 2.0, {"psi": 0, "theta": 0, "phi": 0, "x": 0, "y": 0, "theta'": 0, **start},
-                        DISK, samples=11)
+        tr = simulate(
+            s,
+            "chaplygin",
+            2.0,
+            {"psi": 0, "theta": 0, "phi": 0, "x": 0, "y": 0, "theta'": 0, **start},
+            DISK,
+            samples=11,
+        )
         assert np.max(np.abs(tr["theta"])) < 1e-12
 
 
@@ -306,20 +344,32 @@ def test_rolling_disk_upright_stability(body: dict) -> None:
     theta0 = 0.01
     for model in ("chaplygin", "lindelof"):
         for spin in (2 * critical, 0.75 * critical, 0.5 * critical):
-            K = C if model == "chaplygin" else C + m * r**2     # A ψ̇ + K s θ is constant
-            start = {"psi": 0, "theta": theta0, "phi": 0, "x": 0, "y": 0, "psi'": -K * spin / A * theta0,
-                     "theta'": 0.0, "phi'": spin + K * spin / A * theta0 * np.sin(theta0)}
+            K = C if model == "chaplygin" else C + m * r**2  # A ψ̇ + K s θ is constant
+            start = {
+                "psi": 0,
+                "theta": theta0,
+                "phi": 0,
+                "x": 0,
+                "y": 0,
+                "psi'": -K * spin / A * theta0,
+                "theta'": 0.0,
+                "phi'": spin + K * spin / A * theta0 * np.sin(theta0),
+            }
             tr = simulate(s, model, 1.5, start, body, samples=31)
             rate2 = upright_rate_squared(spin, body, model)
-            if rate2 > 0:      # a wobble at the linearized frequency
+            if rate2 > 0:  # a wobble at the linearized frequency
                 assert np.max(np.abs(tr["theta"] - theta0 * np.cos(np.sqrt(rate2) * tr.t))) < 5e-3 * theta0
-            else:              # it falls, growing like cosh
+            else:  # it falls, growing like cosh
                 lam = np.sqrt(-rate2)
                 assert np.max(np.abs(tr["theta"] / (theta0 * np.cosh(lam * tr.t)) - 1)) < 1e-2
-    lindelof_critical2 = m * g * r * A / (C + m * r**2) ** 2        # g/(9r) coin, g/(8r) hoop
+    lindelof_critical2 = m * g * r * A / (C + m * r**2) ** 2  # g/(9r) coin, g/(8r) hoop
     assert lindelof_critical2 == pytest.approx(g / (9 * r) if C == 0.5 else g / (8 * r))
     # s = 0.75 critical: the true disk falls, Lindelöf's disk stays up
-    assert upright_rate_squared(0.75 * critical, body, "chaplygin") < 0 < upright_rate_squared(0.75 * critical, body, "lindelof")
+    assert (
+        upright_rate_squared(0.75 * critical, body, "chaplygin")
+        < 0
+        < upright_rate_squared(0.75 * critical, body, "lindelof")
+    )
 
 
 # ============================================================================ ball on a turntable
@@ -331,15 +381,27 @@ def test_turntable_ball_centre_velocity_rotates_at_two_sevenths_omega() -> None:
     X, Y = s.dependent
     W = s.parameter("Omega")
     acc = s.equations("chetaev").accelerations
-    assert sp.simplify(acc[X.diff(t, 2)].xreplace(s.constraints) + sp.Rational(2, 7) * W * s.constraints[Y.diff(t)]) == 0
-    assert sp.simplify(acc[Y.diff(t, 2)].xreplace(s.constraints) - sp.Rational(2, 7) * W * s.constraints[X.diff(t)]) == 0
+    assert (
+        sp.simplify(
+            acc[X.diff(t, 2)].xreplace(s.constraints) + sp.Rational(2, 7) * W * s.constraints[Y.diff(t)]
+        )
+        == 0
+    )
+    assert (
+        sp.simplify(
+            acc[Y.diff(t, 2)].xreplace(s.constraints) - sp.Rational(2, 7) * W * s.constraints[X.diff(t)]
+        )
+        == 0
+    )
     with pytest.raises(ModelError):
-        compare_models(s)                       # B depends on x, y: no Lindelöf equations
+        compare_models(s)  # B depends on x, y: no Lindelöf equations
     psi, theta, phi = s.independent
     omega_z = d(psi) + d(phi) * sp.cos(theta)
-    assert sp.simplify(d(omega_z).xreplace(acc)) == 0              # ⅖ m a² ω̇ = −a e_z × F has no z part
+    assert sp.simplify(d(omega_z).xreplace(acc)) == 0  # ⅖ m a² ω̇ = −a e_z × F has no z part
     true = s.equations("chetaev")
-    assert equivalent(s, s.equations("voronets"), true) and equivalent(s, s.equations("voronets", "new"), true)
+    assert equivalent(s, s.equations("voronets"), true) and equivalent(
+        s, s.equations("voronets", "new"), true
+    )
 
 
 def test_turntable_ball_circle_spin_and_moving_energy() -> None:
@@ -364,14 +426,16 @@ def test_turntable_ball_circle_spin_and_moving_energy() -> None:
     # the vakonomic motion from the same state is a different motion
     vak = simulate(s, "vakonomic", 20.0, entry.initial, entry.parameters, samples=41, constants="match")
     assert np.max(np.hypot(vak["x"] - tr["x"], vak["y"] - tr["y"])) > 1.0
-    assert np.max(vak.energy) > 10 * vak.energy[0]                  # the model, not a real ball
+    assert np.max(vak.energy) > 10 * vak.energy[0]  # the model, not a real ball
 
 
 # ============================================================================ Chaplygin's ball
 def rotation(psi: float, theta: float, phi: float) -> np.ndarray:
     """Body → space for z-x-z Euler angles: Rz(ψ) Rx(θ) Rz(φ)."""
+
     def rz(u: float) -> np.ndarray:
         return np.array([[np.cos(u), -np.sin(u), 0], [np.sin(u), np.cos(u), 0], [0, 0, 1]])
+
     rx = np.array([[1, 0, 0], [0, np.cos(theta), -np.sin(theta)], [0, np.sin(theta), np.cos(theta)]])
     return rz(psi) @ rx @ rz(phi)
 
@@ -379,9 +443,13 @@ def rotation(psi: float, theta: float, phi: float) -> np.ndarray:
 def space_omega(tr, k: int) -> np.ndarray:
     psi, theta = tr["psi"][k], tr["theta"][k]
     dpsi, dtheta, dphi = tr["psi'"][k], tr["theta'"][k], tr["phi'"][k]
-    return np.array([dtheta * np.cos(psi) + dphi * np.sin(theta) * np.sin(psi),
-                     dtheta * np.sin(psi) - dphi * np.sin(theta) * np.cos(psi),
-                     dpsi + dphi * np.cos(theta)])
+    return np.array(
+        [
+            dtheta * np.cos(psi) + dphi * np.sin(theta) * np.sin(psi),
+            dtheta * np.sin(psi) - dphi * np.sin(theta) * np.cos(psi),
+            dpsi + dphi * np.cos(theta),
+        ]
+    )
 
 
 def contact_momentum(tr, inertia: np.ndarray, m: float, a: float) -> np.ndarray:
@@ -442,9 +510,9 @@ def test_heisenberg_true_lines_and_vakonomic_circles() -> None:
     # and only the members c ≠ 0 of the vakonomic family bend into circles
     assert compare_models(s).verdict == "lindelof_right_here"
     assert s.integrability().integrable is False
-    assert [value for _, value in s.integrability().frobenius.failures] in ([1], [-1])   # [X_1, X_2] = ±∂z
+    assert [value for _, value in s.integrability().frobenius.failures] in ([1], [-1])  # [X_1, X_2] = ±∂z
     (lam,) = s.equations("chetaev").multipliers
-    assert true[lam] == 0                               # T has no ż: no constraint force at all
+    assert true[lam] == 0  # T has no ż: no constraint force at all
     assert equivalent(s, s.equations("lindelof"), s.equations("chetaev"))
     assert not equivalent(s, s.equations("vakonomic_family", constants=[1]), s.equations("chetaev"))
 
@@ -463,7 +531,7 @@ def test_heisenberg_motions_in_closed_form() -> None:
         tr = simulate(s, model, 2 * np.pi / c, start, samples=9, **options)
         assert np.allclose([tr["x"][-1], tr["y"][-1]], [1.0, 0.5], atol=1e-8), model
         assert tr["z"][-1] == pytest.approx(np.pi * (speed / c) ** 2, abs=1e-8), model
-        centre = np.array([1.0, 0.5]) + np.array([-1.0, 0.3]) / c         # r0 + e_z × v0 / c
+        centre = np.array([1.0, 0.5]) + np.array([-1.0, 0.3]) / c  # r0 + e_z × v0 / c
         assert np.allclose(np.hypot(tr["x"] - centre[0], tr["y"] - centre[1]), speed / c, atol=1e-8)
 
 
@@ -485,10 +553,10 @@ def test_contact_oscillator_y_is_a_harmonic_oscillator() -> None:
     assert s.equations("chetaev").accelerations[dd(y)] == -y
     assert not s.is_chaplygin
     with pytest.raises(ModelError):
-        compare_models(s)                     # V depends on x: no Lindelöf equations
+        compare_models(s)  # V depends on x: no Lindelöf equations
     assert equivalent(s, s.equations("voronets"), s.equations("chetaev"))
     assert equivalent(s, s.equations("voronets", "new"), s.equations("chetaev"))
-    A = sp.Matrix([1, 0, y])                    # ω = dx + y dz: ω ∧ dω = (A · curl A) dx∧dy∧dz
+    A = sp.Matrix([1, 0, y])  # ω = dx + y dz: ω ∧ dω = (A · curl A) dx∧dy∧dz
     curl = sp.Matrix([A[2].diff(y) - A[1].diff(z), A[0].diff(z) - A[2].diff(x), A[1].diff(x) - A[0].diff(y)])
     assert A.dot(curl) == 1
     start = {"x": 0.0, "y": 1.0, "z": 0.5, "y'": 0.2, "z'": 0.4}
@@ -519,7 +587,10 @@ def test_differential_drive_brackets_are_across_the_heading() -> None:
         return F.diff((pl, pr)[k]) + sum(B[q][k] * F.diff(q) for q in (x, y, th))
 
     W = [sp.simplify(D(0, B[q][1]) - D(1, B[q][0])) for q in (x, y, th)]
-    assert [sp.simplify(w - e) for w, e in zip(W, [r**2 / (2 * b) * sp.sin(th), -r**2 / (2 * b) * sp.cos(th), 0])] == [0, 0, 0]
+    assert [
+        sp.simplify(w - e)
+        for w, e in zip(W, [r**2 / (2 * b) * sp.sin(th), -(r**2) / (2 * b) * sp.cos(th), 0])
+    ] == [0, 0, 0]
 
 
 def test_differential_drive_kinematics_and_circle() -> None:
@@ -554,10 +625,16 @@ def test_differential_drive_is_a_chaplygin_system_in_other_coordinates() -> None
     comparison = compare_models(other)
     assert comparison.verdict == "lindelof_right_here" and not comparison.condition_28
     assert equivalent(other, other.equations("lindelof"), other.equations("chetaev"))
-    assert not equivalent(other, other.equations("vakonomic_family", constants=[1, 0, 0]), other.equations("chetaev"))
+    assert not equivalent(
+        other, other.equations("vakonomic_family", constants=[1, 0, 0]), other.equations("chetaev")
+    )
     entry = examples.get("differential-drive")
     start = {k: v for k, v in entry.initial.items() if k != "phi_L'"}
-    start["theta'"] = entry.parameters["r"] * (entry.initial["phi_R'"] - entry.initial["phi_L'"]) / (2 * entry.parameters["b"])
+    start["theta'"] = (
+        entry.parameters["r"]
+        * (entry.initial["phi_R'"] - entry.initial["phi_L'"])
+        / (2 * entry.parameters["b"])
+    )
     a = simulate(s, "voronets", 20.0, entry.initial, entry.parameters, samples=41)
     b = simulate(other, "chaplygin", 20.0, start, entry.parameters, samples=41)
     assert all(np.allclose(a[q], b[q], atol=1e-9) for q in ("x", "y", "theta", "phi_L", "phi_R"))
@@ -591,7 +668,7 @@ def test_sleigh_chain_is_the_geometric_chain() -> None:
         A.append(-sp.sin(ti) * d(px) + sp.cos(ti) * d(py))
     assert sp.simplify(sp.expand(T - s.kinetic_energy)) == 0
     assert all(sp.simplify(sp.expand(a - b)) == 0 for a, b in zip(A, s.implicit_constraints))
-    speed = d(x) * sp.cos(th[0]) + d(y) * sp.sin(th[0])     # v_0 of the lead
+    speed = d(x) * sp.cos(th[0]) + d(y) * sp.sin(th[0])  # v_0 of the lead
     for i in range(1, n + 1):
         rate = speed / L * sp.sin(th[i - 1] - th[i])
         assert sp.simplify((s.constraints[d(th[i])] - rate).xreplace(s.constraints)) == 0
@@ -611,8 +688,14 @@ def test_trailer_lines_up_forward_and_jackknifes_backward(forward: bool) -> None
     tan(δ/2) = tan(δ0/2) e^{−(x − x0)/L}: δ → 0 forwards, δ → π backwards."""
     s = system("sleigh_chain", n=1)
     v0 = 1.0 if forward else -1.0
-    tr = simulate(s, "chetaev", 5.0, {"x": 0, "y": 0, "theta0": 0, "theta1": 0.5, "x'": v0, "theta0'": 0.0},
-                    {"m": 1.0, "I": 0.5, "L": 1.0}, samples=11)
+    tr = simulate(
+        s,
+        "chetaev",
+        5.0,
+        {"x": 0, "y": 0, "theta0": 0, "theta1": 0.5, "x'": v0, "theta0'": 0.0},
+        {"m": 1.0, "I": 0.5, "L": 1.0},
+        samples=11,
+    )
     assert np.max(np.abs(tr["theta0"])) < 1e-12 and np.max(np.abs(tr["y"])) < 1e-12
     assert np.allclose(tr["theta1"], 2 * np.arctan(np.tan(0.25) * np.exp(-tr["x"])), atol=1e-9)
     assert (abs(tr["theta1"][-1]) < 0.01) if forward else (tr["theta1"][-1] > 3.0)
@@ -625,7 +708,9 @@ def test_sleigh_chain_catalogue_lines_up_and_models() -> None:
     s = entry.system()
     true = simulate(s, "voronets", 20.0, entry.initial, entry.parameters, samples=41)
     check = simulate(s, "chetaev", 20.0, entry.initial, entry.parameters, samples=41)
-    assert np.allclose(true["x"], check["x"], atol=1e-8) and np.allclose(true["theta1"], check["theta1"], atol=1e-8)
+    assert np.allclose(true["x"], check["x"], atol=1e-8) and np.allclose(
+        true["theta1"], check["theta1"], atol=1e-8
+    )
     assert np.max(np.abs(true["theta0"])) < 1e-9 and true.energy_drift() < 1e-9
     assert abs(true["theta1"][-1]) < 1e-3 and abs(true["theta2"][-1]) < 1e-3
     with pytest.raises(ModelError):

@@ -85,15 +85,21 @@ def test_heisenberg_is_not_integrable() -> None:
 _pool = [sp.S.One, x, y, z, sp.sin(x), sp.cos(y), x * y, y * z, z**2, sp.exp(x)]
 
 
-@given(st.lists(st.integers(0, len(_pool) - 1), min_size=3, max_size=3),
-       st.lists(st.integers(-2, 2), min_size=3, max_size=3))
+@given(
+    st.lists(st.integers(0, len(_pool) - 1), min_size=3, max_size=3),
+    st.lists(st.integers(-2, 2), min_size=3, max_size=3),
+)
 def test_frobenius_agrees_with_curl_criterion(idx: list[int], coef: list[int]) -> None:
     """n = 3, g = 1: integrable iff ω · curl ω = 0 (the classical form of dω ∧ ω = 0)."""
     A = [coef[0] * _pool[idx[0]], coef[1] * _pool[idx[1]] + x, 2 + sp.cos(coef[2] * _pool[idx[2]])]
     s = System([x, y, z], T, [A[0] * d(x) + A[1] * d(y) + A[2] * d(z)], dependent=[z])
     X, Y, Z = sp.symbols("X Y Z")
     a = [e.xreplace({x: X, y: Y, z: Z}) for e in A]
-    curl = [sp.diff(a[2], Y) - sp.diff(a[1], Z), sp.diff(a[0], Z) - sp.diff(a[2], X), sp.diff(a[1], X) - sp.diff(a[0], Y)]
+    curl = [
+        sp.diff(a[2], Y) - sp.diff(a[1], Z),
+        sp.diff(a[0], Z) - sp.diff(a[2], X),
+        sp.diff(a[1], X) - sp.diff(a[0], Y),
+    ]
     triple = sp.lambdify((X, Y, Z), sum(ai * ci for ai, ci in zip(a, curl)))
     rng = np.random.default_rng(1)
     integrable = all(abs(triple(*rng.uniform(0.3, 1.3, 3))) < 1e-10 for _ in range(6))

@@ -54,8 +54,14 @@ print(json.dumps({"stats": _ckernel.STATS, "file": model.module.__file__}))
 
 def _python(script: str, args: list[str], cache: Path, **env: str) -> dict:
     environ = {**os.environ, "CHAPLYGIN_CACHE": str(cache), "PYTHONPATH": SRC, **env}
-    done = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True, env=environ,
-                          timeout=600, check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", script, *args],
+        capture_output=True,
+        text=True,
+        env=environ,
+        timeout=600,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     lines = done.stdout.strip().splitlines()
     return {**json.loads(lines[-1]), "stdout": "\n".join(lines[:-1])}
@@ -76,7 +82,7 @@ def test_a_corrupt_kernel_is_discarded_and_rebuilt(tmp_path, damage):
     first = _python(COMPILE, [], tmp_path)
     library = Path(first["file"])
     target = library if damage == "library" else library.with_suffix(".json")
-    target.write_bytes(target.read_bytes()[: 200] + b"garbage")
+    target.write_bytes(target.read_bytes()[:200] + b"garbage")
     again = _python(COMPILE, [], tmp_path)
     assert again["stats"] == {"built": 1, "loaded": 1, "discarded": 1}
     assert again["file"] == first["file"]
@@ -104,9 +110,14 @@ def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
     for override in (["-i", "theta=0.2"], ["-p", "m=2"]):
         moved = _python(CLI, [*RUN, "-o", out[2], "--force", *override], tmp_path / "cache")
         assert moved["code"] == 0 and moved["sympy"], override
-    bad = subprocess.run([sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "d.npz"), "-i", "x'=5"],
-                         capture_output=True, text=True, timeout=600, check=False,
-                         env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC})
+    bad = subprocess.run(
+        [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "d.npz"), "-i", "x'=5"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+        env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC},
+    )
     assert bad.returncode == 1 and "violates the constraints" in bad.stderr
 
 
@@ -135,12 +146,24 @@ def test_auto_says_which_backend_ran(tmp_path):
 
 def test_auto_in_the_api():
     disk = examples.rolling_disk()
-    start = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
+    start = {
+        "psi": 0.0,
+        "theta": 0.3,
+        "phi": 0.0,
+        "x": 0.0,
+        "y": 0.0,
+        "psi'": 2.0,
+        "theta'": 0.0,
+        "phi'": 5.0,
+    }
     params = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
     tr = simulate(disk, "chaplygin", 1.0, start, params, samples=11)
     assert tr.backend == ("c" if HAVE_CC else "numpy") and tr.success
     assert choose_backend("auto", "RK45") == "numpy" and choose_backend("numba", "DOP853") == "numba"
-    assert simulate(disk, "chaplygin", 1.0, start, params, samples=11, method="midpoint", step=0.1).backend == "numpy"
+    assert (
+        simulate(disk, "chaplygin", 1.0, start, params, samples=11, method="midpoint", step=0.1).backend
+        == "numpy"
+    )
     with pytest.raises(chaplygin.ChaplyginError, match="unknown backend 'fortran'"):
         simulate(disk, "chaplygin", 1.0, start, params, backend="fortran")
 

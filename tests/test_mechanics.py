@@ -25,9 +25,15 @@ def mechanics_disk(gravity_as_load: bool):
     disk = Mechanics()
     m, r, _, _, g = disk.params
     psi, theta, phi, x, y = disk.q
-    kwargs = {"loads": [(disk.centre, -m * g * disk.N.z)]} if gravity_as_load else {"potential_energy": m * g * r * sp.cos(theta)}
+    kwargs = (
+        {"loads": [(disk.centre, -m * g * disk.N.z)]}
+        if gravity_as_load
+        else {"potential_energy": m * g * r * sp.cos(theta)}
+    )
     # its slip velocity, all three components: the vertical one vanishes and is dropped
-    return from_mechanics(disk.N, disk.q, [disk.disk], disk.slip, dependent=[x, y], name="mechanics disk", **kwargs)
+    return from_mechanics(
+        disk.N, disk.q, [disk.disk], disk.slip, dependent=[x, y], name="mechanics disk", **kwargs
+    )
 
 
 @pytest.mark.parametrize("gravity_as_load", [False, True])
@@ -52,8 +58,12 @@ def test_knife_edge_from_mechanics() -> None:
     blade = RigidBody("blade", P, B, m, (inertia(B, 0, 0, J), P))
     built = from_mechanics(N, q, [blade], [P.vel(N).dot(B.y)], dependent=[y])
     reference = examples.knife_edge()
-    assert equivalent(reference, [e.lhs for e in built.equations("chetaev").equations[:3]],
-                      reference.equations("chetaev"), symbolic=False)
+    assert equivalent(
+        reference,
+        [e.lhs for e in built.equations("chetaev").equations[:3]],
+        reference.equations("chetaev"),
+        symbolic=False,
+    )
 
 
 def test_errors() -> None:

@@ -49,7 +49,9 @@ def test_chaplygin_detection_and_forms(spec: Spec) -> None:
     s = spec.system
     assert s.is_chaplygin
     for form in ("classic", "new"):
-        report = equivalent(s, s.equations("chaplygin", form), s.equations("chetaev"), symbolic=False, samples=6)
+        report = equivalent(
+            s, s.equations("chaplygin", form), s.equations("chetaev"), symbolic=False, samples=6
+        )
         assert report, report
 
 
@@ -57,7 +59,9 @@ def test_chaplygin_detection_and_forms(spec: Spec) -> None:
 def test_voronets_on_non_chaplygin_systems(spec: Spec) -> None:
     s = spec.system
     for form in ("classic", "new"):
-        report = equivalent(s, s.equations("voronets", form), s.equations("chetaev"), symbolic=False, samples=6)
+        report = equivalent(
+            s, s.equations("voronets", form), s.equations("chetaev"), symbolic=False, samples=6
+        )
         assert report, report
 
 

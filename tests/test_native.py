@@ -56,9 +56,15 @@ def test_chetaev_matrices_equal_the_sympy_derivation(spec: Spec, seed: int) -> N
     values = random_state(system, np.random.default_rng(seed))
     numbers = _numbers(system, values)
     dim = system.n + system.g
-    np.testing.assert_allclose(_evaluate([e for row in M for e in row], numbers).reshape(dim, dim),
-                               matrix(eqs.mass_matrix, values), rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(_evaluate(F, numbers), matrix(eqs.forcing, values)[:, 0], rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(
+        _evaluate([e for row in M for e in row], numbers).reshape(dim, dim),
+        matrix(eqs.mass_matrix, values),
+        rtol=1e-10,
+        atol=1e-10,
+    )
+    np.testing.assert_allclose(
+        _evaluate(F, numbers), matrix(eqs.forcing, values)[:, 0], rtol=1e-10, atol=1e-10
+    )
 
 
 @given(spec=systems())
@@ -111,12 +117,35 @@ def test_is_quadratic_against_poly() -> None:
 X, Y, Z = se.symbols("x y z")
 POINT = {X: 1.7, Y: 1.3, Z: 0.4}
 CASES = [
-    se.sin(X) ** 2 * Y / 3, -X * Y / (Z + 1), X**-2, -(X**2), (X + Y) ** -3, se.sqrt(X) / Y, 1 / se.sqrt(X * Y),
-    (X - Y) ** se.Rational(1, 3), -se.Rational(3, 7) * X + Y - Z, se.exp(X * Y) - se.pi * X,
-    se.atan2(X, Y) * se.Abs(Z), X**Y, -(X + Y) * (Z - X), se.RealDouble(-0.1) * X + se.RealDouble(1 / 3),
-    se.Max(X, Y) - se.Min(X, Z), se.E ** (-X), 2 / (X * Y), -2 / (X * Y**2), X * Y**-1 * Z**-2,
-    se.cosh(X) / se.tanh(Y), se.Integer(-3), (X**2) ** Y, X ** (Y**2), -(X**-1), se.Rational(-1, 2) * X**2,
-    -((X * Y) ** Z), 1 / (X + Y) - 1 / (X - Y), se.floor(3 * X), se.RealDouble(0.1) * se.RealDouble(3.0) ** X,
+    se.sin(X) ** 2 * Y / 3,
+    -X * Y / (Z + 1),
+    X**-2,
+    -(X**2),
+    (X + Y) ** -3,
+    se.sqrt(X) / Y,
+    1 / se.sqrt(X * Y),
+    (X - Y) ** se.Rational(1, 3),
+    -se.Rational(3, 7) * X + Y - Z,
+    se.exp(X * Y) - se.pi * X,
+    se.atan2(X, Y) * se.Abs(Z),
+    X**Y,
+    -(X + Y) * (Z - X),
+    se.RealDouble(-0.1) * X + se.RealDouble(1 / 3),
+    se.Max(X, Y) - se.Min(X, Z),
+    se.E ** (-X),
+    2 / (X * Y),
+    -2 / (X * Y**2),
+    X * Y**-1 * Z**-2,
+    se.cosh(X) / se.tanh(Y),
+    se.Integer(-3),
+    (X**2) ** Y,
+    X ** (Y**2),
+    -(X**-1),
+    se.Rational(-1, 2) * X**2,
+    -((X * Y) ** Z),
+    1 / (X + Y) - 1 / (X - Y),
+    se.floor(3 * X),
+    se.RealDouble(0.1) * se.RealDouble(3.0) ** X,
 ]
 
 
@@ -126,11 +155,16 @@ def _operands() -> st.SearchStrategy:
     def grow(children: st.SearchStrategy) -> st.SearchStrategy:
         pairs = st.tuples(children, children)
         return st.one_of(
-            pairs.map(lambda ab: ab[0] + ab[1]), pairs.map(lambda ab: ab[0] - ab[1]),
-            pairs.map(lambda ab: ab[0] * ab[1]), pairs.map(lambda ab: ab[0] / (ab[1] ** 2 + 1)),
+            pairs.map(lambda ab: ab[0] + ab[1]),
+            pairs.map(lambda ab: ab[0] - ab[1]),
+            pairs.map(lambda ab: ab[0] * ab[1]),
+            pairs.map(lambda ab: ab[0] / (ab[1] ** 2 + 1)),
             st.tuples(children, st.integers(-3, 3)).map(lambda ab: (ab[0] ** 2 + 1) ** ab[1]),
-            children.map(se.sin), children.map(se.cos), children.map(lambda a: se.sqrt(a**2 + 1)),
-            children.map(lambda a: -a), children.map(lambda a: se.exp(a / (a**2 + 1))),
+            children.map(se.sin),
+            children.map(se.cos),
+            children.map(lambda a: se.sqrt(a**2 + 1)),
+            children.map(lambda a: -a),
+            children.map(lambda a: se.exp(a / (a**2 + 1))),
         )
 
     return st.recursive(leaves, grow, max_leaves=12)
@@ -177,12 +211,15 @@ def test_c_printer(extra: list) -> None:
 
     exprs = CASES + extra
     lines = ["#include <math.h>"]
-    lines += [f"double f{k}(double x, double y, double z) {{ return {code(e, 'c')}; }}" for k, e in enumerate(exprs)]
+    lines += [
+        f"double f{k}(double x, double y, double z) {{ return {code(e, 'c')}; }}" for k, e in enumerate(exprs)
+    ]
     with tempfile.TemporaryDirectory() as tmp:
         source, library = Path(tmp) / "f.c", Path(tmp) / "f.so"
         source.write_text("\n".join(lines))
-        subprocess.run([_CC, "-std=c99", "-O2", "-fPIC", "-shared", str(source), "-o", str(library), "-lm"],
-                       check=True)
+        subprocess.run(
+            [_CC, "-std=c99", "-O2", "-fPIC", "-shared", str(source), "-o", str(library), "-lm"], check=True
+        )
         lib = ctypes.CDLL(str(library))
         for k, e in enumerate(exprs):
             f = getattr(lib, f"f{k}")
@@ -198,15 +235,23 @@ def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     x, y, th = dynamicsymbols("x y theta")
     m, J, k = sp.symbols("m J k", positive=True)
     T = m / 2 * (x.diff(t) ** 2 + y.diff(t) ** 2) + (J / 2 + 1 + sp.Abs(x)) * th.diff(t) ** 2
-    system = System([x, y, th], T, [k * (sp.sin(th) * x.diff(t) - sp.cos(th) * y.diff(t))], dependent=[y],
-                    potential_energy=k * sp.Abs(th))
+    system = System(
+        [x, y, th],
+        T,
+        [k * (sp.sin(th) * x.diff(t) - sp.cos(th) * y.diff(t))],
+        dependent=[y],
+        potential_energy=k * sp.Abs(th),
+    )
     assert system._native is None  # SymPy derives it
     F = system.equations("chetaev").forcing
     # by hand: F_x = ∂T/∂x = sign(x) θ̇², F_θ = −∂V/∂θ − d/dt(∂T/∂θ̇)|_{θ̈=0} = −k sign(θ) − 2 sign(x) ẋ θ̇
     assert sp.simplify(F[0] - sp.sign(x) * th.diff(t) ** 2) == 0
     assert sp.simplify(F[2] + k * sp.sign(th) + 2 * sp.sign(x) * x.diff(t) * th.diff(t)) == 0
     state, p = np.array([0.3, 0.2, -0.5, 1.0, 0.4]), np.array([1.3, 1.1, 0.7])
-    rhs = [compile_model(system, "voronets", backend=backend, reduction=reduction).rhs(0.0, state, p)
-           for backend in ("numpy", "numba") for reduction in ("numeric", "symbolic")]
+    rhs = [
+        compile_model(system, "voronets", backend=backend, reduction=reduction).rhs(0.0, state, p)
+        for backend in ("numpy", "numba")
+        for reduction in ("numeric", "symbolic")
+    ]
     assert np.all(np.isfinite(rhs))
     np.testing.assert_allclose(rhs, [rhs[0]] * 4, rtol=1e-12)

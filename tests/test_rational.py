@@ -96,7 +96,9 @@ def test_large_systems_fall_back_to_nested_lu() -> None:
     sol = solve_linear(M, F)
     p = _point(rng)
     m = np.array([[_at(e, p) for e in row] for row in M.tolist()])
-    np.testing.assert_allclose([_at(e, p) for e in sol], np.linalg.solve(m, [_at(e, p) for e in F]), rtol=1e-9)
+    np.testing.assert_allclose(
+        [_at(e, p) for e in sol], np.linalg.solve(m, [_at(e, p) for e in F]), rtol=1e-9
+    )
     assert TERMS >= 100  # the rolling bodies of the gallery stay in normal form
 
 

@@ -119,11 +119,24 @@ def states(mech):
     dep = [mech.lambdify(mech.constraints[qd]) for qd in mech.qd[3:]]
     out = []
     for _ in range(SAMPLES):
-        q = np.array([rng.uniform(-np.pi, np.pi), rng.uniform(-1.2, 1.2), rng.uniform(-np.pi, np.pi),
-                      *rng.uniform(-2, 2, size=2)])
+        q = np.array(
+            [
+                rng.uniform(-np.pi, np.pi),
+                rng.uniform(-1.2, 1.2),
+                rng.uniform(-np.pi, np.pi),
+                *rng.uniform(-2, 2, size=2),
+            ]
+        )
         qd = np.concatenate([rng.uniform(-2, 2, size=3), [0.0, 0.0]])
-        p = np.array([rng.uniform(0.5, 2.0), rng.uniform(0.3, 1.5), rng.uniform(0.1, 2.0),
-                      rng.uniform(0.1, 2.0), rng.uniform(5.0, 15.0)])
+        p = np.array(
+            [
+                rng.uniform(0.5, 2.0),
+                rng.uniform(0.3, 1.5),
+                rng.uniform(0.1, 2.0),
+                rng.uniform(0.1, 2.0),
+                rng.uniform(5.0, 15.0),
+            ]
+        )
         qd[3:] = [f(*q, *qd, *p) for f in dep]
         out.append((q, qd, p))
     return out
@@ -159,9 +172,12 @@ def solve_linear(disk, mech, eqs, states):
     """Solve the model's own M·x = F numerically at every state; returns the solutions
     and the model's unknowns (user symbols), in the order of ``eqs.unknowns``."""
     sub = user_params(disk, mech)
-    f = sp.lambdify([*mech.Q, *mech.U, *mech.params],
-                    [mech.plain(eqs.mass_matrix.xreplace(sub)), mech.plain(eqs.forcing.xreplace(sub))],
-                    "numpy", cse=True)
+    f = sp.lambdify(
+        [*mech.Q, *mech.U, *mech.params],
+        [mech.plain(eqs.mass_matrix.xreplace(sub)), mech.plain(eqs.forcing.xreplace(sub))],
+        "numpy",
+        cse=True,
+    )
     out = []
     for q, qd, p in states:
         M, F = f(*q, *qd, *p)
@@ -236,8 +252,10 @@ def test_constraints_nonholonomic(disk, mech):
         for b, qd in enumerate(mech.qd[3:]):
             vec[3 + b] = mech.plain(sp.diff(mech.constraints[qd], mech.qd[k]))
         X[k] = sp.Matrix(vec)
+
     def bracket(a, b):
         return b.jacobian(Q) * a - a.jacobian(Q) * b
+
     br = bracket(X[0], X[2]).applyfunc(sp.simplify)
     assert br[:3, 0] == sp.zeros(3, 1) and br[3:, 0] != sp.zeros(2, 1)
     assert disk.integrability().integrable is False
@@ -328,8 +346,12 @@ def test_energy_is_conserved(mech, states, chaplygin_accelerations):
         sp.diff(E, U) * W for U, W in zip(mech.U[:3], mech.W[:3])
     )
     f = sp.lambdify([*mech.Q, *mech.U, *mech.W[:3], *mech.params], dE, "numpy", cse=True)
-    terms = sp.lambdify([*mech.Q, *mech.U, *mech.W[:3], *mech.params],
-                        [sp.diff(E, U) * W for U, W in zip(mech.U[:3], mech.W[:3])], "numpy", cse=True)
+    terms = sp.lambdify(
+        [*mech.Q, *mech.U, *mech.W[:3], *mech.params],
+        [sp.diff(E, U) * W for U, W in zip(mech.U[:3], mech.W[:3])],
+        "numpy",
+        cse=True,
+    )
     for q, qd, p in states:
         acc = [fa(*q, *qd, *p) for fa in chaplygin_accelerations]
         scale = max(1.0, *np.abs(terms(*q, *qd, *acc, *p)))

@@ -16,8 +16,10 @@ from randomsystems import Spec, systems
 
 
 def rhs_pair(system, model: str, backend: str = "numpy"):
-    return (compile_model(system, model, backend=backend, reduction="numeric"),
-            compile_model(system, model, backend=backend, reduction="symbolic"))
+    return (
+        compile_model(system, model, backend=backend, reduction="numeric"),
+        compile_model(system, model, backend=backend, reduction="symbolic"),
+    )
 
 
 def assert_same_rhs(system, model: str, rng: np.random.Generator, states: int = 5) -> None:
@@ -34,7 +36,7 @@ def assert_same_rhs(system, model: str, rng: np.random.Generator, states: int = 
         # energy, residual and the velocities agree too (the residual is round-off)
         oa, ob = numeric.observe(t, y, p), symbolic.observe(t, y, p)
         np.testing.assert_allclose(oa, ob, rtol=1e-9, atol=1e-10)
-        assert np.all(np.abs(oa[1:1 + system.g]) < 1e-10)
+        assert np.all(np.abs(oa[1 : 1 + system.g]) < 1e-10)
 
 
 @given(spec=systems(), seed=st.integers(0, 2**32 - 1))
@@ -75,8 +77,12 @@ def test_large_chain_needs_no_symbolic_B_and_conserves_energy() -> None:
 
 def test_symengine_cse_is_exact() -> None:
     x, y, z = sp.symbols("x y z")
-    exprs = [sp.sin(x + y) ** 2 + sp.cos(x + y) * z, sp.sqrt(x**2 + 1) / (x + y) + sp.Rational(1, 3),
-             sp.exp(z) * sp.sin(x + y), sp.S(2)]
+    exprs = [
+        sp.sin(x + y) ** 2 + sp.cos(x + y) * z,
+        sp.sqrt(x**2 + 1) / (x + y) + sp.Rational(1, 3),
+        sp.exp(z) * sp.sin(x + y),
+        sp.S(2),
+    ]
     replacements, reduced = cse(exprs)
     assert [str(s) for s, _ in replacements] == [f"c_{k}" for k in range(len(replacements))]
     for e, r in zip(exprs, reduced):
@@ -110,7 +116,11 @@ def test_numeric_reduction_of_a_chain_equals_kanes_method() -> None:
     rng = np.random.default_rng(11)
     for _ in range(4):
         y = rng.uniform(-0.6, 0.6, len(compiled.layout.state))
-        qd = compiled.observe(0.0, y, p)[-chain.n:]  # all velocities, on the constraints
-        x = np.linalg.solve(fM(*y[:chain.n], *qd, values["m"], values["I"], values["L"]),
-                            fF(*y[:chain.n], *qd, values["m"], values["I"], values["L"])[:, 0])
-        np.testing.assert_allclose(compiled.rhs(0.0, y, p)[chain.n:], x[len(q):len(q) + 2], rtol=1e-9, atol=1e-12)
+        qd = compiled.observe(0.0, y, p)[-chain.n :]  # all velocities, on the constraints
+        x = np.linalg.solve(
+            fM(*y[: chain.n], *qd, values["m"], values["I"], values["L"]),
+            fF(*y[: chain.n], *qd, values["m"], values["I"], values["L"])[:, 0],
+        )
+        np.testing.assert_allclose(
+            compiled.rhs(0.0, y, p)[chain.n :], x[len(q) : len(q) + 2], rtol=1e-9, atol=1e-12
+        )

@@ -9,8 +9,16 @@ from sympy.physics.mechanics import dynamicsymbols
 from chaplygin import ChaplyginError, System, compare, examples, simulate
 
 t = dynamicsymbols._t
-SPHERE_START = {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
-                "psi'": 0.5, "theta'": 0.4, "phi'": -0.7}
+SPHERE_START = {
+    "psi": 0.3,
+    "theta": 1.0,
+    "phi": 0.1,
+    "x": 0.0,
+    "y": 0.0,
+    "psi'": 0.5,
+    "theta'": 0.4,
+    "phi'": -0.7,
+}
 UNIT = {"m": 1.0, "a": 1.0}
 
 
@@ -31,11 +39,13 @@ def omega(tr) -> np.ndarray:
     """Space components of ω (z-x-z Euler angles), computed from the trajectory."""
     psi, theta = tr["psi"], tr["theta"]
     dpsi, dtheta, dphi = tr["psi'"], tr["theta'"], tr["phi'"]
-    return np.array([
-        dtheta * np.cos(psi) + dphi * np.sin(theta) * np.sin(psi),
-        dtheta * np.sin(psi) - dphi * np.sin(theta) * np.cos(psi),
-        dpsi + dphi * np.cos(theta),
-    ])
+    return np.array(
+        [
+            dtheta * np.cos(psi) + dphi * np.sin(theta) * np.sin(psi),
+            dtheta * np.sin(psi) - dphi * np.sin(theta) * np.cos(psi),
+            dpsi + dphi * np.cos(theta),
+        ]
+    )
 
 
 def test_sphere_true_motion_keeps_omega_and_centre_velocity(sphere_runs) -> None:
@@ -78,8 +88,16 @@ def test_comparison_figures(sphere, tmp_path) -> None:
 @pytest.mark.parametrize("model", ["chetaev", "chaplygin"])
 def test_rolling_disk_energy_over_t_100(model: str) -> None:
     disk = examples.rolling_disk()
-    start = {"psi": 0.0, "theta": 0.2, "phi": 0.0, "x": 0.0, "y": 0.0,
-             "psi'": 0.3, "theta'": 0.0, "phi'": 8.0}
+    start = {
+        "psi": 0.0,
+        "theta": 0.2,
+        "phi": 0.0,
+        "x": 0.0,
+        "y": 0.0,
+        "psi'": 0.3,
+        "theta'": 0.0,
+        "phi'": 8.0,
+    }
     params = {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81}
     tr = simulate(disk, model, 100.0, start, params, samples=201)
     assert tr.success, tr.message
@@ -96,15 +114,20 @@ def test_vertical_disk_closed_form() -> None:
         tr = simulate(disk, model, 50.0, start, {"m": 1.0, "R": R, "I": 0.3, "J": 0.2}, samples=201)
         phi = w_phi * tr.t + phi0
         rho = R * w_theta / w_phi
-        expected = {"theta": w_theta * tr.t + theta0, "phi": phi,
-                    "x": rho * (np.sin(phi) - np.sin(phi0)) + x0,
-                    "y": -rho * (np.cos(phi) - np.cos(phi0)) + y0}
+        expected = {
+            "theta": w_theta * tr.t + theta0,
+            "phi": phi,
+            "x": rho * (np.sin(phi) - np.sin(phi0)) + x0,
+            "y": -rho * (np.cos(phi) - np.cos(phi0)) + y0,
+        }
         for name, values in expected.items():
             assert np.max(np.abs(tr[name] - values)) < 1e-9 * max(1.0, np.max(np.abs(values))), (model, name)
 
 
 def test_vakonomic_runs_from_the_same_state(sphere) -> None:
-    family = simulate(sphere, "vakonomic_family", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
+    family = simulate(
+        sphere, "vakonomic_family", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1]
+    )
     multiplier = simulate(sphere, "vakonomic", 10.0, SPHERE_START, UNIT, samples=101, constants=[0.2, -0.1])
     for name in family.coordinates:
         assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
@@ -128,8 +151,17 @@ def test_initial_data_errors(sphere) -> None:
         simulate(sphere, "chaplygin", 1.0, SPHERE_START, UNIT, backend="fortran")
     # a consistent dependent velocity is accepted, keyed by the dynamicsymbol
     psi, theta, phi, x, y = sphere.coordinates
-    ok = {psi: 0.3, theta: np.pi / 2, phi: 0.0, x: 0.0, y: 0.0, psi.diff(t): 0.0, theta.diff(t): 0.0,
-          phi.diff(t): 1.0, x.diff(t): -np.cos(0.3)}
+    ok = {
+        psi: 0.3,
+        theta: np.pi / 2,
+        phi: 0.0,
+        x: 0.0,
+        y: 0.0,
+        psi.diff(t): 0.0,
+        theta.diff(t): 0.0,
+        phi.diff(t): 1.0,
+        x.diff(t): -np.cos(0.3),
+    }
     assert simulate(sphere, "chaplygin", 1.0, ok, UNIT, samples=3).success
 
 

@@ -27,8 +27,10 @@ def test_constraint_coefficients_are_eq_43(sphere) -> None:
     assert sphere.independent == (psi, theta, phi)
     assert sphere.dependent == (x, y)
     expected = sp.Matrix(
-        [[0, a * sp.sin(psi), -a * sp.sin(theta) * sp.cos(psi)],
-         [0, -a * sp.cos(psi), -a * sp.sin(theta) * sp.sin(psi)]]
+        [
+            [0, a * sp.sin(psi), -a * sp.sin(theta) * sp.cos(psi)],
+            [0, -a * sp.cos(psi), -a * sp.sin(theta) * sp.sin(psi)],
+        ]
     )
     assert sp.simplify(sphere.B - expected) == sp.zeros(2, 3)
     assert sphere.B0 == sp.zeros(2, 1)
@@ -36,10 +38,15 @@ def test_constraint_coefficients_are_eq_43(sphere) -> None:
 
 
 def test_reduced_kinetic_energy_is_eq_48(sphere) -> None:
-    eq48 = m * a**2 / 2 * (
-        sp.Rational(7, 5) * d(theta) ** 2
-        + d(phi) ** 2 * sp.sin(theta) ** 2
-        + sp.Rational(2, 5) * (d(phi) ** 2 + d(psi) ** 2 + 2 * d(psi) * d(phi) * sp.cos(theta))
+    eq48 = (
+        m
+        * a**2
+        / 2
+        * (
+            sp.Rational(7, 5) * d(theta) ** 2
+            + d(phi) ** 2 * sp.sin(theta) ** 2
+            + sp.Rational(2, 5) * (d(phi) ** 2 + d(psi) ** 2 + 2 * d(psi) * d(phi) * sp.cos(theta))
+        )
     )
     assert sp.simplify(sphere.reduced_kinetic_energy - eq48) == 0
 
@@ -55,11 +62,13 @@ def test_chaplygin_forms_agree_with_chetaev(sphere, form: str) -> None:
 
 def angular_velocity():
     """Space components of ω for z-x-z Euler angles (ψ precession, θ nutation, φ spin)."""
-    return sp.Matrix([
-        d(theta) * sp.cos(psi) + d(phi) * sp.sin(theta) * sp.sin(psi),
-        d(theta) * sp.sin(psi) - d(phi) * sp.sin(theta) * sp.cos(psi),
-        d(psi) + d(phi) * sp.cos(theta),
-    ])
+    return sp.Matrix(
+        [
+            d(theta) * sp.cos(psi) + d(phi) * sp.sin(theta) * sp.sin(psi),
+            d(theta) * sp.sin(psi) - d(phi) * sp.sin(theta) * sp.cos(psi),
+            d(psi) + d(phi) * sp.cos(theta),
+        ]
+    )
 
 
 def test_rolling_constraint_is_v_equals_omega_cross_r() -> None:
@@ -70,7 +79,10 @@ def test_rolling_constraint_is_v_equals_omega_cross_r() -> None:
     assert sp.simplify(sphere.constraints[d(y)] + a * w[0]) == 0
 
 
-@pytest.mark.parametrize("model,form", [("chetaev", "classic"), ("chaplygin", "classic"), ("chaplygin", "new"), ("voronets", "classic")])
+@pytest.mark.parametrize(
+    "model,form",
+    [("chetaev", "classic"), ("chaplygin", "classic"), ("chaplygin", "new"), ("voronets", "classic")],
+)
 def test_angular_velocity_is_constant(sphere, model: str, form: str) -> None:
     """A free homogeneous sphere rolling on a plane keeps ω constant (Routh 1905, §243)."""
     acc = sphere.equations(model, form).accelerations

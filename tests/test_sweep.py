@@ -43,8 +43,13 @@ FAST = {"backend": "numpy", "samples": 21}
 @pytest.fixture(scope="module")
 def client():
     """Two worker processes (one thread each), shared by the tests of this module."""
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.CRITICAL)
+    cluster = distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.CRITICAL,
+    )
     c = distributed.Client(cluster)
     yield c
     c.close()
@@ -69,30 +74,36 @@ def statuses(table: pa.Table) -> list[str]:
 
 
 # ---------------------------------------------------------------- the grid
-@pytest.mark.parametrize("text, name, values", [
-    ("theta=0.1:0.5:5", "theta", [0.1, 0.2, 0.3, 0.4, 0.5]),
-    ("phi'=-1:1:3", "phi'", [-1.0, 0.0, 1.0]),
-    ("m=1,2,4", "m", [1.0, 2.0, 4.0]),
-    (" J = 0.5 ", "J", [0.5]),
-    ("R=2:2:1", "R", [2.0]),
-])
+@pytest.mark.parametrize(
+    "text, name, values",
+    [
+        ("theta=0.1:0.5:5", "theta", [0.1, 0.2, 0.3, 0.4, 0.5]),
+        ("phi'=-1:1:3", "phi'", [-1.0, 0.0, 1.0]),
+        ("m=1,2,4", "m", [1.0, 2.0, 4.0]),
+        (" J = 0.5 ", "J", [0.5]),
+        ("R=2:2:1", "R", [2.0]),
+    ],
+)
 def test_grid_syntax(text: str, name: str, values: list[float]) -> None:
     got_name, got = parse_grid(text)
     assert got_name == name and np.allclose(got, values)
 
 
-@pytest.mark.parametrize("text, why", [
-    ("theta", "expected NAME=START:STOP:COUNT"),
-    ("=1:2:3", "expected NAME=START:STOP:COUNT"),
-    ("theta=0.1:0.5", "expected NAME=START:STOP:COUNT"),
-    ("theta=a:1:3", "START and STOP must be numbers"),
-    ("theta=0:1:2.5", "COUNT must be a positive integer"),
-    ("theta=0:1:0", "COUNT must be a positive integer"),
-    ("theta=0:1:1", "START = STOP"),
-    ("m=1,x", "expected NAME=START:STOP:COUNT"),
-    ("m=1,1", "repeated values"),
-    ("m=nan,1", "finite"),
-])
+@pytest.mark.parametrize(
+    "text, why",
+    [
+        ("theta", "expected NAME=START:STOP:COUNT"),
+        ("=1:2:3", "expected NAME=START:STOP:COUNT"),
+        ("theta=0.1:0.5", "expected NAME=START:STOP:COUNT"),
+        ("theta=a:1:3", "START and STOP must be numbers"),
+        ("theta=0:1:2.5", "COUNT must be a positive integer"),
+        ("theta=0:1:0", "COUNT must be a positive integer"),
+        ("theta=0:1:1", "START = STOP"),
+        ("m=1,x", "expected NAME=START:STOP:COUNT"),
+        ("m=1,1", "repeated values"),
+        ("m=nan,1", "finite"),
+    ],
+)
 def test_grid_syntax_errors(text: str, why: str) -> None:
     with pytest.raises(ChaplyginError, match=why):
         parse_grid(text)
@@ -101,10 +112,14 @@ def test_grid_syntax_errors(text: str, why: str) -> None:
 def test_grid_names_are_checked(tmp_path: Path) -> None:
     def error(grid, **kw):
         with pytest.raises(ChaplyginError) as info:
-            sweep("example:knife-edge", grid, t_end=1, out=tmp_path / "r", scheduler="serial", **{**FAST, **kw})
+            sweep(
+                "example:knife-edge", grid, t_end=1, out=tmp_path / "r", scheduler="serial", **{**FAST, **kw}
+            )
         return str(info.value)
 
-    assert "sweep one of: parameters J, m; coordinates x, y, phi; independent velocities x', phi'" in error({"z": "0:1:2"})
+    assert "sweep one of: parameters J, m; coordinates x, y, phi; independent velocities x', phi'" in error(
+        {"z": "0:1:2"}
+    )
     assert "follows from the constraints" in error({"y'": "0:1:2"})
     assert "also given a fixed value" in error({"m": "1:2:2"}, parameters={"m": 3})
     assert "sweeps run on 'numba', 'numpy'" in error({"m": "1:2:2"}, backend="jax")
@@ -123,8 +138,9 @@ def test_imports_without_the_extra(tmp_path: Path) -> None:
         "except chaplygin.ChaplyginError as exc:\n"
         "    print(exc)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                          check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
+    )
     assert done.returncode == 0, done.stderr
     assert "pip install 'chaplygin[sweep]'" in done.stdout and "pyarrow" in done.stdout
 
@@ -142,7 +158,7 @@ def test_two_workers_equal_a_serial_run(client, tmp_path: Path) -> None:
     assert a.column("grid.J").to_pylist() == [0.0, 0.25, 0.5] * 3
     assert a.column("param.J").to_pylist() == a.column("grid.J").to_pylist()
     assert a.column("initial.theta'").to_pylist() == a.column("grid.theta'").to_pylist()
-    assert set(a.column("param.m").to_pylist()) == {1.0}            # the example's other values
+    assert set(a.column("param.m").to_pylist()) == {1.0}  # the example's other values
     assert statuses(a) == ["failed", "success", "success"] * 3
     ok = [i for i in range(9) if i % 3]
     drift = a.column("energy_drift").to_numpy()
@@ -153,8 +169,9 @@ def test_two_workers_equal_a_serial_run(client, tmp_path: Path) -> None:
     assert np.allclose(a.column("final.phi").to_numpy()[ok], 0.2 * 2.0)
     # one Parquet file when finished; pyarrow reads the directory as it is
     files = sorted(p.name for p in parallel.path.iterdir())
-    assert files == ["_sweep.json", "_sweep.lock", "part-000001.parquet"] or \
-        [f for f in files if f.startswith("part-")] == [files[-1]]
+    assert files == ["_sweep.json", "_sweep.lock", "part-000001.parquet"] or [
+        f for f in files if f.startswith("part-")
+    ] == [files[-1]]
     raw = pq.read_table(parallel.path)
     assert raw.num_rows == 9
     assert SCHEMA in raw.schema.metadata[b"chaplygin.apps.sweep"].decode()
@@ -163,8 +180,9 @@ def test_two_workers_equal_a_serial_run(client, tmp_path: Path) -> None:
 def test_failed_runs_are_rows(client, tmp_path: Path) -> None:
     """A run that stops (Lindelöf's knife edge reaches its pole) or raises (J = 0) is a row with its message."""
     grid = {"x'": "0.1,1.0", "J": "0,1"}
-    result = sweep("example:knife-edge", grid, model="lindelof", t_end=10.0, out=tmp_path / "r",
-                   scheduler=client, **FAST)
+    result = sweep(
+        "example:knife-edge", grid, model="lindelof", t_end=10.0, out=tmp_path / "r", scheduler=client, **FAST
+    )
     table = result.table().to_pylist()
     assert len(table) == 4 and result.failed == 3
     by_point = {(r["grid.x'"], r["grid.J"]): r for r in table}
@@ -172,7 +190,9 @@ def test_failed_runs_are_rows(client, tmp_path: Path) -> None:
     assert fine["status"] == "success" and fine["message"] == "" and fine["t_reached"] == 10.0
     stopped = by_point[(1.0, 1.0)]
     # stopped at the sample before the pole, or by the integrator at it (which comes first depends on the steps)
-    assert stopped["status"] == "failed" and ("pole" in stopped["message"] or "step size" in stopped["message"])
+    assert stopped["status"] == "failed" and (
+        "pole" in stopped["message"] or "step size" in stopped["message"]
+    )
     assert 5.0 <= stopped["t_reached"] < 10.0 and np.isfinite(stopped["final.phi"])  # the state it reached
     for x in (0.1, 1.0):
         singular = by_point[(x, 0.0)]
@@ -193,8 +213,16 @@ def test_a_killed_worker_loses_nothing(client, tmp_path: Path) -> None:
             killed[address] = list(processing[address])
             os.kill(pids[address], signal.SIGKILL)
 
-    result = sweep(DISK, grid, t_end=100.0, out=tmp_path / "dask", scheduler=client, chunk_size=1,
-                   progress=kill_one, **FAST)
+    result = sweep(
+        DISK,
+        grid,
+        t_end=100.0,
+        out=tmp_path / "dask",
+        scheduler=client,
+        chunk_size=1,
+        progress=kill_one,
+        **FAST,
+    )
     assert killed and next(iter(killed.values())), "the worker was killed with tasks on it"
     table = result.table()
     assert table.column("run_id").to_pylist() == list(range(16))
@@ -240,8 +268,15 @@ def test_a_run_that_kills_its_workers_is_a_failed_row(client, tmp_path: Path) ->
     scheduler.allowed_failures = 0  # KilledWorker at the first death (Dask's default: after 4)
     client.register_plugin(CrashOnRun(1))
     try:
-        result = sweep(DISK, {"theta'": "0.5:1.5:3"}, t_end=1.0, out=tmp_path / "r", scheduler=client,
-                       chunk_size=3, **FAST)
+        result = sweep(
+            DISK,
+            {"theta'": "0.5:1.5:3"},
+            t_end=1.0,
+            out=tmp_path / "r",
+            scheduler=client,
+            chunk_size=3,
+            **FAST,
+        )
     finally:
         scheduler.allowed_failures = allowed
         client.unregister_worker_plugin(CrashOnRun.name)
@@ -263,10 +298,18 @@ def test_resume_runs_only_the_missing_runs(client, tmp_path: Path) -> None:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        sweep(DISK, grid, t_end=2.0, out=out, scheduler="serial", flush_seconds=0.0,
-              progress=stop_after_four, **FAST)
+        sweep(
+            DISK,
+            grid,
+            t_end=2.0,
+            out=out,
+            scheduler="serial",
+            flush_seconds=0.0,
+            progress=stop_after_four,
+            **FAST,
+        )
     before = read_results(out)
-    assert before.column("run_id").to_pylist() == [0, 1, 2, 3]       # nothing finished was lost
+    assert before.column("run_id").to_pylist() == [0, 1, 2, 3]  # nothing finished was lost
     (out / ".part-000009.parquet.abc.tmp").write_bytes(b"a write cut short")  # a crash mid-write
 
     again = sweep(DISK, grid, t_end=2.0, out=tmp_path / "other", scheduler="serial", **FAST)
@@ -275,8 +318,25 @@ def test_resume_runs_only_the_missing_runs(client, tmp_path: Path) -> None:
     with pytest.raises(SweepOutputExists, match="holds a different sweep .*t_end 2.0 there, 3.0 now"):
         sweep(DISK, grid, t_end=3.0, out=out, scheduler="serial", resume=True, **FAST)
 
-    args = ["sweep", DISK, "--grid", "theta'=0.5:1.5:3", "--grid", "phi'=0.1:0.3:3", "-t", "2",
-            "-o", str(out), "-b", "numpy", "-n", "21", "--scheduler", client.scheduler.address, "--resume"]
+    args = [
+        "sweep",
+        DISK,
+        "--grid",
+        "theta'=0.5:1.5:3",
+        "--grid",
+        "phi'=0.1:0.3:3",
+        "-t",
+        "2",
+        "-o",
+        str(out),
+        "-b",
+        "numpy",
+        "-n",
+        "21",
+        "--scheduler",
+        client.scheduler.address,
+        "--resume",
+    ]
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
     assert "9 runs: 5 run now, 4 already there; 0 failed" in done.stdout
@@ -296,12 +356,14 @@ def test_rows_never_wait_for_the_next_run(tmp_path: Path) -> None:
     writer = _Writer(tmp_path, schema, flush_seconds=1.0, next_part=0)  # ≫ a busy machine's stall
     try:
         writer.add([{"run_id": 3, "status": "success"}])
-        assert not list(tmp_path.glob("part-*"))          # not yet: it waits for company
+        assert not list(tmp_path.glob("part-*"))  # not yet: it waits for company
         for _ in range(600):
             if list(tmp_path.glob("part-*.parquet")):
                 break
             threading.Event().wait(0.05)
-        assert pq.read_table(tmp_path / "part-000000.parquet").to_pylist() == [{"run_id": 3, "status": "success"}]
+        assert pq.read_table(tmp_path / "part-000000.parquet").to_pylist() == [
+            {"run_id": 3, "status": "success"}
+        ]
         writer.add([{"run_id": 1, "status": "failed"}])
     finally:
         writer.close()
@@ -311,8 +373,26 @@ def test_rows_never_wait_for_the_next_run(tmp_path: Path) -> None:
 # ---------------------------------------------------------------- the command line
 def test_command_line(client, tmp_path: Path) -> None:
     out = tmp_path / "r.parquet"
-    args = ["sweep", "example:knife-edge", "--grid", "x'=0.5,1", "--grid", "m=1:2:2", "--model", "chaplygin",
-            "-t", "1", "-o", str(out), "-b", "numpy", "-n", "11", "--scheduler", client.scheduler.address]
+    args = [
+        "sweep",
+        "example:knife-edge",
+        "--grid",
+        "x'=0.5,1",
+        "--grid",
+        "m=1:2:2",
+        "--model",
+        "chaplygin",
+        "-t",
+        "1",
+        "-o",
+        str(out),
+        "-b",
+        "numpy",
+        "-n",
+        "11",
+        "--scheduler",
+        client.scheduler.address,
+    ]
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
     assert done.stdout.startswith("chaplygin: 4 runs: 4 run now; 0 failed;")
@@ -329,16 +409,60 @@ def test_command_line(client, tmp_path: Path) -> None:
 
     bad = runner.invoke(app, ["sweep", "example:knife-edge", "--grid", "x'=0.5:1", "-t", "1", "-o", str(out)])
     assert bad.exit_code == 2 and "--grid" in bad.output and "NAME=START:STOP:COUNT" in bad.output
-    unknown = runner.invoke(app, ["sweep", "example:knife-edge", "--grid", "k=0:1:2", "-t", "1",
-                                  "-o", str(tmp_path / "x"), "--scheduler", "serial"])
+    unknown = runner.invoke(
+        app,
+        [
+            "sweep",
+            "example:knife-edge",
+            "--grid",
+            "k=0:1:2",
+            "-t",
+            "1",
+            "-o",
+            str(tmp_path / "x"),
+            "--scheduler",
+            "serial",
+        ],
+    )
     assert unknown.exit_code == 1 and "sweep one of: parameters J, m" in unknown.stderr
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
-        nowhere = runner.invoke(app, ["sweep", "example:knife-edge", "--grid", "m=1,2", "-t", "1",
-                                      "-o", str(tmp_path / "y"), "--scheduler", "tcp://127.0.0.1:9"])
+        nowhere = runner.invoke(
+            app,
+            [
+                "sweep",
+                "example:knife-edge",
+                "--grid",
+                "m=1,2",
+                "-t",
+                "1",
+                "-o",
+                str(tmp_path / "y"),
+                "--scheduler",
+                "tcp://127.0.0.1:9",
+            ],
+        )
     assert nowhere.exit_code == 1 and "cannot reach a Dask scheduler" in nowhere.stderr
-    failing = runner.invoke(app, ["sweep", "example:knife-edge", "--model", "lindelof", "--grid", "x'=0.1,1",
-                                  "-t", "10", "-o", str(tmp_path / "z"), "-b", "numpy", "-n", "11",
-                                  "--scheduler", "serial"])
+    failing = runner.invoke(
+        app,
+        [
+            "sweep",
+            "example:knife-edge",
+            "--model",
+            "lindelof",
+            "--grid",
+            "x'=0.1,1",
+            "-t",
+            "10",
+            "-o",
+            str(tmp_path / "z"),
+            "-b",
+            "numpy",
+            "-n",
+            "11",
+            "--scheduler",
+            "serial",
+        ],
+    )
     assert failing.exit_code == 0 and "1 failed" in failing.stdout
     assert "run 1: the integrator stopped" in failing.stderr
     for result in (done, refused, bad, unknown, nowhere, failing):
@@ -347,8 +471,16 @@ def test_command_line(client, tmp_path: Path) -> None:
 
 def test_a_local_cluster_when_asked(tmp_path: Path) -> None:
     """scheduler="local": a LocalCluster of its own, closed at the end, named in the summary."""
-    result = sweep("example:knife-edge", {"m": "1,2"}, model="chaplygin", t_end=1.0, out=tmp_path / "r",
-                   scheduler="local", workers=1, **FAST)
+    result = sweep(
+        "example:knife-edge",
+        {"m": "1,2"},
+        model="chaplygin",
+        t_end=1.0,
+        out=tmp_path / "r",
+        scheduler="local",
+        workers=1,
+        **FAST,
+    )
     assert result.ran == 2 and statuses(result.table()) == ["success", "success"]
     assert result.where == "on a LocalCluster of 1 worker process"
     assert " s on a LocalCluster of 1 worker process -> " in result.summary()
@@ -365,8 +497,22 @@ def test_small_grids_run_in_this_process_by_default(tmp_path: Path, monkeypatch:
     assert result.where == "in this process" and result.ran == 9
     serial = sweep(DISK, DISK_GRID, t_end=2.0, out=tmp_path / "serial.parquet", scheduler="serial", **FAST)
     same_rows(result.table(), serial.table())
-    args = ["sweep", "example:knife-edge", "--grid", "x'=0.5,1", "--model", "chaplygin", "-t", "1",
-            "-o", str(tmp_path / "cli.parquet"), "-b", "numpy", "-n", "11"]
+    args = [
+        "sweep",
+        "example:knife-edge",
+        "--grid",
+        "x'=0.5,1",
+        "--model",
+        "chaplygin",
+        "-t",
+        "1",
+        "-o",
+        str(tmp_path / "cli.parquet"),
+        "-b",
+        "numpy",
+        "-n",
+        "11",
+    ]
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
     assert done.stdout.startswith("chaplygin: 2 runs: 2 run now; 0 failed; ")
@@ -377,8 +523,9 @@ def test_small_grids_run_in_this_process_by_default(tmp_path: Path, monkeypatch:
 
 
 @pytest.mark.parametrize("given", ["example", "object"])
-def test_long_runs_move_to_a_local_cluster(given: str, client, tmp_path: Path,
-                                           monkeypatch: pytest.MonkeyPatch) -> None:
+def test_long_runs_move_to_a_local_cluster(
+    given: str, client, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """With no scheduler, runs measured to take long hand the rest to a LocalCluster (here the
     module's cluster stands in for it), a System object included; the rows are a serial sweep's."""
     import chaplygin.apps.sweep as module
@@ -396,8 +543,11 @@ def test_long_runs_move_to_a_local_cluster(given: str, client, tmp_path: Path,
     monkeypatch.setattr(module, "_client", local_cluster)
     grid = {"theta'": "0.5:1.5:3", "phi'": "0.1:0.2:2"}
     entry = examples.get("vertical-rolling-disk")
-    system = DISK if given == "example" else SystemFile(entry.constructor(), dict(entry.parameters),
-                                                        dict(entry.initial), "disk", "disk")
+    system = (
+        DISK
+        if given == "example"
+        else SystemFile(entry.constructor(), dict(entry.parameters), dict(entry.initial), "disk", "disk")
+    )
     result = sweep(system, grid, t_end=2.0, out=tmp_path / "auto.parquet", **FAST)
     assert asked == [(None, None)]
     assert result.where.startswith("2 in this process, then 4 on the Dask cluster at ")
@@ -408,7 +558,9 @@ def test_long_runs_move_to_a_local_cluster(given: str, client, tmp_path: Path,
     same_rows(result.table(), serial.table(), rtol=0.0 if given == "example" else 1e-12)
 
 
-def test_a_machine_of_one_core_never_starts_a_cluster(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_machine_of_one_core_never_starts_a_cluster(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import chaplygin.apps.sweep as module
 
     monkeypatch.setattr(module, "AUTO_CLUSTER_SECONDS", 0.0)

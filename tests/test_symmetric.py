@@ -73,10 +73,16 @@ def _vertical_disk_closed_form(t: float, start: dict[str, float], R: float) -> d
     w, W = start["theta'"], start["phi'"]
     phi = start["phi"] + W * t
     rho = R * w / W
-    return {"theta": start["theta"] + w * t, "phi": phi,
-            "x": start["x"] + rho * (math.sin(phi) - math.sin(start["phi"])),
-            "y": start["y"] - rho * (math.cos(phi) - math.cos(start["phi"])),
-            "theta'": w, "phi'": W, "x'": R * w * math.cos(phi), "y'": R * w * math.sin(phi)}
+    return {
+        "theta": start["theta"] + w * t,
+        "phi": phi,
+        "x": start["x"] + rho * (math.sin(phi) - math.sin(start["phi"])),
+        "y": start["y"] - rho * (math.cos(phi) - math.cos(start["phi"])),
+        "theta'": w,
+        "phi'": W,
+        "x'": R * w * math.cos(phi),
+        "y'": R * w * math.sin(phi),
+    }
 
 
 def _orders(errors: list[float]) -> np.ndarray:
@@ -105,13 +111,23 @@ def test_order_on_the_vertical_disk_closed_form(method: str) -> None:
 def test_order_on_the_rolling_disk(disk, method: str) -> None:
     """A nonlinear problem: against DOP853 at rtol = 1e-13 (the same reduced equations)."""
     T = 2.0
-    ref = simulate(disk, "voronets", T, DISK.initial, DISK.parameters, rtol=1e-13, atol=1e-14,
-                        samples=2, backend="numba")
+    ref = simulate(
+        disk, "voronets", T, DISK.initial, DISK.parameters, rtol=1e-13, atol=1e-14, samples=2, backend="numba"
+    )
     steps = {"midpoint": (40, 80, 160, 320), "gauss4": (20, 40, 80, 160)}[method]
     errors = []
     for n in steps:
-        tr = simulate(disk, "voronets", T, DISK.initial, DISK.parameters, method=method, step=T / n,
-                           samples=2, backend="numba")
+        tr = simulate(
+            disk,
+            "voronets",
+            T,
+            DISK.initial,
+            DISK.parameters,
+            method=method,
+            step=T / n,
+            samples=2,
+            backend="numba",
+        )
         errors.append(max(abs(tr[name][-1] - ref[name][-1]) for name in (*ref.coordinates, *ref.velocities)))
     orders = _orders(errors)
     assert np.all(np.abs(orders - ORDERS[method]) < 0.2), (errors, orders)
@@ -139,8 +155,17 @@ def test_reversible_and_numpy_equals_numba(disk) -> None:
 
 # ---------------------------------------------------------------- what a run returns
 def test_chetaev_run_has_multipliers_and_exact_constraints(disk) -> None:
-    sym = simulate(disk, "chetaev", 2.0, DISK.initial, DISK.parameters, method="gauss4", step=0.0025,
-                        samples=21, backend="numba")
+    sym = simulate(
+        disk,
+        "chetaev",
+        2.0,
+        DISK.initial,
+        DISK.parameters,
+        method="gauss4",
+        step=0.0025,
+        samples=21,
+        backend="numba",
+    )
     dop = simulate(disk, "chetaev", 2.0, DISK.initial, DISK.parameters, samples=21)
     assert sym.success and sym.columns == dop.columns
     assert sym.model == "chetaev" and sym.backend == "numba" and sym.rhs_evaluations > 0
@@ -151,8 +176,7 @@ def test_chetaev_run_has_multipliers_and_exact_constraints(disk) -> None:
 
 
 def test_step_is_fitted_to_the_samples(oscillator) -> None:
-    tr = simulate(oscillator, "voronets", 2.0, OSC_START, OSC_PARAMS,
-                             method="midpoint", step=0.3, samples=3)
+    tr = simulate(oscillator, "voronets", 2.0, OSC_START, OSC_PARAMS, method="midpoint", step=0.3, samples=3)
     assert "8 midpoint steps of h = 0.25" in tr.message
     assert np.array_equal(tr.t, [0.0, 1.0, 2.0])
 
@@ -177,14 +201,19 @@ LONG_RUNS = {
 
 @pytest.mark.parametrize("case", list(LONG_RUNS))
 def test_energy_bounded_over_t_1e4_while_dop853_drifts(case: str, disk, oscillator) -> None:
-    system, start, params = ((disk, DISK.initial, DISK.parameters) if case == "rolling-disk"
-                             else (oscillator, OSC_START, OSC_PARAMS))
+    system, start, params = (
+        (disk, DISK.initial, DISK.parameters)
+        if case == "rolling-disk"
+        else (oscillator, OSC_START, OSC_PARAMS)
+    )
     (method, step), rtol = LONG_RUNS[case]
     T = 1e4
-    sym = simulate(system, "chetaev", T, start, params, method=method, step=step, samples=1001,
-                          backend="numba")
-    dop = simulate(system, "voronets", T, start, params, rtol=rtol, atol=rtol / 100, samples=1001,
-                          backend="numba")
+    sym = simulate(
+        system, "chetaev", T, start, params, method=method, step=step, samples=1001, backend="numba"
+    )
+    dop = simulate(
+        system, "voronets", T, start, params, rtol=rtol, atol=rtol / 100, samples=1001, backend="numba"
+    )
     assert sym.success and dop.success, (sym.message, dop.message)
     assert dop.rhs_evaluations > 0.5 * sym.rhs_evaluations  # comparable (or more) work
     assert np.max(sym.constraint_residual) < 1e-12
@@ -198,16 +227,23 @@ def test_energy_bounded_over_t_1e4_while_dop853_drifts(case: str, disk, oscillat
 
 # ---------------------------------------------------------------- failures and bad input
 def test_newton_failure_returns_partial_trajectory(oscillator) -> None:
-    tr = simulate(oscillator, "chetaev", 40.0, OSC_START, OSC_PARAMS, method="midpoint", step=2.0,
-                             samples=21)
+    tr = simulate(oscillator, "chetaev", 40.0, OSC_START, OSC_PARAMS, method="midpoint", step=2.0, samples=21)
     assert tr.status == "failed"
     assert "Newton iteration for the midpoint stages did not converge" in tr.message
     assert "smaller step" in tr.message
     assert 0 < len(tr.t) < 21 and np.all(np.isfinite(tr["x"]))
     compiled = compile_equations(oscillator.equations("voronets"), "numpy")
     p = parameter_vector(compiled.layout, OSC_PARAMS)
-    res = integrate_symmetric(compiled, (0.0, 1.0), np.array([0.0, 1.0, 0.0, 0.5, 1.0]), p,
-                              method="gauss4", step=0.1, samples=2, max_iterations=1)
+    res = integrate_symmetric(
+        compiled,
+        (0.0, 1.0),
+        np.array([0.0, 1.0, 0.0, 0.5, 1.0]),
+        p,
+        method="gauss4",
+        step=0.1,
+        samples=2,
+        max_iterations=1,
+    )
     assert res.status == "failed" and res.code == 7 and "in 1 iterations" in res.message
 
 
@@ -219,8 +255,9 @@ def test_blow_up_is_a_status() -> None:
     t = dynamicsymbols._t
     x, z = dynamicsymbols("x z")
     s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=x**4)
-    tr = simulate(s, "chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101, method="midpoint",
-                    step=0.01)
+    tr = simulate(
+        s, "chaplygin", 10.0, {"x": 1.0, "z": 0.0, "x'": 1.0}, samples=101, method="midpoint", step=0.01
+    )
     assert tr.status == "failed" and "blew up" in tr.message
     assert 0 < len(tr.t) < 101 and np.all(np.isfinite(tr["x"]))
 
@@ -236,10 +273,14 @@ def test_a_raising_right_hand_side_is_reported_like_the_dop853_loop() -> None:
     t = dynamicsymbols._t
     x, z = dynamicsymbols("x z")
     c = sp.Symbol("c")
-    s = System([x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=-x**2 / c)
+    s = System(
+        [x, z], (x.diff(t) ** 2 + z.diff(t) ** 2) / 2, {z.diff(t): x.diff(t)}, force_function=-(x**2) / c
+    )
     start, params = {"x": 1.0, "z": 0.0, "x'": 1.0}, {"c": 0.0}
     loop = simulate(s, "chaplygin", 1.0, start, params, backend="numba", samples=11)
-    gauss = simulate(s, "chaplygin", 1.0, start, params, backend="numba", method="gauss4", step=0.1, samples=11)
+    gauss = simulate(
+        s, "chaplygin", 1.0, start, params, backend="numba", method="gauss4", step=0.1, samples=11
+    )
     for tr in (loop, gauss):
         assert tr.status == "failed"
         assert tr.message == "the right-hand side failed at t = 0: division by zero", tr.message
@@ -258,11 +299,16 @@ def test_bad_input(disk, oscillator) -> None:
             run(method="gauss4", step=bad)
     with pytest.raises(ChaplyginError, match="step: the symmetric methods"):
         run(method="midpoint", step="0.1")
-    with pytest.raises(ChaplyginError, match=r"step: a fixed step size is for the symmetric methods .*'DOP853'"):
+    with pytest.raises(
+        ChaplyginError, match=r"step: a fixed step size is for the symmetric methods .*'DOP853'"
+    ):
         run(step=0.1)
     for model in ("lindelof", "vakonomic", "vakonomic_family"):
-        with pytest.raises(ChaplyginError, match=rf"integrates the true \(Chetaev\) motion: model 'chetaev', "
-                                                 rf"'chaplygin', 'voronets', not '{model}'"):
+        with pytest.raises(
+            ChaplyginError,
+            match=rf"integrates the true \(Chetaev\) motion: model 'chetaev', "
+            rf"'chaplygin', 'voronets', not '{model}'",
+        ):
             run(model=model, method="gauss4", step=0.1)
     with pytest.raises(ChaplyginError, match="backend: the symmetric methods run with 'numba'"):
         run(method="gauss4", step=0.1, backend="jax")
@@ -275,8 +321,18 @@ def test_bad_input(disk, oscillator) -> None:
 def test_cli(tmp_path) -> None:
     runner = CliRunner()
     out = tmp_path / "disk.csv"
-    args = ["simulate", "example:vertical-rolling-disk", "--model", "chetaev", "--t-end", "2",
-            "--samples", "5", "--out", str(out)]
+    args = [
+        "simulate",
+        "example:vertical-rolling-disk",
+        "--model",
+        "chetaev",
+        "--t-end",
+        "2",
+        "--samples",
+        "5",
+        "--out",
+        str(out),
+    ]
     result = runner.invoke(app, [*args, "--method", "gauss4", "--step", "0.1"])
     assert result.exit_code == 0, result.output
     assert "success" in result.stdout and "max constraint residual 0" in result.stdout
@@ -286,5 +342,7 @@ def test_cli(tmp_path) -> None:
     assert unknown.exit_code == 2 and "gauss4" in unknown.output
     missing = runner.invoke(app, [*args, "--force", "--method", "midpoint"])
     assert missing.exit_code == 2 and "--step" in missing.output
-    wrong = runner.invoke(app, [*args, "--force", "--model", "lindelof", "--method", "midpoint", "--step", "0.1"])
+    wrong = runner.invoke(
+        app, [*args, "--force", "--model", "lindelof", "--method", "midpoint", "--step", "0.1"]
+    )
     assert wrong.exit_code == 1 and "true (Chetaev) motion" in wrong.stderr

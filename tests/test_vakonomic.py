@@ -28,7 +28,9 @@ def vakonomic_momenta(system: System, c: list[float], values: dict) -> dict:
     mu = system.equations("vakonomic").multipliers
     cols = [system.coordinates.index(q) for q in system.dependent]
     a_dep = matrix(system.A, values)[:, cols]
-    rhs = [cb - number(sp.diff(system.kinetic_energy, q.diff(t)), values) for cb, q in zip(c, system.dependent)]
+    rhs = [
+        cb - number(sp.diff(system.kinetic_energy, q.diff(t)), values) for cb, q in zip(c, system.dependent)
+    ]
     return {m: sp.Float(v) for m, v in zip(mu, np.linalg.solve(a_dep.T, rhs))}
 
 
@@ -55,7 +57,13 @@ def test_lindelof_is_the_member_c_equal_zero(spec: Spec, seed: int) -> None:
     for form in ("classic", "new"):  # eq. (22) and eq. (39)
         for acc, value in solve(s.equations("lindelof", form), values).items():
             assert value == pytest.approx(truth[acc], rel=1e-8, abs=1e-8), (form, acc)
-    assert equivalent(s, s.equations("lindelof"), s.equations("vakonomic_family", constants=[0] * s.g), symbolic=False, samples=4)
+    assert equivalent(
+        s,
+        s.equations("lindelof"),
+        s.equations("vakonomic_family", constants=[0] * s.g),
+        symbolic=False,
+        samples=4,
+    )
 
 
 @given(spec=systems(chaplygin=True, integrable=True, affine=False, dependent_forces=False))
@@ -64,11 +72,18 @@ def test_all_models_coincide_where_condition_28_holds(spec: Spec) -> None:
     comparison = compare_models(s)
     assert comparison.condition_28 and comparison.coincide and comparison.verdict == "coincide"
     truth = s.equations("chetaev")
-    for model, form in [("lindelof", "classic"), ("lindelof", "new"), ("chaplygin", "classic"), ("chaplygin", "new")]:
+    for model, form in [
+        ("lindelof", "classic"),
+        ("lindelof", "new"),
+        ("chaplygin", "classic"),
+        ("chaplygin", "new"),
+    ]:
         assert equivalent(s, s.equations(model, form), truth, symbolic=False, samples=4), (model, form)
 
 
-@given(spec=systems(chaplygin=True, affine=False, forces=False, gyroscopic=False), seed=st.integers(0, 2**32 - 1))
+@given(
+    spec=systems(chaplygin=True, affine=False, forces=False, gyroscopic=False), seed=st.integers(0, 2**32 - 1)
+)
 def test_vakonomic_motion_conserves_energy(spec: Spec, seed: int) -> None:
     """Jacobi integral of L_v = T + U + μ·φ: T − U is conserved for any μ (docs/theory.md, Energy)."""
     s = spec.system
@@ -105,7 +120,10 @@ def paper_equations(sphere):
     chaplygin = [
         precession,
         sp.Rational(7, 5) * (dd(theta) + d(phi) * d(psi) * s),
-        dd(phi) * s**2 + f * (dd(phi) + dd(psi) * c) + d(theta) * d(phi) * s * c - sp.Rational(7, 5) * d(theta) * d(psi) * s,
+        dd(phi) * s**2
+        + f * (dd(phi) + dd(psi) * c)
+        + d(theta) * d(phi) * s * c
+        - sp.Rational(7, 5) * d(theta) * d(psi) * s,
     ]
     return lindelof, chaplygin
 
@@ -165,7 +183,9 @@ def test_vakonomic_virtual_work(sphere) -> None:
     x, y, z = (sp.Function(n)(t) for n in "xyz")
     T = (x.diff(t) ** 2 + y.diff(t) ** 2 + z.diff(t) ** 2) / 2
     closed = System([x, y, z], T, [2 * x * x.diff(t) + 2 * y * y.diff(t) + z.diff(t)], dependent=[z])
-    factor = System([x, y, z], T, [sp.exp(x) * (2 * x * x.diff(t) + 2 * y * y.diff(t) + z.diff(t))], dependent=[z])
+    factor = System(
+        [x, y, z], T, [sp.exp(x) * (2 * x * x.diff(t) + 2 * y * y.diff(t) + z.diff(t))], dependent=[z]
+    )
     for s in (closed, factor):
         assert sp.simplify(s.equations("vakonomic").virtual_work()) == 0
         assert s.equations("vakonomic").virtual_work(chetaev_condition=False) != 0
@@ -179,7 +199,9 @@ def test_integrated_multipliers_are_exposed(sphere) -> None:
     assert sp.simplify(got[mu[0]] - (2 - m * sphere.constraints[x.diff(t)])) == 0
     assert sp.simplify(got[mu[1]] + m * sphere.constraints[y.diff(t)]) == 0
     report = equivalent(
-        sphere, sphere.equations("vakonomic"), sphere.equations("vakonomic_family", constants=[2, 0]),
+        sphere,
+        sphere.equations("vakonomic"),
+        sphere.equations("vakonomic_family", constants=[2, 0]),
         multipliers=got,
     )
     assert report and report.method == "numeric"

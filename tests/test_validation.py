@@ -138,8 +138,9 @@ def knife() -> System:
     return examples.knife_edge()
 
 
-def refused(system: System, *, model: str = "chaplygin", t_end: float = 0.1, initial=None,
-            parameters=None, **options) -> str:
+def refused(
+    system: System, *, model: str = "chaplygin", t_end: float = 0.1, initial=None, parameters=None, **options
+) -> str:
     """The InputError message of a simulation that must not start (nothing is integrated)."""
     from chaplygin import InputError
 
@@ -170,15 +171,20 @@ def test_start_on_a_pole_of_the_solved_constraints_is_refused(knife: System, con
     if constraint == "solved":  # ẏ = tan φ ẋ as given by a user (form B)
         phi = dynamicsymbols("phi")
         m, J = sp.symbols("m J", positive=True)
-        knife = System([x, y, phi], m / 2 * (d(x) ** 2 + d(y) ** 2) + J / 2 * d(phi) ** 2,
-                       {d(y): sp.tan(phi) * d(x)})
+        knife = System(
+            [x, y, phi], m / 2 * (d(x) ** 2 + d(y) ** 2) + J / 2 * d(phi) ** 2, {d(y): sp.tan(phi) * d(x)}
+        )
     msg = refused(knife, initial={**KNIFE_0, "phi": math.pi / 2})
     assert "pole of the solved constraints" in msg and "y'" in msg and "phi = 1.5708" in msg
 
 
-@pytest.mark.parametrize("key,value,named", [
-    ("J", float("nan"), "parameters: J = nan"), ("m", float("inf"), "parameters: m = inf"),
-])
+@pytest.mark.parametrize(
+    "key,value,named",
+    [
+        ("J", float("nan"), "parameters: J = nan"),
+        ("m", float("inf"), "parameters: m = inf"),
+    ],
+)
 def test_non_finite_parameters_are_refused(knife: System, key: str, value: float, named: str) -> None:
     assert named in refused(knife, parameters={**KNIFE_P, key: value})
 
@@ -188,18 +194,21 @@ def test_non_finite_initial_values_are_refused(knife: System, key: str) -> None:
     assert f"initial: {key} = inf is not finite" in refused(knife, initial={**KNIFE_0, key: float("inf")})
 
 
-@pytest.mark.parametrize("options,named", [
-    ({"t_end": float("inf")}, "the end time = inf"),
-    ({"t_end": float("nan")}, "the end time = nan"),
-    ({"t_end": -1.0}, "must be after the start"),
-    ({"samples": 1}, "samples = 1"),
-    ({"samples": 10**7}, "samples = 10000000"),
-    ({"samples": 2.5}, "samples = 2.5"),
-    ({"rtol": 0.0}, "rtol = 0.0"),
-    ({"rtol": float("nan")}, "rtol = nan"),
-    ({"atol": -1.0}, "atol = -1.0"),
-    ({"max_step": 0.0}, "max_step = 0.0"),
-])
+@pytest.mark.parametrize(
+    "options,named",
+    [
+        ({"t_end": float("inf")}, "the end time = inf"),
+        ({"t_end": float("nan")}, "the end time = nan"),
+        ({"t_end": -1.0}, "must be after the start"),
+        ({"samples": 1}, "samples = 1"),
+        ({"samples": 10**7}, "samples = 10000000"),
+        ({"samples": 2.5}, "samples = 2.5"),
+        ({"rtol": 0.0}, "rtol = 0.0"),
+        ({"rtol": float("nan")}, "rtol = nan"),
+        ({"atol": -1.0}, "atol = -1.0"),
+        ({"max_step": 0.0}, "max_step = 0.0"),
+    ],
+)
 def test_run_options_are_checked(knife: System, options: dict, named: str) -> None:
     from chaplygin import InputError
 

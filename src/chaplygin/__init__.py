@@ -56,9 +56,21 @@ if TYPE_CHECKING:
 _HOME = {
     "examples": "chaplygin.examples",
     "System": "chaplygin.core.system",
-    **{name: "chaplygin.bodies" for name in (
-        "Sphere", "Disk", "Torus", "Ellipsoid", "Paraboloid", "Revolution", "SupportFunction",
-        "rolling_body", "initial_state", "motion")},
+    **{
+        name: "chaplygin.bodies"
+        for name in (
+            "Sphere",
+            "Disk",
+            "Torus",
+            "Ellipsoid",
+            "Paraboloid",
+            "Revolution",
+            "SupportFunction",
+            "rolling_body",
+            "initial_state",
+            "motion",
+        )
+    },
     "Equations": "chaplygin.models.equations",
     "IntegrabilityReport": "chaplygin.analysis.integrability",
     "EquivalenceReport": "chaplygin.analysis.equivalence",
@@ -79,8 +91,16 @@ _HOME = {
     "dumps": "chaplygin.io.files",
     "load": "chaplygin.io.files",
     "loads": "chaplygin.io.files",
-    **{name: "chaplygin.errors" for name in (
-        "ChaplyginError", "ChaplyginWarning", "InputError", "ModelError", "SystemDefinitionError")},
+    **{
+        name: "chaplygin.errors"
+        for name in (
+            "ChaplyginError",
+            "ChaplyginWarning",
+            "InputError",
+            "ModelError",
+            "SystemDefinitionError",
+        )
+    },
 }
 
 

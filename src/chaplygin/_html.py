@@ -52,8 +52,9 @@ def table(rows: Iterable[Sequence[str]], header: Sequence[str] = ()) -> str:
 
 def fields(items: Iterable[tuple[str, str]]) -> str:
     """A two-column table: a label (plain text, escaped) and its value (HTML)."""
-    rows = "".join(f"<tr><th style='text-align:left'>{escape(label)}</th><td>{value}</td></tr>"
-                   for label, value in items)
+    rows = "".join(
+        f"<tr><th style='text-align:left'>{escape(label)}</th><td>{value}</td></tr>" for label, value in items
+    )
     return f"<table>{rows}</table>"
 
 

@@ -97,9 +97,7 @@ def rolling_sphere(
     )
 
 
-def knife_edge(
-    m: sp.Expr | float | None = None, J: sp.Expr | float | None = None
-) -> System:
+def knife_edge(m: sp.Expr | float | None = None, J: sp.Expr | float | None = None) -> System:
     """A knife edge (skate) on a horizontal plane: ``ẏ = ẋ tan φ``.
 
     Coordinates ``x, y`` (contact point) and heading ``φ``;
@@ -109,9 +107,15 @@ def knife_edge(
     """
     x, y, phi = dynamicsymbols("x y phi")
     m_, J_ = _param(m, "m"), _param(J, "J")
-    T = sp.Rational(1, 2) * m_ * (x.diff(_t) ** 2 + y.diff(_t) ** 2) + sp.Rational(1, 2) * J_ * phi.diff(_t) ** 2
+    T = (
+        sp.Rational(1, 2) * m_ * (x.diff(_t) ** 2 + y.diff(_t) ** 2)
+        + sp.Rational(1, 2) * J_ * phi.diff(_t) ** 2
+    )
     return System(
-        [x, y, phi], T, [sp.sin(phi) * x.diff(_t) - sp.cos(phi) * y.diff(_t)], dependent=[y],
+        [x, y, phi],
+        T,
+        [sp.sin(phi) * x.diff(_t) - sp.cos(phi) * y.diff(_t)],
+        dependent=[y],
         name="Knife edge",
     )
 
@@ -133,7 +137,8 @@ def vertical_rolling_disk(
     d = lambda q: q.diff(_t)  # noqa: E731
     T = sp.Rational(1, 2) * (m_ * (d(x) ** 2 + d(y) ** 2) + I_ * d(theta) ** 2 + J_ * d(phi) ** 2)
     return System(
-        [theta, phi, x, y], T,
+        [theta, phi, x, y],
+        T,
         {d(x): R_ * sp.cos(phi) * d(theta), d(y): R_ * sp.sin(phi) * d(theta)},
         name="Vertical rolling disk",
     )
@@ -203,9 +208,7 @@ def rolling_disk(
     1905, art. 244.
     """
     psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
-    m_, r_, A_, C_, g_ = (
-        _param(v, n) for v, n in ((m, "m"), (r, "r"), (A, "A"), (C, "C"), (g, "g"))
-    )
+    m_, r_, A_, C_, g_ = (_param(v, n) for v, n in ((m, "m"), (r, "r"), (A, "A"), (C, "C"), (g, "g")))
     d = lambda q: q.diff(_t)  # noqa: E731
     s, c = sp.sin, sp.cos
     vg_x = d(x) + r_ * (d(theta) * c(theta) * s(psi) + d(psi) * s(theta) * c(psi))
@@ -236,15 +239,18 @@ def _d(q: sp.Expr) -> sp.Expr:
 
 def _space_omega(psi: sp.Expr, theta: sp.Expr, phi: sp.Expr) -> sp.Matrix:
     """Space components of the angular velocity for z-x-z Euler angles (ψ, θ, φ)."""
-    return sp.Matrix([
-        _d(theta) * sp.cos(psi) + _d(phi) * sp.sin(theta) * sp.sin(psi),
-        _d(theta) * sp.sin(psi) - _d(phi) * sp.sin(theta) * sp.cos(psi),
-        _d(psi) + _d(phi) * sp.cos(theta),
-    ])
+    return sp.Matrix(
+        [
+            _d(theta) * sp.cos(psi) + _d(phi) * sp.sin(theta) * sp.sin(psi),
+            _d(theta) * sp.sin(psi) - _d(phi) * sp.sin(theta) * sp.cos(psi),
+            _d(psi) + _d(phi) * sp.cos(theta),
+        ]
+    )
 
 
 def chaplygin_sleigh(
-    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    m: sp.Expr | float | None = None,
+    I: sp.Expr | float | None = None,  # noqa: E741
     a: sp.Expr | float | None = None,
 ) -> System:
     """The Chaplygin sleigh: a body on a knife edge at (x, y), centre of mass a ahead of it.
@@ -272,12 +278,14 @@ def chaplygin_sleigh(
     m_, I_, a_ = _param(m, "m"), _param(I, "I"), _param(a, "a")
     T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + m_ * a_ * _d(th) * (-_d(x) * sp.sin(th) + _d(y) * sp.cos(th))
     T += (I_ + m_ * a_**2) / 2 * _d(th) ** 2
-    return System([x, y, th], T, [-sp.sin(th) * _d(x) + sp.cos(th) * _d(y)], dependent=[y],
-                  name="Chaplygin sleigh")
+    return System(
+        [x, y, th], T, [-sp.sin(th) * _d(x) + sp.cos(th) * _d(y)], dependent=[y], name="Chaplygin sleigh"
+    )
 
 
 def turntable_ball(
-    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
+    m: sp.Expr | float | None = None,
+    a: sp.Expr | float | None = None,
     Omega: sp.Expr | float | None = None,
 ) -> System:
     """A homogeneous ball rolling on a turntable spinning at the constant rate Ω.
@@ -307,13 +315,19 @@ def turntable_ball(
     m_, a_, W = _param(m, "m"), _param(a, "a"), _param(Omega, "Omega")
     w = _space_omega(psi, theta, phi)
     T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + sp.Rational(1, 5) * m_ * a_**2 * sp.trigsimp(sp.expand(w.dot(w)))
-    return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1] - W * y, _d(y): -a_ * w[0] + W * x},
-                  name="Ball on a rotating turntable")
+    return System(
+        [psi, theta, phi, x, y],
+        T,
+        {_d(x): a_ * w[1] - W * y, _d(y): -a_ * w[0] + W * x},
+        name="Ball on a rotating turntable",
+    )
 
 
 def chaplygin_ball(
-    m: sp.Expr | float | None = None, a: sp.Expr | float | None = None,
-    A: sp.Expr | float | None = None, B: sp.Expr | float | None = None,
+    m: sp.Expr | float | None = None,
+    a: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None,
+    B: sp.Expr | float | None = None,
     C: sp.Expr | float | None = None,
 ) -> System:
     """Chaplygin's ball: centre of mass at the geometric centre, principal moments A, B, C.
@@ -338,11 +352,13 @@ def chaplygin_ball(
     """
     psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
     m_, a_, A_, B_, C_ = (_param(v, n) for v, n in ((m, "m"), (a, "a"), (A, "A"), (B, "B"), (C, "C")))
-    body = sp.Matrix([
-        _d(psi) * sp.sin(theta) * sp.sin(phi) + _d(theta) * sp.cos(phi),
-        _d(psi) * sp.sin(theta) * sp.cos(phi) - _d(theta) * sp.sin(phi),
-        _d(psi) * sp.cos(theta) + _d(phi),
-    ])
+    body = sp.Matrix(
+        [
+            _d(psi) * sp.sin(theta) * sp.sin(phi) + _d(theta) * sp.cos(phi),
+            _d(psi) * sp.sin(theta) * sp.cos(phi) - _d(theta) * sp.sin(phi),
+            _d(psi) * sp.cos(theta) + _d(phi),
+        ]
+    )
     T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + (A_ * body[0] ** 2 + B_ * body[1] ** 2 + C_ * body[2] ** 2) / 2
     w = _space_omega(psi, theta, phi)
     return System([psi, theta, phi, x, y], T, {_d(x): a_ * w[1], _d(y): -a_ * w[0]}, name="Chaplygin ball")
@@ -363,8 +379,12 @@ def heisenberg() -> System:
     Applications*, AMS, 2002, ch. 1.
     """
     x, y, z = dynamicsymbols("x y z")
-    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2) / 2, {_d(z): (x * _d(y) - y * _d(x)) / 2},
-                  name="Heisenberg system")
+    return System(
+        [x, y, z],
+        (_d(x) ** 2 + _d(y) ** 2) / 2,
+        {_d(z): (x * _d(y) - y * _d(x)) / 2},
+        name="Heisenberg system",
+    )
 
 
 def contact_oscillator(eps: sp.Expr | float | None = None) -> System:
@@ -387,14 +407,20 @@ def contact_oscillator(eps: sp.Expr | float | None = None) -> System:
     """
     x, y, z = dynamicsymbols("x y z")
     e = _param(eps, "epsilon")
-    return System([x, y, z], (_d(x) ** 2 + _d(y) ** 2 + _d(z) ** 2) / 2, {_d(x): -y * _d(z)},
-                  potential_energy=(x**2 + y**2 + z**2) / 2 + e * x**2 * z**2 / 2,
-                  name="Contact oscillator")
+    return System(
+        [x, y, z],
+        (_d(x) ** 2 + _d(y) ** 2 + _d(z) ** 2) / 2,
+        {_d(x): -y * _d(z)},
+        potential_energy=(x**2 + y**2 + z**2) / 2 + e * x**2 * z**2 / 2,
+        name="Contact oscillator",
+    )
 
 
 def differential_drive(
-    m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
-    J: sp.Expr | float | None = None, r: sp.Expr | float | None = None,
+    m: sp.Expr | float | None = None,
+    I: sp.Expr | float | None = None,  # noqa: E741
+    J: sp.Expr | float | None = None,
+    r: sp.Expr | float | None = None,
     b: sp.Expr | float | None = None,
 ) -> System:
     """A differential-drive robot: wheels of radius r at ±b on an axle through the centre of mass.
@@ -421,12 +447,18 @@ def differential_drive(
     m_, I_, J_, r_, b_ = (_param(v, n) for v, n in ((m, "m"), (I, "I"), (J, "J"), (r, "r"), (b, "b")))
     v, w = r_ / 2 * (_d(pr) + _d(pl)), r_ / (2 * b_) * (_d(pr) - _d(pl))
     T = m_ / 2 * (_d(x) ** 2 + _d(y) ** 2) + I_ / 2 * _d(th) ** 2 + J_ / 2 * (_d(pl) ** 2 + _d(pr) ** 2)
-    return System([x, y, th, pl, pr], T, {_d(x): v * sp.cos(th), _d(y): v * sp.sin(th), _d(th): w},
-                  name="Differential-drive robot")
+    return System(
+        [x, y, th, pl, pr],
+        T,
+        {_d(x): v * sp.cos(th), _d(y): v * sp.sin(th), _d(th): w},
+        name="Differential-drive robot",
+    )
 
 
 def sleigh_chain(
-    n: int, m: sp.Expr | float | None = None, I: sp.Expr | float | None = None,  # noqa: E741
+    n: int,
+    m: sp.Expr | float | None = None,
+    I: sp.Expr | float | None = None,  # noqa: E741
     L: sp.Expr | float | None = None,
 ) -> System:
     """A knife-edge sleigh at (x, y) pulling ``n`` sleighs, each hitched at distance L behind the last.
@@ -480,6 +512,7 @@ def _sleigh_chain_2() -> System:
     """``sleigh_chain(2)``: a lead sleigh pulling two sleighs (the catalogue's ``sleigh-chain``)."""
     return sleigh_chain(2)
 
+
 # ---------------------------------------------------------------------------- catalogue
 class ExampleEntry(NamedTuple):
     """One built-in example: how to build it, what it is, and numbers to simulate it with.
@@ -517,8 +550,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "differ (paper eqs. (41)-(62))."
         ),
         {"m": 1.0, "a": 1.0},
-        {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0,
-         "psi'": 0.5, "theta'": 0.4, "phi'": -0.7},
+        {"psi": 0.3, "theta": 1.0, "phi": 0.1, "x": 0.0, "y": 0.0, "psi'": 0.5, "theta'": 0.4, "phi'": -0.7},
     ),
     "knife-edge": (
         knife_edge,
@@ -550,8 +582,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "The default state rolls fast enough (phi' = 6) to stay up, wobbling about the upright."
         ),
         {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81},
-        {"psi": 0.0, "theta": 0.1, "phi": 0.0, "x": 0.0, "y": 0.0,
-         "psi'": 0.0, "theta'": 0.0, "phi'": 6.0},
+        {"psi": 0.0, "theta": 0.1, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 0.0, "theta'": 0.0, "phi'": 6.0},
     ),
     "chaplygin-sleigh": (
         chaplygin_sleigh,
@@ -577,8 +608,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "does work), but E - Omega*L_z is; the vakonomic motion from it gains energy fast."
         ),
         {"m": 1.0, "a": 1.0, "Omega": 0.5},
-        {"psi": 0.0, "theta": 1.5, "phi": 0.0, "x": 0.5, "y": 0.0,
-         "psi'": 0.2, "theta'": 0.0, "phi'": 0.0},
+        {"psi": 0.0, "theta": 1.5, "phi": 0.0, "x": 0.5, "y": 0.0, "psi'": 0.2, "theta'": 0.0, "phi'": 0.0},
     ),
     "chaplygin-ball": (
         chaplygin_ball,
@@ -589,8 +619,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "contact point is conserved in the true motion, not in Lindelöf's."
         ),
         {"m": 1.0, "a": 1.0, "A": 0.3, "B": 0.4, "C": 0.5},
-        {"psi": 0.2, "theta": 1.1, "phi": 0.3, "x": 0.0, "y": 0.0,
-         "psi'": 0.4, "theta'": -0.3, "phi'": 0.8},
+        {"psi": 0.2, "theta": 1.1, "phi": 0.3, "x": 0.0, "y": 0.0, "psi'": 0.4, "theta'": -0.3, "phi'": 0.8},
     ),
     "heisenberg": (
         heisenberg,
@@ -623,8 +652,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "keep their speeds: the default robot drives round a circle of radius 1.5."
         ),
         {"m": 1.0, "I": 0.5, "J": 0.1, "r": 0.1, "b": 0.3},
-        {"x": 0.0, "y": 0.0, "theta": 0.0, "phi_L": 0.0, "phi_R": 0.0,
-         "phi_L'": 4.0, "phi_R'": 6.0},
+        {"x": 0.0, "y": 0.0, "theta": 0.0, "phi_L": 0.0, "phi_R": 0.0, "phi_L'": 4.0, "phi_R'": 6.0},
     ),
     "sleigh-chain": (
         _sleigh_chain_2,
@@ -636,8 +664,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "trailers line up behind it."
         ),
         {"m": 1.0, "I": 0.5, "L": 1.0},
-        {"x": 0.0, "y": 0.0, "theta0": 0.0, "theta1": 0.2, "theta2": 0.0,
-         "x'": 1.0, "theta0'": 0.0},
+        {"x": 0.0, "y": 0.0, "theta0": 0.0, "theta1": 0.2, "theta2": 0.0, "x'": 1.0, "theta0'": 0.0},
     ),
 }
 
@@ -667,7 +694,5 @@ def get(name: str) -> ExampleEntry:
     if key not in entries:
         close = difflib.get_close_matches(str(key), list(entries), n=1)
         hint = f" Did you mean {close[0]!r}?" if close else ""
-        raise ChaplyginError(
-            f"unknown example {name!r}; the examples are {', '.join(entries)}.{hint}"
-        )
+        raise ChaplyginError(f"unknown example {name!r}; the examples are {', '.join(entries)}.{hint}")
     return entries[key]

@@ -75,9 +75,13 @@ class EquivalenceReport:
         return text
 
     def _repr_html_(self) -> str:
-        rows = [("verdict", "equivalent" if self.equivalent else "NOT equivalent"),
-                ("method", self.method), ("largest relative difference", f"{self.max_residual:.3g}"),
-                ("samples", str(self.samples)), ("tolerance", f"{self.tolerance:g}")]
+        rows = [
+            ("verdict", "equivalent" if self.equivalent else "NOT equivalent"),
+            ("method", self.method),
+            ("largest relative difference", f"{self.max_residual:.3g}"),
+            ("samples", str(self.samples)),
+            ("tolerance", f"{self.tolerance:g}"),
+        ]
         if not self.equivalent and self.worst:
             rows.append(("worst at", str(self.worst.get("acceleration", ""))))
         return _html.fields((label, _html.escape(value)) for label, value in rows)
@@ -86,7 +90,9 @@ class EquivalenceReport:
 class _Linear:
     """Equations reduced to ``M(state)·x = F(state)`` in internal symbols."""
 
-    def __init__(self, system: System, eqs: EquationsLike, label: str, constants: Sequence[sp.Symbol] = ()) -> None:
+    def __init__(
+        self, system: System, eqs: EquationsLike, label: str, constants: Sequence[sp.Symbol] = ()
+    ) -> None:
         self.system = system
         self.label = label
         v = system._vars
@@ -147,9 +153,11 @@ class _Linear:
                 f"{label}: the equations are not linear in the accelerations and multipliers."
             )
         self.F = -res.xreplace({u: 0 for u in unknowns})
-        extra = (self.M.free_symbols | self.F.free_symbols) - set(system.parameters) - {
-            TIME, *v.x, *v.xd, *v.xdd, *unknowns, *self.extra_state, *self.constants
-        }
+        extra = (
+            (self.M.free_symbols | self.F.free_symbols)
+            - set(system.parameters)
+            - {TIME, *v.x, *v.xd, *v.xdd, *unknowns, *self.extra_state, *self.constants}
+        )
         if extra:
             raise ChaplyginError(
                 f"{label}: unknown symbol(s) {', '.join(sorted(map(str, extra)))}; the system's "
@@ -198,7 +206,9 @@ class _Linear:
                 + " at a random admissible state."
             )
         if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, float(np.linalg.norm(F))):
-            raise ChaplyginError(f"{self.label}: the equations are inconsistent at a random admissible state.")
+            raise ChaplyginError(
+                f"{self.label}: the equations are inconsistent at a random admissible state."
+            )
         return x[self.independent]
 
 
@@ -228,7 +238,9 @@ class _States:
         given = dict(parameters or {})
         fixed_constants = {constants[str(k)]: float(given.pop(k)) for k in list(given) if str(k) in constants}
         params = parameter_values(system, self.rng, given)
-        self.constants = {c: fixed_constants.get(c, float(self.rng.uniform(-1, 1))) for c in constants.values()}
+        self.constants = {
+            c: fixed_constants.get(c, float(self.rng.uniform(-1, 1))) for c in constants.values()
+        }
         self.sampler = StateSampler(system, params)
         v = system._vars
         self.state_symbols = [TIME, *v.x, *v.xd, *params]
@@ -241,7 +253,11 @@ class _States:
         args = self.state_symbols + list(self.constants)
         known = {str(r.names[m].func.__name__): m for r in self.reps for m in r.extra_state}
         for key, expr in given.items():
-            name = key.func.__name__ if isinstance(key, sp.Expr) and hasattr(key, "func") and key.args == (TIME,) else str(key)
+            name = (
+                key.func.__name__
+                if isinstance(key, sp.Expr) and hasattr(key, "func") and key.args == (TIME,)
+                else str(key)
+            )
             if name not in known:
                 raise ChaplyginError(
                     f"multipliers: {name} is not a state multiplier of these equations; they have "

@@ -117,7 +117,9 @@ class IntegrabilityReport:
         head = "integrable (holonomic)" if self.integrable else "not integrable (nonholonomic)"
         conditions = (self.condition_28, self.condition_33, self.frobenius)
         text = _html.heading(f"Constraints of {self.system_name}: {head}, by the Frobenius test.")
-        text += _html.table([c._html_row() for c in conditions], ["condition", "verdict", "first failure", "note"])
+        text += _html.table(
+            [c._html_row() for c in conditions], ["condition", "verdict", "first failure", "note"]
+        )
         if self.relations:
             text += "<p>Finite relations (each = constant): "
             text += ", ".join(_html.math(vlatex(r)) for r in self.relations) + "</p>"
@@ -153,10 +155,14 @@ def analyze(system: System) -> IntegrabilityReport:
         for k, j in combinations(range(s.n), 2):
             e = sp.diff(s._A[b, j], v.x[k]) - sp.diff(s._A[b, k], v.x[j])
             if not vanishes(e):
-                label = f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
+                label = (
+                    f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
+                )
                 fail33.append((label, user(simplify_small(sp.cancel(e)))))
     c33 = Condition(
-        "(33)", not fail33, fail33,
+        "(33)",
+        not fail33,
+        fail33,
         "Closed constraint forms; sufficient for integrability, not necessary.",
     )
 
@@ -179,7 +185,9 @@ def analyze(system: System) -> IntegrabilityReport:
                 label = f"[X_t, X_{_name(s, ind[k])}] along ∂{_name(s, dep[b])}"
                 fail_f.append((label, user(simplify_small(sp.cancel(-e0)))))
     cf = Condition(
-        "Frobenius", not fail_f, fail_f,
+        "Frobenius",
+        not fail_f,
+        fail_f,
         "Lie brackets of the constraint distribution (equivalent to dω ∧ ω_1 ∧ … ∧ ω_g = 0).",
     )
     relations = [user(f) for f in _finite_relations(s)] if cf.holds else []

@@ -146,8 +146,11 @@ class Classification:
 
     def _repr_html_(self) -> str:
         rows = [(_html.escape(k), f"{v:.2g}") for k, v in self.residuals.items()]
-        return (_html.heading(f"Classification: {self.verdict}") + f"<p>{_html.escape(str(self))}</p>"
-                + _html.table(rows, ["candidate model", "relative difference"]))
+        return (
+            _html.heading(f"Classification: {self.verdict}")
+            + f"<p>{_html.escape(str(self))}</p>"
+            + _html.table(rows, ["candidate model", "relative difference"])
+        )
 
 
 def classify(
@@ -221,7 +224,5 @@ def classify(
     if residuals.get("lindelof", 1.0) <= tolerance:
         return Classification("lindelof", residuals=residuals, note=note)
     if residuals.get("vakonomic_family", 1.0) <= tolerance:
-        return Classification(
-            "vakonomic", {s.name: float(v) for s, v in zip(consts, c)}, residuals, note
-        )
+        return Classification("vakonomic", {s.name: float(v) for s, v in zip(consts, c)}, residuals, note)
     return Classification("none", residuals=residuals, note=note)

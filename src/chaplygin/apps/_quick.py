@@ -55,8 +55,14 @@ def applies(backend: str, model: str, method: str, constants: Any, step: Any) ->
     """Whether a plan could answer this run (before looking for one)."""
     from chaplygin.numeric.simulate import choose_backend
 
-    return (model in (*REDUCED, TRUE_MOTION) and method == "DOP853" and constants is None and step is None
-            and backend in ("auto", "c") and choose_backend(backend, method) == "c")
+    return (
+        model in (*REDUCED, TRUE_MOTION)
+        and method == "DOP853"
+        and constants is None
+        and step is None
+        and backend in ("auto", "c")
+        and choose_backend(backend, method) == "c"
+    )
 
 
 def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: Trajectory) -> None:
@@ -73,11 +79,18 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     kernel, layout = compiled.module, compiled.layout
     system = loaded.system
     value = {
-        "layout": {f: list(getattr(layout, f)) for f in ("coordinates", "velocities", "multipliers",
-                                                          "parameters", "reactions")}
+        "layout": {
+            f: list(getattr(layout, f))
+            for f in ("coordinates", "velocities", "multipliers", "parameters", "reactions")
+        }
         | {"model": layout.model, "form": layout.form},
-        "fill": kernel.fill_source, "dim": kernel.DIM, "n": kernel.N, "k": kernel.K,
-        "n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react, "g": system.g,
+        "fill": kernel.fill_source,
+        "dim": kernel.DIM,
+        "n": kernel.N,
+        "k": kernel.K,
+        "n_observed": kernel.N_OBSERVED,
+        "n_react": kernel.n_react,
+        "g": system.g,
         "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
         "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
         "defaulted": list(getattr(loaded, "defaulted", ())),
@@ -93,9 +106,12 @@ def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
 
         from chaplygin.errors import ChaplyginWarning
 
-        warnings.warn(f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
-                      f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
-                      ChaplyginWarning, stacklevel=3)
+        warnings.warn(
+            f"initial: {', '.join(missing)} {'is' if len(missing) == 1 else 'are'} given neither in "
+            f"[initial] nor by --initial; {'it is' if len(missing) == 1 else 'they are'} 0.",
+            ChaplyginWarning,
+            stacklevel=3,
+        )
 
 
 def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
@@ -104,9 +120,21 @@ def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
     return value if isinstance(value, dict) else None
 
 
-def run(definition: bytes | None, model: str, form: str, t_end: float, samples: int, backend: str,
-        method: str, constants: Any, step: Any, params: Mapping[str, float],
-        initial: Mapping[str, float], rtol: float = 1e-10, atol: float = 1e-12) -> Trajectory | None:
+def run(
+    definition: bytes | None,
+    model: str,
+    form: str,
+    t_end: float,
+    samples: int,
+    backend: str,
+    method: str,
+    constants: Any,
+    step: Any,
+    params: Mapping[str, float],
+    initial: Mapping[str, float],
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+) -> Trajectory | None:
     """The run from a stored plan, or None where the full path must run.
 
     ``params`` and ``initial`` are the command line's overrides (by name).  The
@@ -118,8 +146,12 @@ def run(definition: bytes | None, model: str, form: str, t_end: float, samples: 
     """
     from chaplygin.numeric.simulate import MAX_SAMPLES
 
-    if (definition is None or not 0 < t_end < np.inf or not 2 <= samples <= MAX_SAMPLES
-            or not applies(backend, model, method, constants, step)):
+    if (
+        definition is None
+        or not 0 < t_end < np.inf
+        or not 2 <= samples <= MAX_SAMPLES
+        or not applies(backend, model, method, constants, step)
+    ):
         return None
     found = plan(definition, model, form)
     if found is None:
@@ -130,14 +162,24 @@ def run(definition: bytes | None, model: str, form: str, t_end: float, samples: 
         return None
 
 
-def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str, float],
-         initial: Mapping[str, float], rtol: float, atol: float) -> Trajectory | None:
+def _run(
+    found: dict[str, Any],
+    t_end: float,
+    samples: int,
+    params: Mapping[str, float],
+    initial: Mapping[str, float],
+    rtol: float,
+    atol: float,
+) -> Trajectory | None:
     from chaplygin.numeric._ckernel import CKernel, CompiledModel, Layout, Unavailable
     from chaplygin.numeric.simulate import integrate
 
     lay = found["layout"]
-    layout = Layout(lay["model"], lay["form"], *(tuple(lay[f]) for f in ("coordinates", "velocities",
-                                                                         "multipliers", "parameters", "reactions")))
+    layout = Layout(
+        lay["model"],
+        lay["form"],
+        *(tuple(lay[f]) for f in ("coordinates", "velocities", "multipliers", "parameters", "reactions")),
+    )
     values = {**found["parameters"], **params}
     state = {**found["initial"], **initial}
     if set(values) != set(layout.parameters) or values != found["parameters"]:
@@ -150,18 +192,37 @@ def _run(found: dict[str, Any], t_end: float, samples: int, params: Mapping[str,
     if not set(state) <= every or not set(layout.coordinates) | set(layout.velocities) <= set(state):
         return None
     try:
-        kernel = CKernel(found["fill"], int(found["dim"]), int(found["n"]), int(found["k"]),
-                         int(found["n_observed"]), int(found["n_react"]))
+        kernel = CKernel(
+            found["fill"],
+            int(found["dim"]),
+            int(found["n"]),
+            int(found["k"]),
+            int(found["n_observed"]),
+            int(found["n_react"]),
+        )
     except Unavailable:
         return None
     y0 = np.array([state[name] for name in layout.coordinates + layout.velocities], dtype=float)
     p = np.array([values[name] for name in layout.parameters], dtype=float)
-    velocities = kernel.observe(0.0, y0, p)[-len(layout.coordinates):]
+    velocities = kernel.observe(0.0, y0, p)[-len(layout.coordinates) :]
     for name, implied in zip(layout.coordinates, velocities):
         given = state.get(name + "'")
-        if not np.isfinite(implied) or (given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))):
+        if not np.isfinite(implied) or (
+            given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))
+        ):
             return None  # a dependent velocity that violates the constraints: the full path's error
     compiled = CompiledModel(layout, kernel, "c")
     warn_defaulted(found["defaulted"], initial)  # as the full path does (chaplygin.apps.cli._numbers)
-    return integrate(compiled, (0.0, float(t_end)), y0, p, dict(values), rtol=rtol, atol=atol,
-                     method="DOP853", samples=samples, max_step=np.inf, g=int(found["g"]))
+    return integrate(
+        compiled,
+        (0.0, float(t_end)),
+        y0,
+        p,
+        dict(values),
+        rtol=rtol,
+        atol=atol,
+        method="DOP853",
+        samples=samples,
+        max_step=np.inf,
+        g=int(found["g"]),
+    )

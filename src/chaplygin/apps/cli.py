@@ -45,8 +45,9 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-examples_app = typer.Typer(help="The built-in examples: list them, or print one as a system file.",
-                           no_args_is_help=True)
+examples_app = typer.Typer(
+    help="The built-in examples: list them, or print one as a system file.", no_args_is_help=True
+)
 app.add_typer(examples_app, name="examples")
 
 
@@ -60,10 +61,12 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _options(
-    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
-                                 help="Print the version and exit."),
+    version: bool = typer.Option(
+        False, "--version", callback=_print_version, is_eager=True, help="Print the version and exit."
+    ),
 ) -> None:
     """Equations of motion of nonholonomic systems: derive, check, simulate, compare, report."""
+
 
 DEMO_GENERATOR = "chaplygin demo"
 DEMO_REPORT = Path("demo") / "report.html"
@@ -101,8 +104,10 @@ class Backend(str, Enum):
     jax = "jax"
 
 
-BACKEND_HELP = ("Generated-code backend; auto (default): c (generated C, built once and cached) where a C "
-                "compiler is found, else numpy. The summary line says which ran.")
+BACKEND_HELP = (
+    "Generated-code backend; auto (default): c (generated C, built once and cached) where a C "
+    "compiler is found, else numpy. The summary line says which ran."
+)
 
 
 class FigureFormat(str, Enum):
@@ -152,8 +157,7 @@ class _Steps:
         """Start the next step; the previous one counts as done."""
         self.done += 1
         if self._progress is not None:
-            self._progress.update(self._task, description=description,
-                                  completed=min(self.done, self.total))
+            self._progress.update(self._task, description=description, completed=min(self.done, self.total))
 
     def __exit__(self, *exc: Any) -> None:
         if self._progress is not None:
@@ -212,8 +216,9 @@ def _refuse_existing(paths: Sequence[Path], force: bool) -> None:
             raise OutputExists(f"{p} is a directory; give a file name.")
     if existing and not force:
         names = ", ".join(str(p) for p in existing)
-        raise OutputExists(f"{names} already exist{'s' if len(existing) == 1 else ''}; "
-                           "pass --force to overwrite.")
+        raise OutputExists(
+            f"{names} already exist{'s' if len(existing) == 1 else ''}; pass --force to overwrite."
+        )
 
 
 # ====================================================================== loading
@@ -230,7 +235,7 @@ def _example(name: str) -> Any:
 def _load(spec: str) -> Any:
     """A system file, or ``example:NAME``."""
     if spec.startswith("example:"):
-        return _example(spec[len("example:"):])
+        return _example(spec[len("example:") :])
     from chaplygin.io import files
 
     return files.load(spec)
@@ -245,17 +250,23 @@ def _overrides(values: list[str] | None, option: str) -> dict[str, float]:
                 raise ValueError
             out[key.strip()] = float(value)
         except ValueError:
-            raise typer.BadParameter(f"{item!r}: expected NAME=NUMBER, e.g. m=1.5", param_hint=option) from None
+            raise typer.BadParameter(
+                f"{item!r}: expected NAME=NUMBER, e.g. m=1.5", param_hint=option
+            ) from None
     return out
 
 
-def _numbers(loaded: Any, params: list[str] | None, initial: list[str] | None) -> tuple[dict[str, float], dict[str, float]]:
+def _numbers(
+    loaded: Any, params: list[str] | None, initial: list[str] | None
+) -> tuple[dict[str, float], dict[str, float]]:
     from chaplygin.apps._quick import warn_defaulted
 
     given = _overrides(initial, "--initial")
     warn_defaulted(getattr(loaded, "defaulted", ()), given)
-    return ({**dict(loaded.parameters or {}), **_overrides(params, "--param")},
-            {**dict(loaded.initial or {}), **given})
+    return (
+        {**dict(loaded.parameters or {}), **_overrides(params, "--param")},
+        {**dict(loaded.initial or {}), **given},
+    )
 
 
 def _created(path: Path) -> str | None:
@@ -271,7 +282,9 @@ def _tolerance(value: float, option: str) -> float:
     import math
 
     if not (math.isfinite(value) and value > 0):
-        raise typer.BadParameter(f"{value:g}: give a positive finite tolerance, e.g. 1e-10.", param_hint=option)
+        raise typer.BadParameter(
+            f"{value:g}: give a positive finite tolerance, e.g. 1e-10.", param_hint=option
+        )
     return value
 
 
@@ -341,8 +354,12 @@ class _Derivation:
         exprs = expressions_to_data([*self.equations, *(x for pair in pairs for x in pair)])
         if exprs is None:
             return None
-        return {"head": self.head, "expressions": exprs, "equations": len(self.equations),
-                "accelerations": None if self.accelerations is None else len(pairs)}
+        return {
+            "head": self.head,
+            "expressions": exprs,
+            "equations": len(self.equations),
+            "accelerations": None if self.accelerations is None else len(pairs),
+        }
 
     @classmethod
     def from_data(cls, data: Any) -> _Derivation | None:
@@ -366,7 +383,9 @@ class _Derivation:
             "schema": "chaplygin.derive/1",
             **self.head,
             "equations": [file_syntax(e.lhs) for e in self.equations],
-            "accelerations": None if acc is None else {file_syntax(k): file_syntax(v) for k, v in acc.items()},
+            "accelerations": None
+            if acc is None
+            else {file_syntax(k): file_syntax(v) for k, v in acc.items()},
         }
 
     def render(self, fmt: DeriveFormat) -> str:
@@ -378,8 +397,10 @@ class _Derivation:
             from sympy.physics.vector.printing import vlatex
 
             rows = r" \\ ".join(vlatex(e) for e in self.equations)  # as Equations.latex()
-            lines = [f"% {head['title']} - {head['system']}",
-                     r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"]
+            lines = [
+                f"% {head['title']} - {head['system']}",
+                r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}",
+            ]
             if acc is not None:
                 rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
                 lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
@@ -396,16 +417,30 @@ class _Derivation:
 @app.command()
 def derive(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: str | None = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
-    form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."),
+    model: str | None = typer.Option(
+        None,
+        "--model",
+        "-m",
+        parser=_model_name,
+        metavar="MODEL",
+        help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
+    ),
+    form: Form = typer.Option(
+        Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."
+    ),
     fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
-    accelerations: bool = typer.Option(True, "--accelerations/--no-accelerations",
-                                       help="Also solve for the accelerations (and multipliers)."),
-    no_cache: bool = typer.Option(False, "--no-cache",
-                                  help="Derive anew: neither read nor write the derivation cache."),
-    simplify: bool = typer.Option(False, "--simplify",
-                                  help="Also pass each solved acceleration through SymPy's simplify "
-                                       "(slow; the default result is already an exact, cancelled normal form)."),
+    accelerations: bool = typer.Option(
+        True, "--accelerations/--no-accelerations", help="Also solve for the accelerations (and multipliers)."
+    ),
+    no_cache: bool = typer.Option(
+        False, "--no-cache", help="Derive anew: neither read nor write the derivation cache."
+    ),
+    simplify: bool = typer.Option(
+        False,
+        "--simplify",
+        help="Also pass each solved acceleration through SymPy's simplify "
+        "(slow; the default result is already an exact, cancelled normal form).",
+    ),
 ) -> None:
     """Derive the equations of motion of one model and print them.
 
@@ -427,8 +462,10 @@ def derive(
         if isinstance(printed, str):
             _emit(printed)
             return
-        keys = [cache.key(*request, "accelerations" if solved else "equations")
-                for solved in ((True,) if accelerations else (False, True))]
+        keys = [
+            cache.key(*request, "accelerations" if solved else "equations")
+            for solved in ((True,) if accelerations else (False, True))
+        ]
         found = next((d for d in map(_Derivation.from_data, map(cache.load, keys)) if d is not None), None)
         if found is None:
             found = _derive(file, model, form, accelerations, simplify)
@@ -445,7 +482,7 @@ def derive(
 def _definition(spec: str) -> bytes | None:
     """What a derivation from ``spec`` depends on: a file's bytes, or an example's name."""
     if spec.startswith("example:"):  # examples change only with the library version
-        name = spec[len("example:"):]  # normalised as examples._normalise does, without SymPy
+        name = spec[len("example:") :]  # normalised as examples._normalise does, without SymPy
         return f"example:{name.strip().lower().replace('_', '-').replace(' ', '-')}".encode()
     try:
         return Path(spec).read_bytes()
@@ -453,7 +490,9 @@ def _definition(spec: str) -> bytes | None:
         return None  # _load reports the problem
 
 
-def _derive(file: str, model: str | None, form: Form, accelerations: bool, simplify: bool = False) -> _Derivation:
+def _derive(
+    file: str, model: str | None, form: Form, accelerations: bool, simplify: bool = False
+) -> _Derivation:
     """Derive (the only place ``derive`` does symbolic work beyond printing); no ``model``: the true motion."""
     loaded = _load(file)
     system = loaded.system
@@ -478,14 +517,19 @@ def check_json(system: System) -> dict[str, Any]:
     rep = system.integrability()
 
     def condition(c: Any) -> dict[str, Any]:
-        return {"holds": c.holds, "note": c.note,
-                "failures": [{"component": label, "value": file_syntax(e)} for label, e in c.failures]}
+        return {
+            "holds": c.holds,
+            "note": c.note,
+            "failures": [{"component": label, "value": file_syntax(e)} for label, e in c.failures],
+        }
 
     models, reasons = applicable_models(system)
     try:
         cmp = compare_models(system)
         comparison: dict[str, Any] | None = {
-            "verdict": cmp.verdict, "coincide": cmp.coincide, "condition_28": cmp.condition_28,
+            "verdict": cmp.verdict,
+            "coincide": cmp.coincide,
+            "condition_28": cmp.condition_28,
             "defect_vanishes": cmp.defect_vanishes,
             "defect": {file_syntax(q): file_syntax(d) for q, d in cmp.defect.items()},
         }
@@ -508,8 +552,10 @@ def check_json(system: System) -> dict[str, Any]:
             "frobenius": condition(rep.frobenius),
             "relations": [file_syntax(r) for r in rep.relations],
         },
-        "chaplygin_system": {"is_chaplygin": system.is_chaplygin,
-                             "obstructions": list(system.chaplygin_obstructions)},
+        "chaplygin_system": {
+            "is_chaplygin": system.is_chaplygin,
+            "obstructions": list(system.chaplygin_obstructions),
+        },
         "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
         "comparison": comparison,
         "comparison_unavailable": why_not,
@@ -531,24 +577,33 @@ def check(
             return
         system = loaded.system
         integ = doc["integrability"]
-        lines = [f"{system.name}: {system.n} coordinates ({', '.join(doc['coordinates'])}), "
-                 f"{system.g} constraint(s); dependent: {', '.join(doc['dependent']) or 'none'}",
-                 "Constraints: " + ("integrable (holonomic)" if integ["integrable"] else
-                                    "not integrable (nonholonomic)") + ", by the Frobenius test."]
+        lines = [
+            f"{system.name}: {system.n} coordinates ({', '.join(doc['coordinates'])}), "
+            f"{system.g} constraint(s); dependent: {', '.join(doc['dependent']) or 'none'}",
+            "Constraints: "
+            + ("integrable (holonomic)" if integ["integrable"] else "not integrable (nonholonomic)")
+            + ", by the Frobenius test.",
+        ]
         for key, name in (("condition_28", "(28)"), ("condition_33", "(33)"), ("frobenius", "Frobenius")):
             c = integ[key]
             line = f"  {name}: {'holds' if c['holds'] else 'fails'}"
             if c["failures"]:
                 first = c["failures"][0]
                 more = len(c["failures"]) - 1
-                line += f" - {first['component']} = {first['value']}" + (f" (and {more} more)" if more else "")
+                line += f" - {first['component']} = {first['value']}" + (
+                    f" (and {more} more)" if more else ""
+                )
             lines.append(f"{line}. {c['note']}")
         if integ["integrable"]:
-            lines.append("  Finite relations (each = constant): " + (", ".join(integ["relations"]) or "none found"))
+            lines.append(
+                "  Finite relations (each = constant): " + (", ".join(integ["relations"]) or "none found")
+            )
         chap = doc["chaplygin_system"]
-        lines.append("Chaplygin system: yes (T, U, forces and B free of the dependent coordinates)"
-                     if chap["is_chaplygin"] else
-                     "Chaplygin system: no - " + "; ".join(chap["obstructions"]))
+        lines.append(
+            "Chaplygin system: yes (T, U, forces and B free of the dependent coordinates)"
+            if chap["is_chaplygin"]
+            else "Chaplygin system: no - " + "; ".join(chap["obstructions"])
+        )
         lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
         if doc["comparison"] is not None:
             from chaplygin.analysis.transitions import compare_models
@@ -564,8 +619,10 @@ def _model_spec(text: str) -> tuple[str, str]:
     name, _, form = text.strip().partition("/")
     form = form or "classic"
     if name not in registry.MODELS or form not in registry.MODELS[name].forms:
-        choices = ", ".join(f"{m.name}[/{'|'.join(m.forms)}]" if len(m.forms) > 1 else m.name
-                            for m in registry.MODELS.values())
+        choices = ", ".join(
+            f"{m.name}[/{'|'.join(m.forms)}]" if len(m.forms) > 1 else m.name
+            for m in registry.MODELS.values()
+        )
         raise typer.BadParameter(f"{text!r} is not a model; choose from {choices}.", param_hint="--models")
     return name, form
 
@@ -578,33 +635,63 @@ def _constants(text: str | None) -> Any:
     try:
         return [float(c) for c in text.split(",")]
     except ValueError:
-        raise typer.BadParameter(f"{text!r}: expected numbers separated by commas, or 'match'.",
-                                 param_hint="--constants") from None
+        raise typer.BadParameter(
+            f"{text!r}: expected numbers separated by commas, or 'match'.", param_hint="--constants"
+        ) from None
 
 
 def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
-    return (f"{label} [{'auto: ' if auto else ''}{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
-            f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; energy drift {tr.energy_drift():.3g}, "
-            f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}")
+    return (
+        f"{label} [{'auto: ' if auto else ''}{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
+        f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; energy drift {tr.energy_drift():.3g}, "
+        f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}"
+    )
 
 
 @app.command()
 def simulate(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: str | None = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    model: str | None = typer.Option(
+        None,
+        "--model",
+        "-m",
+        parser=_model_name,
+        metavar="MODEL",
+        help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
+    ),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the run starts at t = 0)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output file: .csv or .npz (missing folders are created)."),
+    out: Path = typer.Option(
+        ..., "--out", "-o", help="Output file: .csv or .npz (missing folders are created)."
+    ),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
-    constants: str | None = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
-    param: list[str] | None = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
-    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
+    constants: str | None = typer.Option(
+        None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
+    ),
+    param: list[str] | None = typer.Option(
+        None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."
+    ),
+    initial: list[str] | None = typer.Option(
+        None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
-    method: str = typer.Option("DOP853", "--method", help="Integrator: DOP853 (adaptive, the default), RK45, RK23, Radau, BDF, LSODA; or, for the true motion (chetaev, chaplygin, voronets), a symmetric fixed-step method that keeps the energy error bounded: midpoint, gauss4, gauss6 (needs --step)."),
-    step: float | None = typer.Option(None, "--step", help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used)."),
-    rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the adaptive integrators (positive)."),
-    atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."),
+    method: str = typer.Option(
+        "DOP853",
+        "--method",
+        help="Integrator: DOP853 (adaptive, the default), RK45, RK23, Radau, BDF, LSODA; or, for the true motion (chetaev, chaplygin, voronets), a symmetric fixed-step method that keeps the energy error bounded: midpoint, gauss4, gauss6 (needs --step).",
+    ),
+    step: float | None = typer.Option(
+        None,
+        "--step",
+        help="Step size of midpoint, gauss4 and gauss6 (the largest step that puts every sample on the grid is used).",
+    ),
+    rtol: float = typer.Option(
+        1e-10, "--rtol", help="Relative tolerance of the adaptive integrators (positive)."
+    ),
+    atol: float = typer.Option(
+        1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."
+    ),
 ) -> None:
     """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
     from chaplygin.numeric.simulate import METHODS, SYMMETRIC_METHODS
@@ -613,11 +700,13 @@ def simulate(
     if suffix not in (".csv", ".npz"):
         raise typer.BadParameter(f"{out}: the output must end in .csv or .npz.", param_hint="--out")
     if method not in METHODS:
-        raise typer.BadParameter(f"{method!r} is not a method; choose from {', '.join(METHODS)}.",
-                                 param_hint="--method")
+        raise typer.BadParameter(
+            f"{method!r} is not a method; choose from {', '.join(METHODS)}.", param_hint="--method"
+        )
     if method in SYMMETRIC_METHODS and step is None:
-        raise typer.BadParameter(f"method {method} takes a fixed step: give --step, e.g. --step 0.01.",
-                                 param_hint="--step")
+        raise typer.BadParameter(
+            f"method {method} takes a fixed step: give --step, e.g. --step 0.01.", param_hint="--step"
+        )
     c = _constants(constants)
     rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
     _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
@@ -628,8 +717,21 @@ def simulate(
         definition = _definition(file)
         # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
         asked = model if model is not None else _quick.TRUE_MOTION
-        tr = _quick.run(definition, asked, form.value, t_end, samples, backend.value, method, c, step,
-                        _overrides(param, "--param"), _overrides(initial, "--initial"), rtol, atol)
+        tr = _quick.run(
+            definition,
+            asked,
+            form.value,
+            t_end,
+            samples,
+            backend.value,
+            method,
+            c,
+            step,
+            _overrides(param, "--param"),
+            _overrides(initial, "--initial"),
+            rtol,
+            atol,
+        )
         created = None
         if tr is None:
             loaded = _load(file)
@@ -645,8 +747,14 @@ def simulate(
                 if not registry.get(model).constants:  # (the family is derived with its constants)
                     system.equations(model, form.value)
                 steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
-                options: dict[str, Any] = {"form": form.value, "samples": samples, "backend": backend.value,
-                                           "method": method, "rtol": rtol, "atol": atol}
+                options: dict[str, Any] = {
+                    "form": form.value,
+                    "samples": samples,
+                    "backend": backend.value,
+                    "method": method,
+                    "rtol": rtol,
+                    "atol": atol,
+                }
                 if c is not None:
                     options["constants"] = c
                 if step is not None:
@@ -666,7 +774,9 @@ def simulate(
 
 
 # ====================================================================== compare
-def _comparison_outputs(directory: Path, labels: Sequence[str], figure_format: str, with_path: bool) -> list[Path]:
+def _comparison_outputs(
+    directory: Path, labels: Sequence[str], figure_format: str, with_path: bool
+) -> list[Path]:
     from chaplygin.numeric.comparison import FIGURES
 
     files = [directory / "summary.txt", directory / "summary.json"]
@@ -687,17 +797,25 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
         d = comparison.distance(label)
         k = int(np.argmax(d)) if len(d) else 0
         rows[label] = {
-            "status": tr.status, "message": tr.message, "backend": tr.backend,
-            "samples": len(tr.t), "t_end": float(tr.t[-1]) if len(tr.t) else None,
+            "status": tr.status,
+            "message": tr.message,
+            "backend": tr.backend,
+            "samples": len(tr.t),
+            "t_end": float(tr.t[-1]) if len(tr.t) else None,
             "max_distance": float(d[k]) if len(d) else None,
             "at_t": float(tr.t[k]) if len(d) else None,
             "final_distance": float(d[-1]) if len(d) else None,
             "energy_drift": tr.energy_drift(),
             "max_constraint_residual": float(np.max(tr.constraint_residual, initial=0.0)),
         }
-    return {"schema": "chaplygin.compare/1", "system": comparison.system_name,
-            "reference": comparison.reference, "path": list(comparison.path or []), "models": rows,
-            "notes": list(comparison.notes)}
+    return {
+        "schema": "chaplygin.compare/1",
+        "system": comparison.system_name,
+        "reference": comparison.reference,
+        "path": list(comparison.path or []),
+        "models": rows,
+        "notes": list(comparison.notes),
+    }
 
 
 def _print_comparison(comparison: Comparison) -> None:
@@ -705,12 +823,20 @@ def _print_comparison(comparison: Comparison) -> None:
 
     doc = _comparison_json(comparison)
     what = f"path ({', '.join(doc['path'])})" if doc["path"] else "coordinates"
-    table = Table(title=f"{comparison.system_name}: compared with {comparison.reference} from the same initial state")
+    table = Table(
+        title=f"{comparison.system_name}: compared with {comparison.reference} from the same initial state"
+    )
     for col in ("model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"):
         table.add_column(col, justify="left" if col in ("model", "status") else "right")
     for label, row in doc["models"].items():
-        table.add_row(label, f"{row['max_distance']:.6g}", f"{row['at_t']:.4g}",
-                      f"{row['energy_drift']:.3g}", f"{row['max_constraint_residual']:.3g}", row["status"])
+        table.add_row(
+            label,
+            f"{row['max_distance']:.6g}",
+            f"{row['at_t']:.4g}",
+            f"{row['energy_drift']:.3g}",
+            f"{row['max_constraint_residual']:.3g}",
+            row["status"],
+        )
     out = _stdout()
     if out.is_terminal:
         out.print(table)
@@ -725,12 +851,22 @@ def compare(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output directory (created if missing)."),
-    models: str | None = typer.Option(None, "--models", help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's."),
+    models: str | None = typer.Option(
+        None,
+        "--models",
+        help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's.",
+    ),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
-    figure_format: FigureFormat = typer.Option(FigureFormat.svg, "--figure-format", help="Format of the figures."),
-    param: list[str] | None = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
-    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    figure_format: FigureFormat = typer.Option(
+        FigureFormat.svg, "--figure-format", help="Format of the figures."
+    ),
+    param: list[str] | None = typer.Option(
+        None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."
+    ),
+    initial: list[str] | None = typer.Option(
+        None, "--initial", "-i", help="Override an initial value (repeatable)."
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
@@ -754,13 +890,24 @@ def compare(
         from chaplygin.numeric.comparison import compare as run_compare
 
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else default_models(system)
-        _refuse_existing(_comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None), force)
+        _refuse_existing(
+            _comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None), force
+        )
         with _Steps(len(chosen) + 2, "comparing") as steps:
             runs, notes = {}, []
             for label in chosen:
                 steps.step(f"simulating {label}")
-                part = run_compare(system, [label], t_end, start, params, samples=samples, backend=backend.value,
-                                   rtol=rtol, atol=atol)
+                part = run_compare(
+                    system,
+                    [label],
+                    t_end,
+                    start,
+                    params,
+                    samples=samples,
+                    backend=backend.value,
+                    rtol=rtol,
+                    atol=atol,
+                )
                 runs.update(part.trajectories)
                 notes += part.notes
             comparison = Comparison(system.name, runs, chosen[0], part.path, notes)
@@ -770,9 +917,12 @@ def compare(
             steps.step("drawing figures")
             written = comparison.save_figures(out, fmt=figure_format.value)
         _print_comparison(comparison)
-        _emit(f"wrote {out}/: summary.txt, summary.json, "
-                        + ", ".join(f"{_safe(k)}.csv" for k in runs) + ", "
-                        + ", ".join(p.name for p in written))
+        _emit(
+            f"wrote {out}/: summary.txt, summary.json, "
+            + ", ".join(f"{_safe(k)}.csv" for k in runs)
+            + ", "
+            + ", ".join(p.name for p in written)
+        )
         if created is not None:
             _emit(f"created {created}: it did not exist")
         failed = [k for k, tr in runs.items() if not tr.success]
@@ -809,8 +959,16 @@ def _bar(console: Any, *extra: Any) -> Any:
         TimeElapsedColumn,
     )
 
-    return Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TimeElapsedColumn(), *extra, console=console, transient=True)
+    return Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        *extra,
+        console=console,
+        transient=True,
+    )
 
 
 @contextmanager
@@ -830,20 +988,57 @@ def _run_counter(description: str) -> Iterator[Any]:
 @app.command()
 def sweep(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    grid: list[str] = typer.Option(..., "--grid", "-g", help="NAME=START:STOP:COUNT (or NAME=V1,V2,…): a parameter, coordinate or independent velocity to sweep; several make the Cartesian product."),
+    grid: list[str] = typer.Option(
+        ...,
+        "--grid",
+        "-g",
+        help="NAME=START:STOP:COUNT (or NAME=V1,V2,…): a parameter, coordinate or independent velocity to sweep; several make the Cartesian product.",
+    ),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time of every run (from t = 0)."),
-    out: Path = typer.Option(..., "--out", "-o", help="The results: a Parquet dataset directory, e.g. results.parquet."),
-    model: str = typer.Option("chetaev", "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate."),
+    out: Path = typer.Option(
+        ..., "--out", "-o", help="The results: a Parquet dataset directory, e.g. results.parquet."
+    ),
+    model: str = typer.Option(
+        "chetaev", "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate."
+    ),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
-    samples: int = typer.Option(201, "--samples", "-n", min=2, help="Samples per run, where the energy drift and the constraint residual are measured."),
-    backend: SweepBackend = typer.Option(SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."),
-    constants: str | None = typer.Option(None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."),
-    param: list[str] | None = typer.Option(None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."),
-    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."),
-    scheduler: str | None = typer.Option(None, "--scheduler", help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md)."),
-    workers: int | None = typer.Option(None, "--workers", "-w", min=1, help="Worker processes of a LocalCluster; giving it asks for one (default: one per core)."),
-    chunk_size: int | None = typer.Option(None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."),
-    resume: bool = typer.Option(False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."),
+    samples: int = typer.Option(
+        201,
+        "--samples",
+        "-n",
+        min=2,
+        help="Samples per run, where the energy drift and the constraint residual are measured.",
+    ),
+    backend: SweepBackend = typer.Option(
+        SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."
+    ),
+    constants: str | None = typer.Option(
+        None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
+    ),
+    param: list[str] | None = typer.Option(
+        None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."
+    ),
+    initial: list[str] | None = typer.Option(
+        None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
+    ),
+    scheduler: str | None = typer.Option(
+        None,
+        "--scheduler",
+        help="Where the runs go: 'serial' (this process), 'local' (a Dask LocalCluster) or the address of a running Dask scheduler (tcp://HOST:8786); default: this process, and a LocalCluster only when the runs would take long (see docs/sweeps.md).",
+    ),
+    workers: int | None = typer.Option(
+        None,
+        "--workers",
+        "-w",
+        min=1,
+        help="Worker processes of a LocalCluster; giving it asks for one (default: one per core).",
+    ),
+    chunk_size: int | None = typer.Option(
+        None, "--chunk-size", min=1, help="Runs per Dask task (default: about four tasks per worker)."
+    ),
+    resume: bool = typer.Option(
+        False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."
+    ),
     force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
 ) -> None:
     """Simulate a model over a grid of parameters and initial values; one Parquet row per run.
@@ -863,8 +1058,9 @@ def sweep(
             raise typer.BadParameter(f"{name!r} is given twice; each name is one axis.", param_hint="--grid")
         axes[name] = values
     if resume and force:
-        raise typer.BadParameter("--resume keeps the runs there and --force deletes them: give one.",
-                                 param_hint="--resume/--force")
+        raise typer.BadParameter(
+            "--resume keeps the runs there and --force deletes them: give one.", param_hint="--resume/--force"
+        )
     c = _constants(constants)
     fixed_params, fixed_initial = _overrides(param, "--param"), _overrides(initial, "--initial")
     with _failures():
@@ -875,21 +1071,40 @@ def sweep(
         try:
             with _run_counter(f"sweeping {label} [{backend.value}]") as progress:
                 result = run_sweep(
-                    file, axes, t_end=t_end, out=out, model=model, form=form.value,
-                    parameters=fixed_params, initial=fixed_initial, scheduler=scheduler, workers=workers,
-                    resume=resume, force=force, backend=backend.value, samples=samples, constants=c,
-                    chunk_size=chunk_size, progress=progress,
+                    file,
+                    axes,
+                    t_end=t_end,
+                    out=out,
+                    model=model,
+                    form=form.value,
+                    parameters=fixed_params,
+                    initial=fixed_initial,
+                    scheduler=scheduler,
+                    workers=workers,
+                    resume=resume,
+                    force=force,
+                    backend=backend.value,
+                    samples=samples,
+                    constants=c,
+                    chunk_size=chunk_size,
+                    progress=progress,
                 )
         except KeyboardInterrupt:
-            _stderr().print(f"interrupted: the finished runs are saved in {out}; run the same command "
-                            "with --resume to finish the sweep.", markup=False)
+            _stderr().print(
+                f"interrupted: the finished runs are saved in {out}; run the same command "
+                "with --resume to finish the sweep.",
+                markup=False,
+            )
             raise typer.Exit(130) from None
         _emit(f"{label}: {result.summary()}")
         if result.failed:
             table = read_results(out, ["status", "message"]).to_pylist()
             first = [r for r in table if r["status"] != "success"][:3]
-            _stderr().print("failed runs (status 'failed' in the results), e.g.:\n" + "\n".join(
-                f"  run {r['run_id']}: {r['message']}" for r in first), markup=False)
+            _stderr().print(
+                "failed runs (status 'failed' in the results), e.g.:\n"
+                + "\n".join(f"  run {r['run_id']}: {r['message']}" for r in first),
+                markup=False,
+            )
 
 
 # ====================================================================== report
@@ -901,12 +1116,18 @@ def _report_progress(steps: _Steps) -> Any:
 def report(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
-    models: str | None = typer.Option(None, "--models", help="Models to simulate and compare (comma-separated), the reference first."),
+    models: str | None = typer.Option(
+        None, "--models", help="Models to simulate and compare (comma-separated), the reference first."
+    ),
     t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
     backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
-    param: list[str] | None = typer.Option(None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."),
-    initial: list[str] | None = typer.Option(None, "--initial", "-i", help="Override an initial value (repeatable)."),
+    param: list[str] | None = typer.Option(
+        None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."
+    ),
+    initial: list[str] | None = typer.Option(
+        None, "--initial", "-i", help="Override an initial value (repeatable)."
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
 ) -> None:
     """Write one self-contained HTML report: system, integrability, equations, simulations."""
@@ -921,9 +1142,17 @@ def report(
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
         created = _created(out)
         with _Steps(len(STAGES), "report") as steps:
-            write_report(loaded, out, models=chosen, t_end=t_end, samples=samples,
-                         backend=backend.value, parameters=params, initial=start,
-                         progress=_report_progress(steps))
+            write_report(
+                loaded,
+                out,
+                models=chosen,
+                t_end=t_end,
+                samples=samples,
+                backend=backend.value,
+                parameters=params,
+                initial=start,
+                progress=_report_progress(steps),
+            )
         _emit(f"wrote {out}")
         if created is not None:
             _emit(f"created {created}: it did not exist")
@@ -941,9 +1170,13 @@ def _is_demo_report(path: Path) -> bool:
 
 @app.command()
 def demo(
-    out: Path = typer.Option(DEMO_REPORT, "--out", "-o", help="Where the report goes (a previous demo report there is replaced)."),
+    out: Path = typer.Option(
+        DEMO_REPORT, "--out", "-o", help="Where the report goes (a previous demo report there is replaced)."
+    ),
     t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
-    force: bool = typer.Option(False, "--force", help="Overwrite the output even if it is not a demo report."),
+    force: bool = typer.Option(
+        False, "--force", help="Overwrite the output even if it is not a demo report."
+    ),
 ) -> None:
     """The paper's sphere end to end: both models derived, checked, simulated; the report written."""
     from chaplygin import compare_models, equivalent
@@ -975,9 +1208,16 @@ def demo(
             steps.step("the paper's printed equations (49)-(62)")
             table = paper_table() if is_paper_sphere(system) else None
             steps.step("writing the report")
-            write_report(loaded, out, comparison=comparison, paper=table if table is not None else False,
-                         parameters=params, initial=start, generator=DEMO_GENERATOR,
-                         progress=_report_progress(steps))
+            write_report(
+                loaded,
+                out,
+                comparison=comparison,
+                paper=table if table is not None else False,
+                parameters=params,
+                initial=start,
+                generator=DEMO_GENERATOR,
+                progress=_report_progress(steps),
+            )
 
         def speed_change(tr: Any) -> float:
             import numpy as np
@@ -1029,13 +1269,19 @@ def examples_list(
     with _failures():
         table = examples.catalogue()
         width = max(len(n) for n in table)
-        lines = [f"{name:<{width}}  {entry.description if long else _first_sentence(entry.description)}"
-                 for name, entry in table.items()]
+        lines = [
+            f"{name:<{width}}  {entry.description if long else _first_sentence(entry.description)}"
+            for name, entry in table.items()
+        ]
         _emit("\n".join(lines))
 
 
 @examples_app.command("show")
-def examples_show(name: str = typer.Argument(..., metavar="NAME", help="The example's name (see `chaplygin examples list`).")) -> None:
+def examples_show(
+    name: str = typer.Argument(
+        ..., metavar="NAME", help="The example's name (see `chaplygin examples list`)."
+    ),
+) -> None:
     """Print an example as a TOML system file (`chaplygin examples show NAME > mine.toml`)."""
     from chaplygin import examples
 
@@ -1057,11 +1303,27 @@ class ExportTarget(str, Enum):
 @app.command()
 def export(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    to: ExportTarget = typer.Option(..., "--to", help="c: one C99 file; python: a module that needs only numpy."),
-    model: str | None = typer.Option(None, "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to export; default: the true motion (chaplygin for a Chaplygin system, else voronets)."),
+    to: ExportTarget = typer.Option(
+        ..., "--to", help="c: one C99 file; python: a module that needs only numpy."
+    ),
+    model: str | None = typer.Option(
+        None,
+        "--model",
+        "-m",
+        parser=_model_name,
+        metavar="MODEL",
+        help="The model to export; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
+    ),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
-    out: Path | None = typer.Option(None, "--out", "-o", help="The file to write (missing folders are created); default: print the source."),
-    jacobian: bool = typer.Option(False, "--jacobian", help="Also generate jacobian(t, y, p), the exact df/dy."),
+    out: Path | None = typer.Option(
+        None,
+        "--out",
+        "-o",
+        help="The file to write (missing folders are created); default: print the source.",
+    ),
+    jacobian: bool = typer.Option(
+        False, "--jacobian", help="Also generate jacobian(t, y, p), the exact df/dy."
+    ),
     prefix: str = typer.Option("", "--prefix", help="Put before the names rhs and jacobian (e.g. sphere_)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
 ) -> None:
@@ -1072,8 +1334,10 @@ def export(
     import re
 
     if prefix and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", prefix):
-        raise typer.BadParameter(f"{prefix!r}: give letters, digits and '_' (not starting with a digit), "
-                                 "e.g. sphere_.", param_hint="--prefix")
+        raise typer.BadParameter(
+            f"{prefix!r}: give letters, digits and '_' (not starting with a digit), e.g. sphere_.",
+            param_hint="--prefix",
+        )
     with _failures():
         if out is not None:
             _refuse_existing([out], force)
@@ -1092,8 +1356,10 @@ def export(
 
         created = _created(out)
         _atomic_write(out, lambda fh: fh.write(source.encode("utf-8")), text=False)
-        _emit(f"wrote {out}: {prefix}rhs{f' and {prefix}jacobian' if jacobian else ''} of "
-              f"{model}/{form.value} in {to.value}")
+        _emit(
+            f"wrote {out}: {prefix}rhs{f' and {prefix}jacobian' if jacobian else ''} of "
+            f"{model}/{form.value} in {to.value}"
+        )
         if created is not None:
             _emit(f"created {created}: it did not exist")
 

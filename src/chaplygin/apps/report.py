@@ -82,8 +82,12 @@ class _Printer(MathMLPresentationPrinter):
 
     @staticmethod
     def _dotted(e: Any) -> bool:
-        return (isinstance(e, sp.Derivative) and isinstance(e.expr, AppliedUndef)
-                and e.expr.args == (TIME,) and set(e.variables) == {TIME})
+        return (
+            isinstance(e, sp.Derivative)
+            and isinstance(e.expr, AppliedUndef)
+            and e.expr.args == (TIME,)
+            and set(e.variables) == {TIME}
+        )
 
     def parenthesize(self, item: Any, level: int, strict: bool = False) -> Any:
         if self._dotted(item):  # a dotted symbol is an atom, not a product d/dt · q
@@ -136,7 +140,6 @@ def mathml(expr: Any, *, display: str = "inline") -> str:
     return f'<math xmlns="http://www.w3.org/1998/Math/MathML" display="{display}">{body}</math>'
 
 
-
 def _block(expr: Any) -> str:
     return f'<div class="eq">{mathml(expr, display="block")}</div>'
 
@@ -155,7 +158,10 @@ def _esc(text: Any) -> str:
 #: Every (model, form) a report may show, in the registry's order (the family in its
 #: classic form: the new one adds nothing a reader of the report needs)
 _ALL_MODELS: tuple[tuple[str, str], ...] = tuple(
-    (m.name, form) for m in registry.MODELS.values() for form in m.forms if not (m.constants and form == "new")
+    (m.name, form)
+    for m in registry.MODELS.values()
+    for form in m.forms
+    if not (m.constants and form == "new")
 )
 
 
@@ -302,12 +308,14 @@ def paper_table(classify_sets: bool = True) -> PaperTable:
     sp_, cp = sp.sin(psi), sp.cos(psi)
     R = sp.Rational
 
-    lagrange = [e.lhs for e in free.equations("lindelof").equations]          # E_σ(T̃)
+    lagrange = [e.lhs for e in free.equations("lindelof").equations]  # E_σ(T̃)
     chaplygin_free = [e.lhs for e in free.equations("chaplygin").equations]
     # The forces enter only F of M·x = F: −Q̃_σ = −(F_forced − F_free).  (Displaying the forced
     # equations themselves would cost seconds of tidying for the same expressions.)
-    minus_forces = [sp.expand(g - f) for f, g in
-                    zip(forced.equations("chaplygin").forcing, free.equations("chaplygin").forcing)]
+    minus_forces = [
+        sp.expand(g - f)
+        for f, g in zip(forced.equations("chaplygin").forcing, free.equations("chaplygin").forcing)
+    ]
     chaplygin_forced = [e + q for e, q in zip(chaplygin_free, minus_forces)]
     lindelof_forced = [e + q for e, q in zip(lagrange, minus_forces)]
     defect = list(compare_models(free).defect.values())
@@ -318,24 +326,42 @@ def paper_table(classify_sets: bool = True) -> PaperTable:
     r49 = R(2, 5) * m * a**2 * (dd(psi) + dd(phi) * c - d(theta) * d(phi) * s)
     p50 = m * a**2 * (R(7, 5) * dd(theta) + d(phi) ** 2 * s * c + R(2, 5) * d(phi) * s)
     r50 = m * a**2 * (R(7, 5) * dd(theta) - d(phi) ** 2 * s * c + R(2, 5) * d(phi) * d(psi) * s)
-    p51 = m * a**2 * (d(phi) * s**2 + 2 * d(theta) * s * c + R(2, 5) * d(psi) + R(2, 5) * d(phi) * c
-                      - R(2, 5) * d(theta) * s)
-    r51 = m * a**2 * (dd(phi) * s**2 + 2 * d(theta) * d(phi) * s * c + R(2, 5) * dd(phi)
-                      + R(2, 5) * dd(psi) * c - R(2, 5) * d(theta) * d(psi) * s)
-    rep49 = ["second dots lost: ψ̈, φ̈ printed as ψ̇, φ̇",
-             "factor φ̇ of θ̇ φ̇ sin θ lost"]
-    rep50 = ["ψ̇ lost: its dot sits on “sin” (\\dot{\\sin})",
-             "sign of φ̇² sin θ cos θ misprinted as +: the paper's own (61) = (50) + (58) holds "
-             "only with −"]
-    rep51 = ["second dot lost: φ̈ sin²θ",
-             "factor φ̇ lost in 2 θ̇ φ̇ sin θ cos θ",
-             "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ",
-             "factor ψ̇ lost in (2/5) θ̇ ψ̇ sin θ"]
+    p51 = (
+        m
+        * a**2
+        * (
+            d(phi) * s**2
+            + 2 * d(theta) * s * c
+            + R(2, 5) * d(psi)
+            + R(2, 5) * d(phi) * c
+            - R(2, 5) * d(theta) * s
+        )
+    )
+    r51 = (
+        m
+        * a**2
+        * (
+            dd(phi) * s**2
+            + 2 * d(theta) * d(phi) * s * c
+            + R(2, 5) * dd(phi)
+            + R(2, 5) * dd(psi) * c
+            - R(2, 5) * d(theta) * d(psi) * s
+        )
+    )
+    rep49 = ["second dots lost: ψ̈, φ̈ printed as ψ̇, φ̇", "factor φ̇ of θ̇ φ̇ sin θ lost"]
+    rep50 = [
+        "ψ̇ lost: its dot sits on “sin” (\\dot{\\sin})",
+        "sign of φ̇² sin θ cos θ misprinted as +: the paper's own (61) = (50) + (58) holds only with −",
+    ]
+    rep51 = [
+        "second dot lost: φ̈ sin²θ",
+        "factor φ̇ lost in 2 θ̇ φ̇ sin θ cos θ",
+        "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ",
+        "factor ψ̇ lost in (2/5) θ̇ ψ̇ sin θ",
+    ]
     force_psi = ["m_3^0 is the applied moment M_ψ of (44)"]
-    force_theta = ["m_N^0 is the applied moment M_θ of (45)",
-                   "θ printed for ψ in V₁ sin ψ − V₂ cos ψ"]
-    force_phi = ["m_3^0 here is the applied moment M_φ of (46)",
-                 "θ printed for ψ in V₁ cos ψ + V₂ sin ψ"]
+    force_theta = ["m_N^0 is the applied moment M_θ of (45)", "θ printed for ψ in V₁ sin ψ − V₂ cos ψ"]
+    force_phi = ["m_3^0 here is the applied moment M_φ of (46)", "θ printed for ψ in V₁ cos ψ + V₂ sin ψ"]
     f_theta_p, f_theta_r = -mN0 - a * (V1 * s - V2 * c), -M_theta - a * (V1 * sp_ - V2 * cp)
     f_phi_p, f_phi_r = -m30 + a * s * (V1 * c + V2 * s), -M_phi + a * s * (V1 * cp + V2 * sp_)
 
@@ -348,16 +374,40 @@ def paper_table(classify_sets: bool = True) -> PaperTable:
     X_r, Y_r = d(theta) * sp_ - d(phi) * s * cp, d(theta) * cp + d(phi) * s * sp_
     p61 = R(7, 5) * m * a**2 * (dd(theta) + d(phi) * s) + f_theta_p
     r61 = R(7, 5) * m * a**2 * (dd(theta) + d(phi) * d(psi) * s) + f_theta_r
-    p62 = m * a**2 * (d(phi) * s**2 + R(2, 5) * d(psi) + R(2, 5) * d(phi) * c + d(theta) * s * c
-                      - R(7, 5) * d(theta) * s) + f_phi_p
-    r62 = m * a**2 * (dd(phi) * s**2 + R(2, 5) * dd(phi) + R(2, 5) * dd(psi) * c
-                      + d(theta) * d(phi) * s * c - R(7, 5) * d(theta) * d(psi) * s) + f_phi_r
+    p62 = (
+        m
+        * a**2
+        * (
+            d(phi) * s**2
+            + R(2, 5) * d(psi)
+            + R(2, 5) * d(phi) * c
+            + d(theta) * s * c
+            - R(7, 5) * d(theta) * s
+        )
+        + f_phi_p
+    )
+    r62 = (
+        m
+        * a**2
+        * (
+            dd(phi) * s**2
+            + R(2, 5) * dd(phi)
+            + R(2, 5) * dd(psi) * c
+            + d(theta) * d(phi) * s * c
+            - R(7, 5) * d(theta) * d(psi) * s
+        )
+        + f_phi_r
+    )
 
-    body50 = (r"ma^2 \left[\frac{7}{5}\ddot{\theta} + \dot{\varphi}^2 \sin \theta \cos \theta"
-              r" + \frac{2}{5}\dot{\varphi} \dot{\sin} \theta \right]")
-    body51 = (r"ma^2 \left[\dot{\varphi} \sin^2 \theta + 2\dot{\theta} \sin \theta \cos \theta"
-              r" + \frac{2}{5}\dot{\psi} + \frac{2}{5}\dot{\varphi} \cos \theta"
-              r" - \frac{2}{5}\dot{\theta} \sin \theta \right]")
+    body50 = (
+        r"ma^2 \left[\frac{7}{5}\ddot{\theta} + \dot{\varphi}^2 \sin \theta \cos \theta"
+        r" + \frac{2}{5}\dot{\varphi} \dot{\sin} \theta \right]"
+    )
+    body51 = (
+        r"ma^2 \left[\dot{\varphi} \sin^2 \theta + 2\dot{\theta} \sin \theta \cos \theta"
+        r" + \frac{2}{5}\dot{\psi} + \frac{2}{5}\dot{\varphi} \cos \theta"
+        r" - \frac{2}{5}\dot{\theta} \sin \theta \right]"
+    )
     body49 = r"\frac{2}{5}ma^2 (\dot{\psi} + \dot{\varphi} \cos \theta - \dot{\theta} \sin \theta)"
     E = "Lagrange's operator on T̃ (48)"
     L = "Lindelöf's (geodesic) equation (22) with the reduced forces Q̃ of (44)-(46)"
@@ -367,51 +417,122 @@ def paper_table(classify_sets: bool = True) -> PaperTable:
         PaperLine("(49)", f"{E}, ψ", body49, p49, r49, rep49, lagrange[0]),
         PaperLine("(50)", f"{E}, θ", body50, p50, r50, rep50, lagrange[1]),
         PaperLine("(51)", f"{E}, φ", body51, p51, r51, rep51, lagrange[2]),
-        PaperLine("(52)", f"{L}, ψ", body49 + r" - m_3^0", p49 - m30, r49 - M_psi,
-                  rep49 + force_psi, lindelof_forced[0]),
-        PaperLine("(53)", f"{L}, θ", body50 + r" - m_N^0 - a(V_1 \sin \theta - V_2 \cos \theta)",
-                  p50 + f_theta_p, r50 + f_theta_r, rep50 + force_theta, lindelof_forced[1]),
-        PaperLine("(54)", f"{L}, φ", body51 + r" - m_3^0 + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
-                  p51 + f_phi_p, r51 + f_phi_r, rep51 + force_phi, lindelof_forced[2]),
-        PaperLine("(55)", "∂T/∂ẋ = m ẋ with the constraint (41)",
-                  r"-ma(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)",
-                  -m * a * X_p, m * a * X_r,
-                  ["θ printed for ψ in sin ψ, cos ψ",
-                   "leading sign misprinted: (41) gives m ẋ = m a (θ̇ sin ψ − φ̇ sin θ cos ψ), "
-                   "the sign the paper's (57) uses"],
-                  momenta[0]),
-        PaperLine("(56)", "∂T/∂ẏ = m ẏ with the constraint (42)",
-                  r"-ma(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)",
-                  -m * a * Y_p, -m * a * Y_r, ["θ printed for ψ in cos ψ, sin ψ"], momenta[1]),
-        PaperLine("(57)", f"{W}, σ = ψ",
-                  r"ma(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)"
-                  r" a(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)"
-                  r" - ma(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)"
-                  r" a(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)",
-                  products(X_p, Y_p), products(X_r, Y_r),
-                  ["θ printed for ψ (immaterial: the two products cancel)"], defect[0]),
-        PaperLine("(58)", f"{W}, σ = θ",
-                  r"ma^2 \dot{\varphi} \sin \theta (\dot{\theta} + \dot{\varphi} \cos \theta)",
-                  m * a**2 * d(phi) * s * (d(theta) + d(phi) * c),
-                  m * a**2 * d(phi) * s * (d(psi) + d(phi) * c), ["θ̇ printed for ψ̇"], defect[1]),
-        PaperLine("(59)", f"{W}, σ = φ",
-                  r"-ma^2 \dot{\theta} \sin \theta (\dot{\theta} + \dot{\varphi} \cos \theta)",
-                  -m * a**2 * d(theta) * s * (d(theta) + d(phi) * c),
-                  -m * a**2 * d(theta) * s * (d(psi) + d(phi) * c), ["θ̇ printed for ψ̇"], defect[2]),
-        PaperLine("(60)", f"{C}, ψ", body49 + r" - m_3^0", p49 - m30, r49 - M_psi,
-                  rep49 + force_psi, chaplygin_forced[0]),
-        PaperLine("(61)", f"{C}, θ",
-                  r"\frac{7}{5}ma^2 (\ddot{\theta} + \dot{\varphi} \sin \theta) - m_N^0"
-                  r" - a(V_1 \sin \theta - V_2 \cos \theta)",
-                  p61, r61, ["factor ψ̇ lost in φ̇ ψ̇ sin θ", *force_theta], chaplygin_forced[1]),
-        PaperLine("(62)", f"{C}, φ",
-                  r"ma^2 \left[\dot{\varphi} \sin^2 \theta + \frac{2}{5}\dot{\psi}"
-                  r" + \frac{2}{5}\dot{\varphi} \cos \theta + \dot{\theta} \sin \theta \cos \theta"
-                  r" - \frac{7}{5}\dot{\theta} \sin \theta \right] - m_3^0"
-                  r" + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
-                  p62, r62,
-                  ["second dot lost: φ̈ sin²θ", "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ", "factor φ̇ lost in θ̇ φ̇ sin θ cos θ", "factor ψ̇ lost in (7/5) θ̇ ψ̇ sin θ", *force_phi],
-                  chaplygin_forced[2]),
+        PaperLine(
+            "(52)",
+            f"{L}, ψ",
+            body49 + r" - m_3^0",
+            p49 - m30,
+            r49 - M_psi,
+            rep49 + force_psi,
+            lindelof_forced[0],
+        ),
+        PaperLine(
+            "(53)",
+            f"{L}, θ",
+            body50 + r" - m_N^0 - a(V_1 \sin \theta - V_2 \cos \theta)",
+            p50 + f_theta_p,
+            r50 + f_theta_r,
+            rep50 + force_theta,
+            lindelof_forced[1],
+        ),
+        PaperLine(
+            "(54)",
+            f"{L}, φ",
+            body51 + r" - m_3^0 + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
+            p51 + f_phi_p,
+            r51 + f_phi_r,
+            rep51 + force_phi,
+            lindelof_forced[2],
+        ),
+        PaperLine(
+            "(55)",
+            "∂T/∂ẋ = m ẋ with the constraint (41)",
+            r"-ma(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)",
+            -m * a * X_p,
+            m * a * X_r,
+            [
+                "θ printed for ψ in sin ψ, cos ψ",
+                "leading sign misprinted: (41) gives m ẋ = m a (θ̇ sin ψ − φ̇ sin θ cos ψ), "
+                "the sign the paper's (57) uses",
+            ],
+            momenta[0],
+        ),
+        PaperLine(
+            "(56)",
+            "∂T/∂ẏ = m ẏ with the constraint (42)",
+            r"-ma(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)",
+            -m * a * Y_p,
+            -m * a * Y_r,
+            ["θ printed for ψ in cos ψ, sin ψ"],
+            momenta[1],
+        ),
+        PaperLine(
+            "(57)",
+            f"{W}, σ = ψ",
+            r"ma(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)"
+            r" a(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)"
+            r" - ma(\dot{\theta} \cos \theta + \dot{\varphi} \sin \theta \sin \theta)"
+            r" a(\dot{\theta} \sin \theta - \dot{\varphi} \sin \theta \cos \theta)",
+            products(X_p, Y_p),
+            products(X_r, Y_r),
+            ["θ printed for ψ (immaterial: the two products cancel)"],
+            defect[0],
+        ),
+        PaperLine(
+            "(58)",
+            f"{W}, σ = θ",
+            r"ma^2 \dot{\varphi} \sin \theta (\dot{\theta} + \dot{\varphi} \cos \theta)",
+            m * a**2 * d(phi) * s * (d(theta) + d(phi) * c),
+            m * a**2 * d(phi) * s * (d(psi) + d(phi) * c),
+            ["θ̇ printed for ψ̇"],
+            defect[1],
+        ),
+        PaperLine(
+            "(59)",
+            f"{W}, σ = φ",
+            r"-ma^2 \dot{\theta} \sin \theta (\dot{\theta} + \dot{\varphi} \cos \theta)",
+            -m * a**2 * d(theta) * s * (d(theta) + d(phi) * c),
+            -m * a**2 * d(theta) * s * (d(psi) + d(phi) * c),
+            ["θ̇ printed for ψ̇"],
+            defect[2],
+        ),
+        PaperLine(
+            "(60)",
+            f"{C}, ψ",
+            body49 + r" - m_3^0",
+            p49 - m30,
+            r49 - M_psi,
+            rep49 + force_psi,
+            chaplygin_forced[0],
+        ),
+        PaperLine(
+            "(61)",
+            f"{C}, θ",
+            r"\frac{7}{5}ma^2 (\ddot{\theta} + \dot{\varphi} \sin \theta) - m_N^0"
+            r" - a(V_1 \sin \theta - V_2 \cos \theta)",
+            p61,
+            r61,
+            ["factor ψ̇ lost in φ̇ ψ̇ sin θ", *force_theta],
+            chaplygin_forced[1],
+        ),
+        PaperLine(
+            "(62)",
+            f"{C}, φ",
+            r"ma^2 \left[\dot{\varphi} \sin^2 \theta + \frac{2}{5}\dot{\psi}"
+            r" + \frac{2}{5}\dot{\varphi} \cos \theta + \dot{\theta} \sin \theta \cos \theta"
+            r" - \frac{7}{5}\dot{\theta} \sin \theta \right] - m_3^0"
+            r" + a \sin \theta (V_1 \cos \theta + V_2 \sin \theta)",
+            p62,
+            r62,
+            [
+                "second dot lost: φ̈ sin²θ",
+                "ψ and φ interchanged, second dots lost: (2/5) φ̈ + (2/5) ψ̈ cos θ",
+                "factor φ̇ lost in θ̇ φ̇ sin θ cos θ",
+                "factor ψ̇ lost in (7/5) θ̇ ψ̇ sin θ",
+                *force_phi,
+            ],
+            chaplygin_forced[2],
+        ),
     ]
     for line in lines:
         line.judge()
@@ -438,8 +559,9 @@ def is_paper_sphere(system: System) -> bool:
     if names != ["psi", "theta", "phi", "x", "y"] or [_name(q) for q in system.dependent] != ["x", "y"]:
         return False
     ref = examples.rolling_sphere()
-    rename: dict[sp.Basic, sp.Basic] = {p: ref.parameter(p.name) for p in system.parameters
-                                        if p.name in ("m", "a")}
+    rename: dict[sp.Basic, sp.Basic] = {
+        p: ref.parameter(p.name) for p in system.parameters if p.name in ("m", "a")
+    }
     rename.update(zip(system.coordinates, ref.coordinates))
 
     def same(u: sp.Expr, v: sp.Expr) -> bool:
@@ -474,8 +596,9 @@ def _source(obj: Any, parameters: Mapping[str, float] | None, initial: Mapping[s
         )
     params = {**(getattr(obj, "parameters", None) or {}), **(parameters or {})}
     start = {**(getattr(obj, "initial", None) or {}), **(initial or {})}
-    return _Source(system, params, start, getattr(obj, "name", "") or system.name,
-                   str(getattr(obj, "source", "") or ""))
+    return _Source(
+        system, params, start, getattr(obj, "name", "") or system.name, str(getattr(obj, "source", "") or "")
+    )
 
 
 # ====================================================================== figures
@@ -539,7 +662,9 @@ def _system_section(src: _Source) -> str:
     )
     out.append("<p>Kinetic energy:</p>" + _block(sp.Eq(sp.Symbol("T"), s.kinetic_energy, evaluate=False)))
     if s.potential_energy is not None:
-        out.append("<p>Potential energy:</p>" + _block(sp.Eq(sp.Symbol("V"), s.potential_energy, evaluate=False)))
+        out.append(
+            "<p>Potential energy:</p>" + _block(sp.Eq(sp.Symbol("V"), s.potential_energy, evaluate=False))
+        )
     elif s.force_function != 0:
         out.append("<p>Force function:</p>" + _block(sp.Eq(sp.Symbol("U"), s.force_function, evaluate=False)))
     else:
@@ -548,20 +673,25 @@ def _system_section(src: _Source) -> str:
         out.append("<p>Generalized forces:</p>")
         out += [_block(sp.Eq(sp.Symbol(f"Q_{_name(q)}"), f, evaluate=False)) for q, f in s.forces.items()]
     kind = "affine" if s.is_affine else "homogeneous"
-    out.append(f"<p>Constraints ({s.g}, linear, {kind}; given in form {s.constraint_form}), "
-               "solved, form B (eq. (2)):</p>")
+    out.append(
+        f"<p>Constraints ({s.g}, linear, {kind}; given in form {s.constraint_form}), "
+        "solved, form B (eq. (2)):</p>"
+    )
     out += [_block(sp.Eq(k, v, evaluate=False)) for k, v in s.constraints.items()]
     out.append("<p>Implicit, form A (eq. (1)):</p>")
     out += [_block(sp.Eq(e, 0, evaluate=False)) for e in s.implicit_constraints]
-    out.append("<p>Reduced kinetic energy (the constraints substituted into T):</p>"
-               + _block(sp.Eq(sp.Symbol("T̃"), s.reduced_kinetic_energy, evaluate=False)))
+    out.append(
+        "<p>Reduced kinetic energy (the constraints substituted into T):</p>"
+        + _block(sp.Eq(sp.Symbol("T̃"), s.reduced_kinetic_energy, evaluate=False))
+    )
     if src.parameters or src.initial:
         out.append("<table><tr><th>parameter / initial value</th><th>value</th></tr>")
-        out += [f'<tr><td>{mathml(sp.Symbol(k))}</td><td class="num">{v:.10g}</td></tr>'
-                for k, v in src.parameters.items()]
+        out += [
+            f'<tr><td>{mathml(sp.Symbol(k))}</td><td class="num">{v:.10g}</td></tr>'
+            for k, v in src.parameters.items()
+        ]
         for k, v in src.initial.items():
-            label = (mathml(sp.Function(k[:-1])(TIME).diff(TIME)) if k.endswith("'")
-                     else mathml(sp.Symbol(k)))
+            label = mathml(sp.Function(k[:-1])(TIME).diff(TIME)) if k.endswith("'") else mathml(sp.Symbol(k))
             out.append(f'<tr><td>{label}(0)</td><td class="num">{v:.10g}</td></tr>')
         out.append("</table>")
     out.append("</section>")
@@ -574,20 +704,26 @@ def _condition_rows(cond: Any) -> str:
     fails = "".join(f"<li>{_esc(label)} = {mathml(expr)}</li>" for label, expr in shown)
     if len(cond.failures) > len(shown):
         fails += f"<li>… and {len(cond.failures) - len(shown)} more</li>"
-    return (f'<tr><td>{_esc(cond.name)}</td><td class="{cls}">{"holds" if cond.holds else "fails"}</td>'
-            f"<td>{'<ul>' + fails + '</ul>' if fails else ''}"
-            f'<span class="note">{_esc(cond.note)}</span></td></tr>')
+    return (
+        f'<tr><td>{_esc(cond.name)}</td><td class="{cls}">{"holds" if cond.holds else "fails"}</td>'
+        f"<td>{'<ul>' + fails + '</ul>' if fails else ''}"
+        f'<span class="note">{_esc(cond.note)}</span></td></tr>'
+    )
 
 
 def _integrability_section(system: System) -> tuple[str, str]:
     report = system.integrability()
-    verdict = ("integrable (holonomic)" if report.integrable else "not integrable (nonholonomic)")
-    out = ['<section id="integrability"><h2>Integrability of the constraints</h2>',
-           f'<p class="verdict {"holds" if report.integrable else "fails"}">The constraints are '
-           f"{verdict}, by the Frobenius test.</p>",
-           "<table><tr><th>test</th><th>verdict</th><th>non-vanishing components</th></tr>",
-           _condition_rows(report.condition_28), _condition_rows(report.condition_33),
-           _condition_rows(report.frobenius), "</table>"]
+    verdict = "integrable (holonomic)" if report.integrable else "not integrable (nonholonomic)"
+    out = [
+        '<section id="integrability"><h2>Integrability of the constraints</h2>',
+        f'<p class="verdict {"holds" if report.integrable else "fails"}">The constraints are '
+        f"{verdict}, by the Frobenius test.</p>",
+        "<table><tr><th>test</th><th>verdict</th><th>non-vanishing components</th></tr>",
+        _condition_rows(report.condition_28),
+        _condition_rows(report.condition_33),
+        _condition_rows(report.frobenius),
+        "</table>",
+    ]
     if report.integrable:
         if report.relations:
             out.append("<p>Finite relations (each constant along every motion):</p>")
@@ -603,11 +739,14 @@ def _models_section(system: System) -> tuple[str, str]:
 
     out = ['<section id="models"><h2>Chaplygin system and the two models</h2>']
     if system.is_chaplygin:
-        out.append("<p>A <b>Chaplygin system</b>: T, U, the forces and the constraint coefficients B "
-                   "are free of the dependent coordinates.</p>")
+        out.append(
+            "<p>A <b>Chaplygin system</b>: T, U, the forces and the constraint coefficients B "
+            "are free of the dependent coordinates.</p>"
+        )
     else:
-        out.append("<p><b>Not a Chaplygin system</b>: "
-                   + _esc("; ".join(system.chaplygin_obstructions)) + ".</p>")
+        out.append(
+            "<p><b>Not a Chaplygin system</b>: " + _esc("; ".join(system.chaplygin_obstructions)) + ".</p>"
+        )
     try:
         comparison = compare_models(system)
     except ChaplyginError as exc:
@@ -615,21 +754,26 @@ def _models_section(system: System) -> tuple[str, str]:
         return "\n".join(out), "no Lindelöf comparison"
     head = str(comparison).splitlines()[0]
     out.append(f'<p class="verdict">Verdict: <code>{_esc(comparison.verdict)}</code> — {_esc(head)}</p>')
-    out.append(f"<p>Condition (28): {'holds' if comparison.condition_28 else 'fails'}; "
-               f"the Lindelöf defect (15) − (22) {'vanishes.' if comparison.defect_vanishes else 'is:'}</p>")
+    out.append(
+        f"<p>Condition (28): {'holds' if comparison.condition_28 else 'fails'}; "
+        f"the Lindelöf defect (15) − (22) {'vanishes.' if comparison.defect_vanishes else 'is:'}</p>"
+    )
     if not comparison.defect_vanishes:
-        out += [_block(sp.Eq(sp.Symbol(f"Δ_{_name(q)}"), e, evaluate=False))
-                for q, e in comparison.defect.items()]
+        out += [
+            _block(sp.Eq(sp.Symbol(f"Δ_{_name(q)}"), e, evaluate=False)) for q, e in comparison.defect.items()
+        ]
     out.append("</section>")
     return "\n".join(out), comparison.verdict
 
 
 def _equations_section(system: System) -> str:
     models, reasons = applicable_models(system)
-    out = ['<section id="equations"><h2>Equations of motion</h2>',
-           '<p class="note">Every equation reads “expression = 0”; dots are time derivatives; '
-           "λ are the Chetaev multipliers, μ the vakonomic ones, c the constants of the "
-           "vakonomic family.</p>"]
+    out = [
+        '<section id="equations"><h2>Equations of motion</h2>',
+        '<p class="note">Every equation reads “expression = 0”; dots are time derivatives; '
+        "λ are the Chetaev multipliers, μ the vakonomic ones, c the constants of the "
+        "vakonomic family.</p>",
+    ]
     for model, form in models:
         try:
             eqs = system.equations(model, form)
@@ -670,17 +814,23 @@ def _simulation_section(comparison: Comparison | None, note: str, stage: Callabl
         stage("figures")
         return "\n".join(out)
     ref = comparison.trajectories[comparison.reference]
-    what = (f"the path of ({', '.join(comparison.path)})" if comparison.path else "all coordinates")
-    out.append(f"<p>{len(comparison.trajectories)} model(s) from t = {ref.t[0]:g} to {ref.t[-1]:g}, "
-               f"{len(ref.t)} samples; distance: {_esc(what)}, from <code>{_esc(comparison.reference)}</code>.</p>")
-    out.append("<table><tr><th>model</th><th>max distance</th><th>at t</th><th>energy drift</th>"
-               "<th>max constraint residual</th><th>final residual</th><th>status</th></tr>")
+    what = f"the path of ({', '.join(comparison.path)})" if comparison.path else "all coordinates"
+    out.append(
+        f"<p>{len(comparison.trajectories)} model(s) from t = {ref.t[0]:g} to {ref.t[-1]:g}, "
+        f"{len(ref.t)} samples; distance: {_esc(what)}, from <code>{_esc(comparison.reference)}</code>.</p>"
+    )
+    out.append(
+        "<table><tr><th>model</th><th>max distance</th><th>at t</th><th>energy drift</th>"
+        "<th>max constraint residual</th><th>final residual</th><th>status</th></tr>"
+    )
     out.append(_simulation_rows(comparison))
     out.append("</table>")
     out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
-    out.append('<p class="note">Energy drift: max |E − E(0)| / max(1, |E(0)|), E = T − U; it is an '
-               "invariant for scleronomic homogeneous constraints. Constraint residual: "
-               "max_β |Σ A_βs q̇_s + A_β0| (the reduced models satisfy the constraints exactly).</p>")
+    out.append(
+        '<p class="note">Energy drift: max |E − E(0)| / max(1, |E(0)|), E = T − U; it is an '
+        "invariant for scleronomic homogeneous constraints. Constraint residual: "
+        "max_β |Σ A_βs q̇_s + A_β0| (the reduced models satisfy the constraints exactly).</p>"
+    )
     stage("figures")
     from chaplygin.numeric.comparison import FIGURES
 
@@ -694,19 +844,21 @@ def _simulation_section(comparison: Comparison | None, note: str, stage: Callabl
 
 
 def _paper_section(table: PaperTable) -> str:
-    out = ['<section id="paper"><h2>The paper\'s printed equations (49)-(62)</h2>',
-           "<p>The seed paper's §4 equations as they stand in the OCR'd text, typed by hand with "
-           "their errors, beside chaplygin's derivation. <b>agree</b>: the printed line is the "
-           "derived one. <b>transcription error</b>: it becomes the derived one once the marks "
-           "lost or misread in printing or transcription are restored (listed). <b>differs in "
-           "substance</b>: no such restoration explains the difference. Printed symbols: "
-           "\\psi = ψ, \\theta = θ, \\varphi = φ; forces of (44)-(46): moments M_ψ, M_θ, M_φ on "
-           "the angles and (V₁, V₂) on the centre.</p>",
-           f"<p class=\"verdict\">{_esc(table.summary())}.</p>",
-           '<table class="paper"><colgroup><col style="width:9%"><col style="width:38%">'
-           '<col style="width:31%"><col style="width:22%"></colgroup>'
-           "<tr><th>eq.</th><th>as printed (OCR text; typed as it stands; restored)</th>"
-           "<th>derived by chaplygin</th><th>verdict and restorations</th></tr>"]
+    out = [
+        '<section id="paper"><h2>The paper\'s printed equations (49)-(62)</h2>',
+        "<p>The seed paper's §4 equations as they stand in the OCR'd text, typed by hand with "
+        "their errors, beside chaplygin's derivation. <b>agree</b>: the printed line is the "
+        "derived one. <b>transcription error</b>: it becomes the derived one once the marks "
+        "lost or misread in printing or transcription are restored (listed). <b>differs in "
+        "substance</b>: no such restoration explains the difference. Printed symbols: "
+        "\\psi = ψ, \\theta = θ, \\varphi = φ; forces of (44)-(46): moments M_ψ, M_θ, M_φ on "
+        "the angles and (V₁, V₂) on the centre.</p>",
+        f'<p class="verdict">{_esc(table.summary())}.</p>',
+        '<table class="paper"><colgroup><col style="width:9%"><col style="width:38%">'
+        '<col style="width:31%"><col style="width:22%"></colgroup>'
+        "<tr><th>eq.</th><th>as printed (OCR text; typed as it stands; restored)</th>"
+        "<th>derived by chaplygin</th><th>verdict and restorations</th></tr>",
+    ]
     for line in table.lines:
         cls = _VERDICT_CLASS[line.verdict]
         restored = ""
@@ -719,13 +871,17 @@ def _paper_section(table: PaperTable) -> str:
             f'<td class="ocr"><code>{_esc(line.ocr)}</code>{_cell(line.printed)}{restored}</td>'
             f"<td>{_cell(line.derived)}</td>"
             f'<td><span class="verdict {cls}">{_esc(line.verdict)}</span>'
-            f'{"<ul>" + repairs + "</ul>" if repairs else ""}</td></tr>'
+            f"{'<ul>' + repairs + '</ul>' if repairs else ''}</td></tr>"
         )
     out.append("</table>")
     if table.sets:
-        out.append("<p>Each group of three, forces set to zero, given to <code>chaplygin.classify</code>:</p><ul>")
-        out += [f"<li>{_esc(label)} {_esc(reading)}: {_esc(verdict)}</li>"
-                for label, reading, verdict in table.sets]
+        out.append(
+            "<p>Each group of three, forces set to zero, given to <code>chaplygin.classify</code>:</p><ul>"
+        )
+        out += [
+            f"<li>{_esc(label)} {_esc(reading)}: {_esc(verdict)}</li>"
+            for label, reading, verdict in table.sets
+        ]
         out.append("</ul>")
     out.append("</section>")
     return "\n".join(out)
@@ -767,11 +923,21 @@ def render_report(
     if comparison is None:
         missing = [p.name for p in system.parameters if p.name not in src.parameters]
         if missing or not src.initial:
-            note = ("Not simulated: no " + ("numbers for the parameters " + ", ".join(missing) if missing
-                                            else "initial state") + " were given.")
+            note = (
+                "Not simulated: no "
+                + ("numbers for the parameters " + ", ".join(missing) if missing else "initial state")
+                + " were given."
+            )
         else:
-            comparison = compare(system, list(models or default_models(system)), float(t_end),
-                                 src.initial, src.parameters, samples=samples, backend=backend)
+            comparison = compare(
+                system,
+                list(models or default_models(system)),
+                float(t_end),
+                src.initial,
+                src.parameters,
+                samples=samples,
+                backend=backend,
+            )
     parts.append(_simulation_section(comparison, note, stage))
     stage("paper")
     if paper is None:
@@ -780,27 +946,30 @@ def render_report(
         parts.append(_paper_section(paper if isinstance(paper, PaperTable) else paper_table()))
 
     title = f"{src.name} — chaplygin report"
-    summary = (f"Constraints {integ_verdict}; models: {model_verdict}.")
-    return "\n".join([
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f'<meta name="generator" content="{_esc(generator)}">',
-        f'<meta name="chaplygin-version" content="{_esc(__version__)}">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{_esc(src.name)}</h1>",
-        f'<p class="verdict">{_esc(summary)}</p>',
-        '<nav><a href="#system">system</a> · <a href="#integrability">integrability</a> · '
-        '<a href="#models">models</a> · <a href="#equations">equations</a> · '
-        '<a href="#simulation">simulation</a>'
-        + (' · <a href="#paper">the paper\'s equations</a>' if paper is not False else "") + "</nav>",
-        *parts,
-        f'<footer><p class="note">Written by chaplygin {_esc(__version__)}. Equation numbers '
-        "refer to Liang Li-fu and Chen Wei-dong, <i>The complementary property of Lindelöf's "
-        "work and Chaplygin's work</i>, Applied Mathematics and Mechanics 21(8), 2000.</p></footer>",
-        "</body></html>",
-        "",
-    ])
+    summary = f"Constraints {integ_verdict}; models: {model_verdict}."
+    return "\n".join(
+        [
+            "<!DOCTYPE html>",
+            '<html lang="en"><head><meta charset="utf-8">',
+            f'<meta name="generator" content="{_esc(generator)}">',
+            f'<meta name="chaplygin-version" content="{_esc(__version__)}">',
+            '<meta name="viewport" content="width=device-width, initial-scale=1">',
+            f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body>",
+            f"<h1>{_esc(src.name)}</h1>",
+            f'<p class="verdict">{_esc(summary)}</p>',
+            '<nav><a href="#system">system</a> · <a href="#integrability">integrability</a> · '
+            '<a href="#models">models</a> · <a href="#equations">equations</a> · '
+            '<a href="#simulation">simulation</a>'
+            + (' · <a href="#paper">the paper\'s equations</a>' if paper is not False else "")
+            + "</nav>",
+            *parts,
+            f'<footer><p class="note">Written by chaplygin {_esc(__version__)}. Equation numbers '
+            "refer to Liang Li-fu and Chen Wei-dong, <i>The complementary property of Lindelöf's "
+            "work and Chaplygin's work</i>, Applied Mathematics and Mechanics 21(8), 2000.</p></footer>",
+            "</body></html>",
+            "",
+        ]
+    )
 
 
 def write_report(

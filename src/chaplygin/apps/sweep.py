@@ -99,8 +99,14 @@ AUTO_CLUSTER_SECONDS = 30.0
 
 #: columns every sweep has, after the inputs (``grid.*``, ``param.*``, ``initial.*``)
 OUTCOME_COLUMNS = ("status", "message", "t_end", "t_reached")
-INVARIANT_COLUMNS = ("energy_initial", "energy_final", "energy_drift", "max_constraint_residual",
-                     "rhs_evaluations", "wall_time")
+INVARIANT_COLUMNS = (
+    "energy_initial",
+    "energy_final",
+    "energy_drift",
+    "max_constraint_residual",
+    "rhs_evaluations",
+    "wall_time",
+)
 
 
 class SweepOutputExists(ChaplyginError):
@@ -166,16 +172,23 @@ def grid_values(spec: str | Sequence[float] | np.ndarray, name: str = "grid") ->
             try:
                 start, stop = float(parts[0]), float(parts[1])
             except ValueError:
-                raise ChaplyginError(f"{where}={spec!r}: START and STOP must be numbers; expected {GRID_SYNTAX}.") from None
+                raise ChaplyginError(
+                    f"{where}={spec!r}: START and STOP must be numbers; expected {GRID_SYNTAX}."
+                ) from None
             try:
                 count = int(parts[2])
             except ValueError:
-                raise ChaplyginError(f"{where}={spec!r}: COUNT must be a positive integer; expected {GRID_SYNTAX}.") from None
+                raise ChaplyginError(
+                    f"{where}={spec!r}: COUNT must be a positive integer; expected {GRID_SYNTAX}."
+                ) from None
             if not 1 <= count <= MAX_RUNS:
-                raise ChaplyginError(f"{where}={spec!r}: COUNT must be a positive integer (at most "
-                                     f"{MAX_RUNS}), not {count}.")
+                raise ChaplyginError(
+                    f"{where}={spec!r}: COUNT must be a positive integer (at most {MAX_RUNS}), not {count}."
+                )
             if count == 1 and start != stop:
-                raise ChaplyginError(f"{where}={spec!r}: one value (COUNT 1) needs START = STOP; give COUNT ≥ 2.")
+                raise ChaplyginError(
+                    f"{where}={spec!r}: one value (COUNT 1) needs START = STOP; give COUNT ≥ 2."
+                )
             values = np.linspace(start, stop, count)
         else:
             try:
@@ -192,7 +205,9 @@ def grid_values(spec: str | Sequence[float] | np.ndarray, name: str = "grid") ->
     if not np.all(np.isfinite(values)):
         raise ChaplyginError(f"{where}: every value must be a finite number, not {values.tolist()}.")
     if len(np.unique(values)) != len(values):
-        raise ChaplyginError(f"{where}: repeated values {values.tolist()}; each point of the grid is one run.")
+        raise ChaplyginError(
+            f"{where}: repeated values {values.tolist()}; each point of the grid is one run."
+        )
     return values
 
 
@@ -264,13 +279,22 @@ def _fingerprint(system: System) -> str:
     """A hash of what the system is (coordinates, energies, forces, constraints), stable across runs."""
     import sympy as sp
 
-    text = sp.srepr((system.name, tuple(system.coordinates), system.kinetic_energy,
-                     system.potential_energy, system.forces, system.constraints))
+    text = sp.srepr(
+        (
+            system.name,
+            tuple(system.coordinates),
+            system.kinetic_energy,
+            system.potential_energy,
+            system.forces,
+            system.constraints,
+        )
+    )
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def _resolve(
-    spec: System | SystemFile | str | os.PathLike[str], local: bool,
+    spec: System | SystemFile | str | os.PathLike[str],
+    local: bool,
 ) -> tuple[System, _Recipe, dict[str, float], dict[str, float], str]:
     """``(system, recipe, default parameters, default initial state, label)`` of what was given.
 
@@ -288,7 +312,7 @@ def _resolve(
     if isinstance(spec, str) and spec.startswith("example:"):
         from chaplygin import examples
 
-        name = spec[len("example:"):]
+        name = spec[len("example:") :]
         entry = examples.get(name)
         recipe = _Recipe("example", name, spec, None, hashlib.sha256(spec.encode()).hexdigest())
         system = _system_for(recipe)
@@ -420,8 +444,13 @@ def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
     outcome = _no_outcome(plan)
     start = time.perf_counter()
     try:
-        options: dict[str, Any] = {"form": plan.form, "samples": plan.samples, "backend": plan.backend,
-                                   "rtol": plan.rtol, "atol": plan.atol}
+        options: dict[str, Any] = {
+            "form": plan.form,
+            "samples": plan.samples,
+            "backend": plan.backend,
+            "rtol": plan.rtol,
+            "atol": plan.atol,
+        }
         if plan.constants is not None:
             options["constants"] = plan.constants
         tr = simulate(system, plan.model, plan.t_end, initial, params, **options)
@@ -559,9 +588,20 @@ def read_results(path: str | os.PathLike[str], columns: Sequence[str] | None = N
     tables = [_read_part(p, wanted) for _, p in _parts(directory)]
     if not tables:
         meta = json.loads((directory / META_FILE).read_text(encoding="utf-8"))
-        schema = pa.schema([pa.field(c, pa.int64() if c in ("run_id", "rhs_evaluations") else
-                                     pa.string() if c in ("status", "message") else pa.float64())
-                            for c in meta["columns"] if wanted is None or c in wanted])
+        schema = pa.schema(
+            [
+                pa.field(
+                    c,
+                    pa.int64()
+                    if c in ("run_id", "rhs_evaluations")
+                    else pa.string()
+                    if c in ("status", "message")
+                    else pa.float64(),
+                )
+                for c in meta["columns"]
+                if wanted is None or c in wanted
+            ]
+        )
         return schema.empty_table()
     return _unique_sorted(pa.concat_tables(tables))
 
@@ -663,7 +703,9 @@ def _locked(directory: Path) -> Iterator[None]:
         try:
             fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            raise ChaplyginError(f"{directory}: another sweep is writing there now; wait for it to end.") from None
+            raise ChaplyginError(
+                f"{directory}: another sweep is writing there now; wait for it to end."
+            ) from None
         yield
     finally:
         fh.close()
@@ -706,12 +748,30 @@ def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: 
 def _clear(directory: Path) -> None:
     """Remove a sweep's files (``force``), under its lock; anything else there stays."""
     for p in directory.iterdir():
-        if p.name == META_FILE or PART_PATTERN.match(p.name) or (p.name.startswith(".") and p.name.endswith(".tmp")):
+        if (
+            p.name == META_FILE
+            or PART_PATTERN.match(p.name)
+            or (p.name.startswith(".") and p.name.endswith(".tmp"))
+        ):
             p.unlink()
 
 
-_FINGERPRINT_KEYS = ("system", "fingerprint", "model", "form", "backend", "t_end", "samples", "rtol",
-                     "atol", "constants", "grid", "parameters", "initial", "columns")
+_FINGERPRINT_KEYS = (
+    "system",
+    "fingerprint",
+    "model",
+    "form",
+    "backend",
+    "t_end",
+    "samples",
+    "rtol",
+    "atol",
+    "constants",
+    "grid",
+    "parameters",
+    "initial",
+    "columns",
+)
 
 
 def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
@@ -768,8 +828,10 @@ class SweepResult:
         """One line: runs done now and before, failures, the time and where the runs ran, the output."""
         before = f", {self.resumed} already there" if self.resumed else ""
         where = f" {self.where}" if self.where else ""
-        return (f"{self.runs} runs: {self.ran} run now{before}; {self.failed} failed; "
-                f"{self.seconds:.3g} s{where} -> {self.path}")
+        return (
+            f"{self.runs} runs: {self.ran} run now{before}; {self.failed} failed; "
+            f"{self.seconds:.3g} s{where} -> {self.path}"
+        )
 
     def __repr__(self) -> str:
         return f"<SweepResult {self.summary()}>"
@@ -804,8 +866,10 @@ def _axes(system: System, grid: Mapping[str, Any]) -> tuple[Axis, ...]:
     coords = [q.func.__name__ for q in system.coordinates]
     independent = [q.func.__name__ + "'" for q in system.independent]
     dependent = [q.func.__name__ + "'" for q in system.dependent]
-    accepted = (f"parameters {', '.join(params) or 'none'}; coordinates {', '.join(coords)}; "
-                f"independent velocities {', '.join(independent) or 'none'}")
+    accepted = (
+        f"parameters {', '.join(params) or 'none'}; coordinates {', '.join(coords)}; "
+        f"independent velocities {', '.join(independent) or 'none'}"
+    )
     axes: list[Axis] = []
     if not grid:
         raise ChaplyginError(f"grid: nothing to sweep; give at least one --grid {GRID_SYNTAX}.")
@@ -857,8 +921,13 @@ def _client(scheduler: Any, workers: int | None) -> tuple[Any, list[Any]]:
         n = workers or os.cpu_count() or 1
         # no fixed dashboard port (another cluster may hold 8787); the workers' restarts after a
         # crash are expected, not errors to print
-        cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                           dashboard_address=":0", silence_logs=logging.CRITICAL)
+        cluster = distributed.LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            silence_logs=logging.CRITICAL,
+        )
         try:
             client = distributed.Client(cluster)
         except BaseException:
@@ -1018,7 +1087,9 @@ def sweep(
     if workers is not None and workers < 1:
         raise ChaplyginError(f"--workers {workers}: at least 1.")
     if resume and force:
-        raise ChaplyginError("resume and force exclude each other: resume keeps the runs there, force deletes them.")
+        raise ChaplyginError(
+            "resume and force exclude each other: resume keeps the runs there, force deletes them."
+        )
 
     sys_, recipe, base_params, base_initial, label = _resolve(system, runner != "cluster")
     params = {**_names(sys_, base_params, "parameters"), **_names(sys_, parameters, "parameters")}
@@ -1027,7 +1098,9 @@ def sweep(
     fixed_by_user = set(_names(sys_, parameters, "parameters")) | set(_names(sys_, initial, "initial"))
     clash = [a.name for a in axes if a.name in fixed_by_user]
     if clash:
-        raise ChaplyginError(f"--grid {clash[0]}: also given a fixed value (--param/--initial); give one or the other.")
+        raise ChaplyginError(
+            f"--grid {clash[0]}: also given a fixed value (--param/--initial); give one or the other."
+        )
     for a in axes:
         (params if a.kind == "parameter" else start).pop(a.name, None)
     parameter_names = tuple(p.name for p in sys_.parameters)
@@ -1050,22 +1123,52 @@ def sweep(
     if not registry.get(model).constants:  # (the family is derived with its constants, in the runs)
         sys_.equations(model, form)  # a model that does not apply fails here, before any run
 
-    plan = _Plan(recipe, model, form, backend, t_end, int(samples), float(rtol), float(atol),
-                 constants, tuple(sorted(params.items())), tuple(sorted(start.items())), axes,
-                 parameter_names, initial_names, coords)
+    plan = _Plan(
+        recipe,
+        model,
+        form,
+        backend,
+        t_end,
+        int(samples),
+        float(rtol),
+        float(atol),
+        constants,
+        tuple(sorted(params.items())),
+        tuple(sorted(start.items())),
+        axes,
+        parameter_names,
+        initial_names,
+        coords,
+    )
     total = plan.runs
     if total > MAX_RUNS:
         raise ChaplyginError(f"grid: {total} runs; at most {MAX_RUNS} in one sweep (split it).")
     from chaplygin._version import __version__
 
-    meta = json.loads(json.dumps({
-        "schema": SCHEMA, "chaplygin": __version__, "system": sys_.name, "source": label,
-        "fingerprint": _fingerprint(sys_), "model": model, "form": form, "backend": backend,
-        "t_end": t_end, "samples": int(samples), "rtol": float(rtol), "atol": float(atol),
-        "constants": constants, "runs": total,
-        "grid": [{"name": a.name, "kind": a.kind, "values": list(a.values)} for a in axes],
-        "parameters": dict(plan.parameters), "initial": dict(plan.initial), "columns": plan.columns(),
-    }))
+    meta = json.loads(
+        json.dumps(
+            {
+                "schema": SCHEMA,
+                "chaplygin": __version__,
+                "system": sys_.name,
+                "source": label,
+                "fingerprint": _fingerprint(sys_),
+                "model": model,
+                "form": form,
+                "backend": backend,
+                "t_end": t_end,
+                "samples": int(samples),
+                "rtol": float(rtol),
+                "atol": float(atol),
+                "constants": constants,
+                "runs": total,
+                "grid": [{"name": a.name, "kind": a.kind, "values": list(a.values)} for a in axes],
+                "parameters": dict(plan.parameters),
+                "initial": dict(plan.initial),
+                "columns": plan.columns(),
+            }
+        )
+    )
     directory = Path(out)
     mode = _prepare_output(directory, meta, resume, force)
     with _locked(directory):
@@ -1092,13 +1195,14 @@ def sweep(
         todo = np.flatnonzero(~done)
         resumed = total - len(todo)
         report = (lambda n: progress(n, total)) if progress is not None else (lambda n: None)
-        writer = _Writer(directory, _schema(plan, meta), flush_seconds,
-                         (parts[-1][0] + 1) if parts else 0)
+        writer = _Writer(directory, _schema(plan, meta), flush_seconds, (parts[-1][0] + 1) if parts else 0)
         where = ""
         try:
             report(resumed)
             if runner == "cluster" and len(todo):
-                where = _distributed(plan, todo, writer, resumed, report, scheduler, workers, chunk_size, retries)
+                where = _distributed(
+                    plan, todo, writer, resumed, report, scheduler, workers, chunk_size, retries
+                )
             elif len(todo):
                 _remember(recipe, sys_)
                 here = _serial(plan, todo, writer, resumed, report, watch=runner == "auto" and _can_cluster())
@@ -1109,15 +1213,31 @@ def sweep(
                     if travelling is None:
                         _serial(plan, rest, writer, resumed + here, report, watch=False)
                     else:
-                        there = _distributed(travelling, rest, writer, resumed + here, report, None, workers,
-                                             chunk_size, retries)
+                        there = _distributed(
+                            travelling,
+                            rest,
+                            writer,
+                            resumed + here,
+                            report,
+                            None,
+                            workers,
+                            chunk_size,
+                            retries,
+                        )
                         where = f"{here} in this process, then {len(rest)} {there}"
         finally:
             writer.close()
         if compact:
             writer.compact()
-    return SweepResult(directory, total, writer.written, resumed, failed_before + writer.failed,
-                       time.perf_counter() - started, where)
+    return SweepResult(
+        directory,
+        total,
+        writer.written,
+        resumed,
+        failed_before + writer.failed,
+        time.perf_counter() - started,
+        where,
+    )
 
 
 def _runner(scheduler: Any, workers: int | None) -> str:
@@ -1152,8 +1272,15 @@ def _travelling(plan: _Plan, system: System) -> _Plan | None:
         return None
 
 
-def _serial(plan: _Plan, todo: np.ndarray, writer: _Writer, resumed: int, report: Callable[[int], None],
-            *, watch: bool) -> int:
+def _serial(
+    plan: _Plan,
+    todo: np.ndarray,
+    writer: _Writer,
+    resumed: int,
+    report: Callable[[int], None],
+    *,
+    watch: bool,
+) -> int:
     """Run ``todo`` in this process; the number run.
 
     With ``watch``, stop early once the runs so far (the first, which builds and compiles the
@@ -1177,8 +1304,15 @@ def _chunks(todo: np.ndarray, size: int) -> Iterator[list[int]]:
 
 
 def _distributed(
-    plan: _Plan, todo: np.ndarray, writer: _Writer, resumed: int, report: Callable[[int], None],
-    scheduler: Any, workers: int | None, chunk_size: int | None, retries: int,
+    plan: _Plan,
+    todo: np.ndarray,
+    writer: _Writer,
+    resumed: int,
+    report: Callable[[int], None],
+    scheduler: Any,
+    workers: int | None,
+    chunk_size: int | None,
+    retries: int,
 ) -> str:
     """Run the chunks of ``todo`` on Dask, a window of tasks at a time, writing rows as they come;
     where they ran (``"on a LocalCluster of 2 worker processes"``).
@@ -1195,8 +1329,11 @@ def _distributed(
         _check_workers(client)
         nthreads = client.nthreads()
         count = f"{len(nthreads)} worker process{'' if len(nthreads) == 1 else 'es'}"
-        where = (f"on a LocalCluster of {count}" if any(isinstance(x, distributed.LocalCluster) for x in owned)
-                 else f"on the Dask cluster at {client.scheduler.address} ({count})")
+        where = (
+            f"on a LocalCluster of {count}"
+            if any(isinstance(x, distributed.LocalCluster) for x in owned)
+            else f"on the Dask cluster at {client.scheduler.address} ({count})"
+        )
         threads = max(1, sum(nthreads.values()))
         size = chunk_size or max(1, min(64, math.ceil(len(todo) / (4 * threads))))
         window = max(8, 4 * threads)
@@ -1256,6 +1393,7 @@ def _killer_row(plan: _Plan, run_id: int, exc: BaseException) -> dict[str, Any]:
     """The row of a run whose task killed every worker process that took it."""
     row, _, _ = _inputs(plan, run_id)
     row.update(_no_outcome(plan))
-    row["message"] = (f"the worker processes running it died ({type(exc).__name__}: {exc}): "
-                      "a crash, or out of memory")[:MAX_MESSAGE]
+    row["message"] = (
+        f"the worker processes running it died ({type(exc).__name__}: {exc}): a crash, or out of memory"
+    )[:MAX_MESSAGE]
     return row

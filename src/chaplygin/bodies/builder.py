@@ -49,11 +49,13 @@ def _rot(axis: int, angle: sp.Expr) -> sp.Matrix:
     return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-ANGLES.update({
-    "cardan": (1, sp.eye(3)),
-    "edge": (1, _rot(0, -sp.pi / 2)),
-    "euler": (2, sp.eye(3)),
-})
+ANGLES.update(
+    {
+        "cardan": (1, sp.eye(3)),
+        "edge": (1, _rot(0, -sp.pi / 2)),
+        "euler": (2, sp.eye(3)),
+    }
+)
 
 
 def _unit(k: int) -> sp.Matrix:
@@ -65,10 +67,14 @@ def _unit(k: int) -> sp.Matrix:
 def _positive(value: Any, key: str) -> sp.Expr:
     if isinstance(value, str):
         if not value.isidentifier():
-            raise SystemDefinitionError(f"{key}: {value!r} is not a symbol name; give a number, a SymPy symbol or a name.")
+            raise SystemDefinitionError(
+                f"{key}: {value!r} is not a symbol name; give a number, a SymPy symbol or a name."
+            )
         return sp.Symbol(value, positive=True)
     if isinstance(value, bool) or not isinstance(value, (int, float, sp.Expr)):
-        raise SystemDefinitionError(f"{key}: expected a positive number or a SymPy expression, got {value!r}.")
+        raise SystemDefinitionError(
+            f"{key}: expected a positive number or a SymPy expression, got {value!r}."
+        )
     expr = sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value)
     if expr.is_positive is False or (expr.is_number and not (expr.is_finite and expr > 0)):
         raise SystemDefinitionError(f"{key} = {expr}: must be a finite number > 0.")
@@ -97,7 +103,9 @@ def _inertia(value: Any) -> sp.Matrix:
         moments = [_positive(r, f"inertia[{k}]") for k, r in enumerate(rows)]
         I = sp.diag(*moments)
     elif len(rows) == 3 and all(isinstance(r, (Sequence, np.ndarray)) and len(r) == 3 for r in rows):
-        I = sp.Matrix([[_scalar(v, f"inertia[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(rows)])
+        I = sp.Matrix(
+            [[_scalar(v, f"inertia[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(rows)]
+        )
         for i in range(3):
             for j in range(i):
                 if sp.simplify(I[i, j] - I[j, i]) != 0:
@@ -210,8 +218,14 @@ def rolling_body(
     m = _positive(mass, "mass")
     I = _inertia(inertia)
     gravity = sp.Symbol("g", positive=True) if g is None else _positive(g, "g")
-    if isinstance(center_of_mass, (str, sp.Basic)) or not isinstance(center_of_mass, (Sequence, np.ndarray)) or len(center_of_mass) != 3:
-        raise SystemDefinitionError("center_of_mass: expected three coordinates (x, y, z) in the shape's axes.")
+    if (
+        isinstance(center_of_mass, (str, sp.Basic))
+        or not isinstance(center_of_mass, (Sequence, np.ndarray))
+        or len(center_of_mass) != 3
+    ):
+        raise SystemDefinitionError(
+            "center_of_mass: expected three coordinates (x, y, z) in the shape's axes."
+        )
     c = sp.Matrix([_scalar(v, f"center_of_mass[{k}]") for k, v in enumerate(center_of_mass)])
     if not c.free_symbols:
         inside = shape.contains([float(v) for v in c])
@@ -230,7 +244,9 @@ def rolling_body(
     R3 = _rot(third, phi)
     tilt = _rot(0, theta) * R3 * R0
     R = _rot(2, psi) * tilt
-    omega = R0.T * ((_rot(0, theta) * R3).T * _unit(2) * d(psi) + R3.T * _unit(0) * d(theta) + _unit(third) * d(phi))
+    omega = R0.T * (
+        (_rot(0, theta) * R3).T * _unit(2) * d(psi) + R3.T * _unit(0) * d(theta) + _unit(third) * d(phi)
+    )
     omega = omega.applyfunc(sp.expand)
     u = (-tilt.T * _unit(2)).applyfunc(sp.expand)  # downward normal in body axes; free of ψ
     P = shape.contact(u)

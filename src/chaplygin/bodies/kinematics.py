@@ -53,15 +53,21 @@ def _angles_of(convention: str, R: np.ndarray) -> tuple[float, float, float]:
     if third == 1:  # R_z(ψ) R_x(θ) R_y(φ)
         s = M[2, 1]
         if abs(s) > 1 - 1e-12:
-            raise InputError(f"R: this attitude is the singularity of the {convention!r} angles (cos θ = 0); choose another convention.")
+            raise InputError(
+                f"R: this attitude is the singularity of the {convention!r} angles (cos θ = 0); choose another convention."
+            )
         return float(np.arctan2(-M[0, 1], M[1, 1])), float(np.arcsin(s)), float(np.arctan2(-M[2, 0], M[2, 2]))
     c = M[2, 2]
     if abs(c) > 1 - 1e-12:
-        raise InputError("R: this attitude is the singularity of the 'euler' angles (sin θ = 0); choose another convention.")
+        raise InputError(
+            "R: this attitude is the singularity of the 'euler' angles (sin θ = 0); choose another convention."
+        )
     return float(np.arctan2(M[0, 2], -M[1, 2])), float(np.arccos(c)), float(np.arctan2(M[2, 0], M[2, 1]))
 
 
-def _numbers(system: RollingBody, parameters: Mapping[Any, float] | None, where: str) -> dict[sp.Symbol, float]:
+def _numbers(
+    system: RollingBody, parameters: Mapping[Any, float] | None, where: str
+) -> dict[sp.Symbol, float]:
     given = {str(k): v for k, v in (parameters or {}).items()}
     missing = [p.name for p in system.parameters if p.name not in given]
     if missing:
@@ -121,8 +127,16 @@ def initial_state(
     J = body.omega_body.jacobian(rates)
     Jn = np.array(sp.lambdify(q, J, "numpy")(psi, theta, phi), dtype=float)
     qd = np.linalg.solve(Jn, w)
-    return {"psi": psi, "theta": theta, "phi": phi, "x": float(pos[0]), "y": float(pos[1]),
-            "psi'": float(qd[0]), "theta'": float(qd[1]), "phi'": float(qd[2])}
+    return {
+        "psi": psi,
+        "theta": theta,
+        "phi": phi,
+        "x": float(pos[0]),
+        "y": float(pos[1]),
+        "psi'": float(qd[0]),
+        "theta'": float(qd[1]),
+        "phi'": float(qd[2]),
+    }
 
 
 def motion(system: RollingBody, trajectory: Any, parameters: Mapping[Any, float] | None = None) -> Motion:
@@ -140,7 +154,9 @@ def motion(system: RollingBody, trajectory: Any, parameters: Mapping[Any, float]
     Motion
     """
     body = _require_body(system)
-    values = _numbers(body, parameters if parameters is not None else getattr(trajectory, "parameters", None), "parameters")
+    values = _numbers(
+        body, parameters if parameters is not None else getattr(trajectory, "parameters", None), "parameters"
+    )
     q = body.coordinates[:3]
     qd = [qi.diff(TIME) for qi in q]
     sym = sp.symbols("_q1:4 _qd1:4")
@@ -151,9 +167,14 @@ def motion(system: RollingBody, trajectory: Any, parameters: Mapping[Any, float]
         return sp.lambdify(args, expr.subs(sub), "numpy")
 
     try:
-        cols = [np.asarray(trajectory[name], dtype=float) for name in ("psi", "theta", "phi", "psi'", "theta'", "phi'", "x", "y")]
+        cols = [
+            np.asarray(trajectory[name], dtype=float)
+            for name in ("psi", "theta", "phi", "psi'", "theta'", "phi'", "x", "y")
+        ]
     except (KeyError, TypeError):
-        raise InputError("trajectory: expected a Trajectory of this system (columns psi, theta, phi, their rates, x, y).") from None
+        raise InputError(
+            "trajectory: expected a Trajectory of this system (columns psi, theta, phi, their rates, x, y)."
+        ) from None
     k = cols[0].size
     pvals = list(values.values())
     R = np.empty((k, 3, 3))

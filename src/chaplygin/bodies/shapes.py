@@ -41,10 +41,14 @@ def _length(value: Any, key: str) -> sp.Expr:
     """A positive length: a number, a SymPy expression or a name; anything else is refused."""
     if isinstance(value, str):
         if not value.isidentifier():
-            raise SystemDefinitionError(f"{key}: {value!r} is not a symbol name; give a number, a SymPy symbol or a name like 'r'.")
+            raise SystemDefinitionError(
+                f"{key}: {value!r} is not a symbol name; give a number, a SymPy symbol or a name like 'r'."
+            )
         return sp.Symbol(value, positive=True)
     if isinstance(value, bool) or not isinstance(value, (int, float, sp.Expr)):
-        raise SystemDefinitionError(f"{key}: expected a positive number or a SymPy expression, got {value!r}.")
+        raise SystemDefinitionError(
+            f"{key}: expected a positive number or a SymPy expression, got {value!r}."
+        )
     expr = sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value)
     if expr.free_symbols:
         if expr.is_positive is False:
@@ -210,11 +214,13 @@ class Paraboloid(Shape):
         return -(self.rho1 * u[0] ** 2 + self.rho2 * u[1] ** 2) / (2 * u[2])
 
     def contact(self, u: Vector) -> Vector:
-        return sp.Matrix([
-            -self.rho1 * u[0] / u[2],
-            -self.rho2 * u[1] / u[2],
-            (self.rho1 * u[0] ** 2 + self.rho2 * u[1] ** 2) / (2 * u[2] ** 2),
-        ])
+        return sp.Matrix(
+            [
+                -self.rho1 * u[0] / u[2],
+                -self.rho2 * u[1] / u[2],
+                (self.rho1 * u[0] ** 2 + self.rho2 * u[1] ** 2) / (2 * u[2] ** 2),
+            ]
+        )
 
     def contains(self, point: Sequence[float]) -> bool | None:
         if not (self.rho1.is_number and self.rho2.is_number):
@@ -251,7 +257,9 @@ class Revolution(Shape):
         try:
             p = sp.sympify(profile(alpha))
         except (TypeError, ValueError, sp.SympifyError) as exc:
-            raise SystemDefinitionError(f"profile: calling it with a SymPy symbol failed ({exc}); it must accept and return SymPy expressions.") from None
+            raise SystemDefinitionError(
+                f"profile: calling it with a SymPy symbol failed ({exc}); it must accept and return SymPy expressions."
+            ) from None
         if not isinstance(p, sp.Expr):
             raise SystemDefinitionError(f"profile: p(alpha) = {p!r} is not a SymPy expression.")
         self._alpha, self.profile = alpha, p
@@ -273,8 +281,16 @@ class Revolution(Shape):
                 f"profile: the meridian is not convex: its radius of curvature p + p'' = {radius[k]:.4g} < 0 "
                 f"at alpha = {grid[k]:.4g}; a convex body needs p + p'' >= 0 on [0, pi]."
             )
-        if np.min(height + sp.lambdify(self._alpha, self.profile.subs(self._alpha, sp.pi - self._alpha), "numpy")(grid)) <= 0:
-            raise SystemDefinitionError("profile: the body has no thickness: p(alpha) + p(pi - alpha) must be > 0 (the width along each tilted normal).")
+        if (
+            np.min(
+                height
+                + sp.lambdify(self._alpha, self.profile.subs(self._alpha, sp.pi - self._alpha), "numpy")(grid)
+            )
+            <= 0
+        ):
+            raise SystemDefinitionError(
+                "profile: the body has no thickness: p(alpha) + p(pi - alpha) must be > 0 (the width along each tilted normal)."
+            )
 
     def _at(self, expr: sp.Expr, s: sp.Expr, c: sp.Expr) -> sp.Expr:
         e = sp.expand_trig(expr).xreplace({sp.sin(self._alpha): s, sp.cos(self._alpha): c})
@@ -307,7 +323,9 @@ class SupportFunction(Shape):
 
     def __init__(self, h: Callable[..., Any] | sp.Lambda, *, lower_only: bool = False) -> None:
         if not callable(h):
-            raise SystemDefinitionError("h: expected a function h(u1, u2, u3) returning a SymPy expression (the support function).")
+            raise SystemDefinitionError(
+                "h: expected a function h(u1, u2, u3) returning a SymPy expression (the support function)."
+            )
         self._u = sp.symbols("u1:4", real=True)
         try:
             expr = sp.sympify(h(*self._u))

@@ -27,7 +27,16 @@ try:  # the import line names the converter; no user text ever reaches it
 except ImportError:  # pragma: no cover - symengine is a dependency
     HAVE_SYMENGINE = False
 
-__all__ = ["HAVE_SYMENGINE", "cse", "evaluator", "gradient", "jacobian", "native", "to_sympy", "total_derivative"]
+__all__ = [
+    "HAVE_SYMENGINE",
+    "cse",
+    "evaluator",
+    "gradient",
+    "jacobian",
+    "native",
+    "to_sympy",
+    "total_derivative",
+]
 
 
 def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
@@ -89,9 +98,7 @@ def gradient(expr: sp.Expr, variables: Sequence[sp.Symbol]) -> list[sp.Expr]:
     return list(jacobian([expr], variables))
 
 
-def total_derivative(
-    expr: sp.Expr, pairs: Sequence[tuple[sp.Symbol, sp.Expr]], time: sp.Symbol
-) -> sp.Expr:
+def total_derivative(expr: sp.Expr, pairs: Sequence[tuple[sp.Symbol, sp.Expr]], time: sp.Symbol) -> sp.Expr:
     """``∂_t F + Σ ∂F/∂x · ẋ`` for the given ``(x, ẋ)`` pairs."""
     pairs = [(x, xd) for x, xd in pairs if xd != 0]
     fast = _convert([expr, time, *(x for x, _ in pairs), *(xd for _, xd in pairs)])
@@ -136,12 +143,15 @@ def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]]
     fast = native(exprs)
     # SymEngine names its symbols x0, x1, …: a clash with the input's names takes SymPy's cse
     if fast is None or any(re.fullmatch(r"x\d+", str(s)) for e in fast for s in e.free_symbols):
-        return sp.cse([to_sympy(e) for e in exprs], symbols=sp.numbered_symbols(prefix),
-                      optimizations="basic")
+        return sp.cse(
+            [to_sympy(e) for e in exprs], symbols=sp.numbered_symbols(prefix), optimizations="basic"
+        )
     pairs, reduced = _se_cse(fast)
     rename = {s: _se_symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}
     # one substitution of the whole list (a matrix): per expression, the map is converted each time
-    done = list(_se_matrix([v for _, v in pairs] + list(reduced)).xreplace(rename)) if rename else list(reduced)
+    done = (
+        list(_se_matrix([v for _, v in pairs] + list(reduced)).xreplace(rename)) if rename else list(reduced)
+    )
     return list(zip(rename.values(), done[: len(pairs)])), done[len(pairs) :]
 
 

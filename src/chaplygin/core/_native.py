@@ -76,8 +76,9 @@ def load(system: System) -> Native | None:
     t, x, U, rest = fast[0], fast[1 : 1 + n], fast[1 + n], fast[2 + n :]
     Q = [U.diff(xs) + q for xs, q in zip(x, rest[:n])]
     rows = [rest[n + b * n : n + (b + 1) * n] for b in range(g)]
-    return Native(t, x, system._native_xd, system._native_T, U, Q, rows, rest[n + g * n :],
-                  *system._native_momenta)
+    return Native(
+        t, x, system._native_xd, system._native_T, U, Q, rows, rest[n + g * n :], *system._native_momenta
+    )
 
 
 def _total_derivative(e: Any, nat: Native) -> Any:
@@ -109,7 +110,9 @@ def is_quadratic(T: Any, xd: list[Any], p: list[Any], H: list[list[Any]]) -> tup
     if any(h.free_symbols & speeds for row in H for h in row):
         return None
     taylor = T.xreplace(zero) + sum((pi.xreplace(zero) * v for pi, v in zip(p, xd)), se.Integer(0))
-    taylor += sum((H[i][j] * xd[i] * xd[j] for i in range(len(xd)) for j in range(len(xd))), se.Integer(0)) / 2
+    taylor += (
+        sum((H[i][j] * xd[i] * xd[j] for i in range(len(xd)) for j in range(len(xd))), se.Integer(0)) / 2
+    )
     if se.expand(T - taylor) != 0:
         return None
     return True, any(h != 0 for row in H for h in row)

@@ -225,7 +225,9 @@ class System:
             f"{', '.join(q.func.__name__ for q in self.coordinates)}."
         )
 
-    def _convert(self, expr: sp.Expr, what: str, *, allow_velocities: bool = True, replace: bool = True) -> sp.Expr:
+    def _convert(
+        self, expr: sp.Expr, what: str, *, allow_velocities: bool = True, replace: bool = True
+    ) -> sp.Expr:
         """Check functions/derivatives in ``expr`` and replace them by plain symbols (unless not ``replace``)."""
         coords = set(self.coordinates)
         unknown = functions_of_time(expr) - coords
@@ -240,8 +242,7 @@ class System:
         if odd:
             f = sorted(odd, key=str)[0]
             raise SystemDefinitionError(
-                f"{what} contains {_describe(f)}: only functions of time t (dynamicsymbols) "
-                "are understood."
+                f"{what} contains {_describe(f)}: only functions of time t (dynamicsymbols) are understood."
             )
         for d in expr.atoms(sp.Derivative):
             if d.expr not in coords or d.variables != (TIME,):
@@ -263,7 +264,9 @@ class System:
         quadratic = None if T is None else is_quadratic(T, self._native_xd, *self._native_momenta)
         if quadratic is None:  # not shown by SymEngine: SymPy's Poly decides
             poly = sp.Poly(self._T, *xd) if self._T.is_polynomial(*xd) else None
-            quadratic = (False, True) if poly is None else (poly.total_degree() <= 2, poly.total_degree() >= 2)
+            quadratic = (
+                (False, True) if poly is None else (poly.total_degree() <= 2, poly.total_degree() >= 2)
+            )
         if not quadratic[0]:
             raise SystemDefinitionError(
                 "kinetic_energy is not quadratic in the velocities: T must be a polynomial of "
@@ -353,7 +356,9 @@ class System:
         fast = self._internal_native(exprs)  # SymEngine where it can, SymPy (A built here) where not
         for k, expr in enumerate(exprs):
             e = self._convert(expr, f"constraints[{k}]", replace=fast is None)
-            split = linear_coefficients(e, list(v.xd)) if fast is None else linear_split(fast[k], self._native_xd)
+            split = (
+                linear_coefficients(e, list(v.xd)) if fast is None else linear_split(fast[k], self._native_xd)
+            )
             if split is None:
                 raise SystemDefinitionError(
                     f"constraints[{k}] is not linear in the velocities: {_describe(expr)}. "
@@ -480,7 +485,9 @@ class System:
             for m in matrices:
                 m = m if isinstance(m, sp.MatrixBase) else sp.Matrix(m.tolist())
                 try:
-                    sample.append(np.array(m.xreplace(floats).evalf().tolist(), dtype=complex).reshape(m.shape))
+                    sample.append(
+                        np.array(m.xreplace(floats).evalf().tolist(), dtype=complex).reshape(m.shape)
+                    )
                 except TypeError:  # zoo or nan: a singular point
                     sample.append(np.full(m.shape, np.nan))
             out.append(sample)
@@ -520,7 +527,8 @@ class System:
     def _check_reduced_mass_matrix(self) -> None:
         mass = self._M if self._native is None else DenseMatrix(self._native.H)
         samples = [
-            c.T @ m @ c for m, a in self._numeric_samples(mass, self._constraint_matrix())
+            c.T @ m @ c
+            for m, a in self._numeric_samples(mass, self._constraint_matrix())
             if (c := self._numeric_C(a)) is not None
         ]
         if not any(self._full_rank(m) for m in samples):
@@ -689,9 +697,7 @@ class System:
     @property
     def is_scleronomic(self) -> bool:
         """True when neither T, U, the forces nor the constraints depend explicitly on time."""
-        return not any(
-            e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._B, self._B0)
-        )
+        return not any(e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._B, self._B0))
 
     @cached_property
     def chaplygin_obstructions(self) -> list[str]:
@@ -732,9 +738,7 @@ class System:
         )
 
     # ------------------------------------------------------------------ derivations
-    def equations(
-        self, model: str = "chetaev", form: str = "classic", *, constants: Any = None
-    ) -> Equations:
+    def equations(self, model: str = "chetaev", form: str = "classic", *, constants: Any = None) -> Equations:
         """Equations of motion of one model.
 
         Parameters
@@ -788,13 +792,15 @@ class System:
             return ", ".join(_html.math(vlatex(x)) for x in items) or "none"
 
         constraints = "<br/>".join(_html.math(vlatex(sp.Eq(k, v))) for k, v in self.constraints.items())
-        return _html.heading(f"System {self.name}") + _html.fields([
-            ("coordinates", listed(self.coordinates)),
-            ("dependent", listed(self.dependent)),
-            ("parameters", listed(self.parameters)),
-            ("constraints", constraints or "none"),
-            ("kinetic energy", _html.math("T = " + vlatex(self.kinetic_energy))),
-        ])
+        return _html.heading(f"System {self.name}") + _html.fields(
+            [
+                ("coordinates", listed(self.coordinates)),
+                ("dependent", listed(self.dependent)),
+                ("parameters", listed(self.parameters)),
+                ("constraints", constraints or "none"),
+                ("kinetic energy", _html.math("T = " + vlatex(self.kinetic_energy))),
+            ]
+        )
 
     def __repr__(self) -> str:
         names = ", ".join(q.func.__name__ for q in self.coordinates)

@@ -92,8 +92,7 @@ def export(
         raise ChaplyginError(f"to={to!r}: export writes {' or '.join(map(repr, TARGETS))}.")
     if prefix and not _IDENTIFIER.match(prefix):
         raise ChaplyginError(
-            f"prefix={prefix!r}: give letters, digits and '_' (not starting with a digit), "
-            "e.g. 'sphere_'."
+            f"prefix={prefix!r}: give letters, digits and '_' (not starting with a digit), e.g. 'sphere_'."
         )
     eqs = system.equations(model, form)
     layout, main, derivatives, dim, k = _blocks(eqs, jacobian)
@@ -117,8 +116,11 @@ def _blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block | No
     plain = _plain(to_num)
     n, dim = eqs.system.n, eqs._M.shape[0]
     M, F = list(eqs._M), list(eqs._F)
-    targets = ([("M", i, dim) for i in range(dim * dim)] + [("F", i, 0) for i in range(dim)]
-               + [("V", i, 0) for i in range(n)])
+    targets = (
+        [("M", i, dim) for i in range(dim * dim)]
+        + [("F", i, 0) for i in range(dim)]
+        + [("V", i, 0) for i in range(n)]
+    )
     main = _Block(_at([*M, *F, *velocities], plain), targets, "c_", skip_zero=dim * dim)
     if not jacobian:
         return layout, main, None, dim, k
@@ -129,13 +131,18 @@ def _blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block | No
     residual = [F[r] - sum((M[r * dim + c] * x[c] for c in range(dim)), sp.S.Zero) for r in range(dim)]
     d = differentiate([*residual, *velocities], variables)  # rows: residual then V; columns: y_j
     size = len(variables)
-    exprs = [d[r, j] for j in range(size) for r in range(dim)] + [d[dim + i, j] for j in range(size) for i in range(n)]
-    targets = ([("R", j * dim + r, dim) for j in range(size) for r in range(dim)]
-               + [("dV", j * n + i, n) for j in range(size) for i in range(n)])
+    exprs = [d[r, j] for j in range(size) for r in range(dim)] + [
+        d[dim + i, j] for j in range(size) for i in range(n)
+    ]
+    targets = [("R", j * dim + r, dim) for j in range(size) for r in range(dim)] + [
+        ("dV", j * n + i, n) for j in range(size) for i in range(n)
+    ]
     return layout, main, _Block(_at(exprs, plain), targets, "d_", skip_zero=len(targets)), dim, k
 
 
-def _header(eqs: Equations, layout: Layout, jacobian: bool, language: str, prefix: str, name: str) -> list[str]:
+def _header(
+    eqs: Equations, layout: Layout, jacobian: bool, language: str, prefix: str, name: str
+) -> list[str]:
     """The lines of the generated file's header comment: what it computes, the layout of ``y`` and ``p``
     (``name``: the system's name, made safe for the comment by the caller)."""
     from chaplygin._version import __version__
@@ -148,37 +155,61 @@ def _header(eqs: Equations, layout: Layout, jacobian: bool, language: str, prefi
         f"{eqs.title}.",
         "",
         "The first-order right-hand side dy/dt = f(t, y, p):",
-        (f"    void {prefix}rhs(double t, const double *y, const double *p, double *dydt);" if c
-         else f"    {prefix}rhs(t, y, p) -> ndarray of NY numbers"),
+        (
+            f"    void {prefix}rhs(double t, const double *y, const double *p, double *dydt);"
+            if c
+            else f"    {prefix}rhs(t, y, p) -> ndarray of NY numbers"
+        ),
         "dydt[i] is the time derivative of y[i].",
     ]
     if jacobian:
         lines += [
             "Its Jacobian df/dy, exact (not differenced):",
-            (f"    void {prefix}jacobian(double t, const double *y, const double *p, double *J);" if c
-             else f"    {prefix}jacobian(t, y, p) -> ndarray NY x NY"),
+            (
+                f"    void {prefix}jacobian(double t, const double *y, const double *p, double *J);"
+                if c
+                else f"    {prefix}jacobian(t, y, p) -> ndarray NY x NY"
+            ),
             "J[i*NY + j] = df_i/dy_j (row-major)." if c else "J[i, j] = df_i/dy_j.",
         ]
     lines += ["", f"y, NY = {ny} numbers, in this order:"]
-    kinds = (["coordinate"] * len(layout.coordinates) + ["velocity"] * len(layout.velocities)
-             + ["vakonomic multiplier mu (integrated)"] * n_mu)
+    kinds = (
+        ["coordinate"] * len(layout.coordinates)
+        + ["velocity"] * len(layout.velocities)
+        + ["vakonomic multiplier mu (integrated)"] * n_mu
+    )
     width = max(len(name) for name in layout.state)
-    lines += [f"    y[{i}]{' ' * (len(str(ny)) - len(str(i)))}  {name:<{width}}  {kind}"
-              for i, (name, kind) in enumerate(zip(layout.state, kinds))]
+    lines += [
+        f"    y[{i}]{' ' * (len(str(ny)) - len(str(i)))}  {name:<{width}}  {kind}"
+        for i, (name, kind) in enumerate(zip(layout.state, kinds))
+    ]
     n_par = len(layout.parameters)
-    lines += ["", f"p, NP = {n_par} numbers, in this order:" if n_par else "p: no parameters (pass any pointer)."]
+    lines += [
+        "",
+        f"p, NP = {n_par} numbers, in this order:" if n_par else "p: no parameters (pass any pointer).",
+    ]
     constants = {str(c_) for c_ in eqs.constants}
-    lines += [f"    p[{j}]  {name}" + ("  (constant c of the vakonomic family)" if name in constants else "")
-              for j, name in enumerate(layout.parameters)]
+    lines += [
+        f"    p[{j}]  {name}" + ("  (constant c of the vakonomic family)" if name in constants else "")
+        for j, name in enumerate(layout.parameters)
+    ]
     dependent = [q.func.__name__ for q in s.dependent]
     if layout.model in ("chetaev", "vakonomic"):
-        lines += ["", "y holds every velocity; the constraints hold along a motion only if the initial",
-                  "state satisfies them (f imposes them at the level of accelerations)."]
+        lines += [
+            "",
+            "y holds every velocity; the constraints hold along a motion only if the initial",
+            "state satisfies them (f imposes them at the level of accelerations).",
+        ]
         if layout.reactions:
-            lines.append(f"The multipliers {', '.join(layout.reactions)} are solved for inside f; they are not in y.")
+            lines.append(
+                f"The multipliers {', '.join(layout.reactions)} are solved for inside f; they are not in y."
+            )
     elif dependent:
         velocities = ", ".join(q + "'" for q in dependent)
-        lines += ["", f"Not in y: the dependent velocities ({velocities}); f computes them from the constraints."]
+        lines += [
+            "",
+            f"Not in y: the dependent velocities ({velocities}); f computes them from the constraints.",
+        ]
     lines += [
         "",
         "Units: none. f is what the equations say; give every number in one consistent system of units.",
@@ -194,8 +225,9 @@ def _comment_safe(text: str) -> str:
     return out.replace("*/", "* /")
 
 
-def _c_source(eqs: Equations, layout: Layout, main: _Block, derivatives: _Block | None,
-              dim: int, k: int, prefix: str) -> str:
+def _c_source(
+    eqs: Equations, layout: Layout, main: _Block, derivatives: _Block | None, dim: int, k: int, prefix: str
+) -> str:
     from chaplygin.numeric.codegen import _assignments, _Fill
 
     n, ny = eqs.system.n, len(layout.state)
@@ -233,8 +265,10 @@ def _c_source(eqs: Equations, layout: Layout, main: _Block, derivatives: _Block 
     if derivatives is not None:
         parts += [
             "/* R[j*DIM + r] = d(F - M X)_r/dy_j at X = x, and dV[j*N + i] = dV_i/dy_j. */",
-            ("static void chaplygin_dfill(double t, const double *y, const double *p, const double *x, "
-             "double *R, double *dV)"),
+            (
+                "static void chaplygin_dfill(double t, const double *y, const double *p, const double *x, "
+                "double *R, double *dV)"
+            ),
             "{",
             "    (void)p;",
             "    (void)x;",
@@ -263,20 +297,22 @@ def _c_source(eqs: Equations, layout: Layout, main: _Block, derivatives: _Block 
 
 
 # ------------------------------------------------------------------ Python
-def _python_source(eqs: Equations, layout: Layout, main: _Block, derivatives: _Block | None,
-                   dim: int, k: int, prefix: str) -> str:
+def _python_source(
+    eqs: Equations, layout: Layout, main: _Block, derivatives: _Block | None, dim: int, k: int, prefix: str
+) -> str:
     from chaplygin.numeric.codegen import _assignments, _docstring_safe, _Fill, _python_body
 
     n, ny = eqs.system.n, len(layout.state)
     # the system's name is the only free text in the header (the rest: identifiers, fixed titles)
-    doc = "\n".join(_header(eqs, layout, derivatives is not None, "python", prefix,
-                            _docstring_safe(eqs.system.name)))
-    check = '''    y = np.asarray(y, dtype=float)
+    doc = "\n".join(
+        _header(eqs, layout, derivatives is not None, "python", prefix, _docstring_safe(eqs.system.name))
+    )
+    check = """    y = np.asarray(y, dtype=float)
     p = np.asarray(p, dtype=float)
     if y.shape != (NY,) or p.shape != (NP,):
         raise ValueError(f"expected y of {NY} and p of {NP} numbers (see this module's docstring), "
                          f"not shapes {y.shape} and {p.shape}")
-'''
+"""
     body = "\n".join(_python_body(_Fill(main), [_assignments(main)]))
     source = f'''"""{doc}
 """

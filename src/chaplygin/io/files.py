@@ -170,9 +170,14 @@ class SystemFile:
         out = [f"# chaplygin system file: {self.name}", f"name = {_toml_string(self.name)}", "", "[body]"]
         out += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in self.body.items()]
         out += ["", "[parameters]"]
-        out += [f"{_toml_key(k)} = {_toml_number(v, f'the parameter {k}')}" for k, v in self.parameters.items()]
+        out += [
+            f"{_toml_key(k)} = {_toml_number(v, f'the parameter {k}')}" for k, v in self.parameters.items()
+        ]
         out += ["", "[initial]"]
-        out += [f"{_toml_key(k)} = {_toml_number(v, f'the initial value of {k}')}" for k, v in self.initial.items()]
+        out += [
+            f"{_toml_key(k)} = {_toml_number(v, f'the initial value of {k}')}"
+            for k, v in self.initial.items()
+        ]
         return "\n".join(out) + "\n"
 
 
@@ -193,14 +198,16 @@ def load(path: str | os.PathLike[str]) -> SystemFile:
         raise SystemFileError(f"cannot read the file: {exc.strerror or exc}", source=source) from None
     if len(raw) > MAX_FILE_SIZE:
         raise SystemFileError(
-            f"the file is larger than {MAX_FILE_SIZE} bytes", source=source,
+            f"the file is larger than {MAX_FILE_SIZE} bytes",
+            source=source,
             allowed=f"Limit: {MAX_FILE_SIZE} bytes per system file.",
         )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SystemFileError(
-            f"the file is not UTF-8 text (byte {exc.start})", source=source,
+            f"the file is not UTF-8 text (byte {exc.start})",
+            source=source,
             allowed="System files are TOML, encoded in UTF-8.",
         ) from None
     return _loads(text, source, Path(source).stem)
@@ -216,7 +223,8 @@ def _loads(text: str, source: str, default_name: str | None) -> SystemFile:
         raise SystemFileError(f"expected the text of a system file, got {type(text).__name__}", source=source)
     if len(text) > MAX_FILE_SIZE:
         raise SystemFileError(
-            f"the file is {len(text)} characters long (limit {MAX_FILE_SIZE})", source=source,
+            f"the file is {len(text)} characters long (limit {MAX_FILE_SIZE})",
+            source=source,
             allowed=f"Limit: {MAX_FILE_SIZE} characters per system file.",
         )
     text = text.removeprefix("\ufeff")
@@ -231,8 +239,10 @@ def _loads(text: str, source: str, default_name: str | None) -> SystemFile:
         except Exception as exc:  # the boundary between user files and SymPy: never a traceback
             key, value = (reader.where, reader.text) if reader is not None else (None, None)
             raise SystemFileError(
-                f"chaplygin could not read this ({type(exc).__name__}: {str(exc)[:200]})", source=source,
-                key=key, text=value,
+                f"chaplygin could not read this ({type(exc).__name__}: {str(exc)[:200]})",
+                source=source,
+                key=key,
+                text=value,
                 allowed="This is a limitation of chaplygin; please report it with the file.",
             ) from exc
 
@@ -252,13 +262,14 @@ def _parse_toml(text: str, source: str) -> dict[str, Any]:
         shown = lines[line - 1] if 0 < line <= len(lines) else ""
         hint = "System files are TOML: key = value lines and [table] headers."
         if "'" in shown.split("=", 1)[0] and not shown.lstrip().startswith(('"', "[")):
-            hint = "Keys with a prime must be quoted: \"x'\" = \"...\"."
+            hint = 'Keys with a prime must be quoted: "x\'" = "...".'
         raise SystemFileError(
             reason, source=source, line=line, text=shown, column=col, allowed=hint
         ) from None
     except RecursionError:
         raise SystemFileError(
-            "invalid TOML: values are nested too deeply", source=source,
+            "invalid TOML: values are nested too deeply",
+            source=source,
             allowed="System files use flat tables, lists of strings and numbers.",
         ) from None
     except ValueError as exc:  # e.g. an integer with too many digits
@@ -297,13 +308,15 @@ class _Reader:
         if value is None:
             if required:
                 raise self.error(
-                    f"the [{name}] table is missing", allowed=_SECTION_HELP[name],
+                    f"the [{name}] table is missing",
+                    allowed=_SECTION_HELP[name],
                 )
             return {}
         if not isinstance(value, dict):
             raise self.error(
                 f"{name} must be a table ([{name}] with key = value lines), got {_describe(value)}",
-                name, allowed=_SECTION_HELP[name],
+                name,
+                allowed=_SECTION_HELP[name],
             )
         return value
 
@@ -311,7 +324,8 @@ class _Reader:
         for key in self.data:
             if key not in SECTIONS:
                 raise self.error(
-                    _unknown(key, SECTIONS, "the file"), _key(None, key),
+                    _unknown(key, SECTIONS, "the file"),
+                    _key(None, key),
                     allowed="Allowed top-level keys and tables: " + ", ".join(SECTIONS) + ".",
                 )
         name = self.read_name()
@@ -326,8 +340,9 @@ class _Reader:
         system = self.build(names, constraints, dependent, name, kwargs)
         return self.finish(system, parameters, name)
 
-    def finish(self, system: System, parameters: dict[str, float], name: str,
-               body: dict[str, Any] | None = None) -> SystemFile:
+    def finish(
+        self, system: System, parameters: dict[str, float], name: str, body: dict[str, Any] | None = None
+    ) -> SystemFile:
         used = {p.name for p in system.parameters}
         unused = [p for p in parameters if p not in used]
         if unused:
@@ -340,8 +355,9 @@ class _Reader:
             )
         initial = self.read_initial(system)
         given = self.table("initial")
-        return SystemFile(system, parameters, initial, name, self.source,
-                          tuple(k for k in initial if k not in given), body)
+        return SystemFile(
+            system, parameters, initial, name, self.source, tuple(k for k in initial if k not in given), body
+        )
 
     # ------------------------------------------------------------ [body]
     def read_body_file(self, name: str) -> SystemFile:
@@ -350,7 +366,8 @@ class _Reader:
             if key in self.data:
                 raise self.error(
                     f"{key} cannot be given with a [body] table: the body's coordinates, energy and "
-                    "constraints are built from its shape", _key(None, key),
+                    "constraints are built from its shape",
+                    _key(None, key),
                     allowed="A [body] file has name, [body], [parameters] and [initial]; remove "
                     f"{key}, or remove [body] and describe the system by hand.",
                 )
@@ -366,27 +383,38 @@ class _Reader:
         for key in body:
             if key not in allowed_keys:
                 raise self.error(
-                    _unknown(key, allowed_keys, f"[body] (shape {shape_name})"), _key("body", key),
-                    allowed=f"A {shape_name} has the keys " + ", ".join(shape_keys) + "; every shape has "
-                    + ", ".join(BODY_KEYS) + " (center_of_mass, angles and g optional).",
+                    _unknown(key, allowed_keys, f"[body] (shape {shape_name})"),
+                    _key("body", key),
+                    allowed=f"A {shape_name} has the keys "
+                    + ", ".join(shape_keys)
+                    + "; every shape has "
+                    + ", ".join(BODY_KEYS)
+                    + " (center_of_mass, angles and g optional).",
                 )
         for key in (*shape_keys, "mass", "inertia"):
             if key not in body:
                 raise self.error(
-                    f"{key} is missing", "[body]",
+                    f"{key} is missing",
+                    "[body]",
                     allowed=f"A {shape_name} needs " + ", ".join(shape_keys) + ", mass and inertia.",
                 )
-        values: dict[str, Any] = {k: self.expression(body[k], _key("body", k), names) for k in (*shape_keys, "mass")}
+        values: dict[str, Any] = {
+            k: self.expression(body[k], _key("body", k), names) for k in (*shape_keys, "mass")
+        }
         values["inertia"] = self.body_list(body["inertia"], "inertia", names, nested=True)
         values["center_of_mass"] = (
-            self.body_list(body["center_of_mass"], "center_of_mass", names) if "center_of_mass" in body else [0, 0, 0]
+            self.body_list(body["center_of_mass"], "center_of_mass", names)
+            if "center_of_mass" in body
+            else [0, 0, 0]
         )
         angles = body.get("angles")
         if angles is not None and angles not in ANGLES:
             raise self.error(
-                f"angles = {_describe(angles)} is not an angle convention", "[body] angles",
-                allowed="angles is one of " + ", ".join(map(json.dumps, ANGLES))
-                + " (default: \"edge\" for a disk or torus, else \"cardan\").",
+                f"angles = {_describe(angles)} is not an angle convention",
+                "[body] angles",
+                allowed="angles is one of "
+                + ", ".join(map(json.dumps, ANGLES))
+                + ' (default: "edge" for a disk or torus, else "cardan").',
             )
         if "g" in body:
             values["g"] = self.expression(body["g"], _key("body", "g"), names)
@@ -394,32 +422,48 @@ class _Reader:
             values["g"] = names.parameters["g"]
         else:
             raise self.error(
-                "the gravity g is not given", "[body] g",
-                allowed="Give g in [parameters] (g = 9.81), or a value in [body] (g = 9.81 or g = \"g0\").",
+                "the gravity g is not given",
+                "[body] g",
+                allowed='Give g in [parameters] (g = 9.81), or a value in [body] (g = 9.81 or g = "g0").',
             )
         system = self.build_body(cls, shape_keys, values, angles, name)
         numeric = {names.parameters[k]: sp.nsimplify(v) for k, v in parameters.items()}
         if system.parameters and numeric:  # the checks of rolling_body, at the [parameters] values
+
             def at_defaults(v: Any) -> Any:
                 return [at_defaults(e) for e in v] if isinstance(v, list) else sp.S(v).xreplace(numeric)
-            self.build_body(cls, shape_keys, {k: at_defaults(v) for k, v in values.items()}, angles, name,
-                            " (with the values of [parameters])")
+
+            self.build_body(
+                cls,
+                shape_keys,
+                {k: at_defaults(v) for k, v in values.items()},
+                angles,
+                name,
+                " (with the values of [parameters])",
+            )
         return self.finish(system, parameters, name, dict(body))
 
     def body_list(self, value: Any, key: str, names: Names, nested: bool = False) -> list[Any]:
-        what = ("three principal moments [\"A\", \"B\", \"C\"] or a symmetric 3 x 3 list of lists "
-                "(about the centre of mass, body axes)" if nested else
-                "three coordinates [x, y, z] in the shape's axes, from its centre (a paraboloid: its vertex)")
+        what = (
+            'three principal moments ["A", "B", "C"] or a symmetric 3 x 3 list of lists '
+            "(about the centre of mass, body axes)"
+            if nested
+            else "three coordinates [x, y, z] in the shape's axes, from its centre (a paraboloid: its vertex)"
+        )
         if not isinstance(value, list) or len(value) != 3:
             got = f"a list of {len(value)}" if isinstance(value, list) else _describe(value)
-            raise self.error(f"{key} must be a list of three, got {got}", _key("body", key),
-                             allowed=f"{key} is {what}.")
+            raise self.error(
+                f"{key} must be a list of three, got {got}", _key("body", key), allowed=f"{key} is {what}."
+            )
         out: list[Any] = []
         for i, item in enumerate(value):
             if nested and isinstance(item, list):
                 if len(item) != 3 or any(isinstance(v, list) for v in item):
-                    raise self.error(f"{key}[{i}] must be a row of three, got {_describe(item)}",
-                                     f"[body] {key}[{i}]", allowed=f"{key} is {what}.")
+                    raise self.error(
+                        f"{key}[{i}] must be a row of three, got {_describe(item)}",
+                        f"[body] {key}[{i}]",
+                        allowed=f"{key} is {what}.",
+                    )
                 out.append([self.expression(v, f"[body] {key}[{i}][{j}]", names) for j, v in enumerate(item)])
             else:
                 out.append(self.expression(item, f"[body] {key}[{i}]", names))
@@ -427,19 +471,36 @@ class _Reader:
             raise self.error(f"{key} mixes numbers and rows", _key("body", key), allowed=f"{key} is {what}.")
         return out
 
-    def build_body(self, cls: type[Shape], shape_keys: tuple[str, ...], values: dict[str, Any],
-                   angles: str | None, name: str, note: str = "") -> System:
+    def build_body(
+        self,
+        cls: type[Shape],
+        shape_keys: tuple[str, ...],
+        values: dict[str, Any],
+        angles: str | None,
+        name: str,
+        note: str = "",
+    ) -> System:
         try:
             shape = cls(*(values[k] for k in shape_keys))
-            return rolling_body(shape, mass=values["mass"], inertia=values["inertia"],
-                                center_of_mass=values["center_of_mass"], g=values["g"], name=name, angles=angles)
+            return rolling_body(
+                shape,
+                mass=values["mass"],
+                inertia=values["inertia"],
+                center_of_mass=values["center_of_mass"],
+                g=values["g"],
+                name=name,
+                angles=angles,
+            )
         except SystemDefinitionError as exc:
             message = str(exc)
             m = re.match(r"[A-Za-z_0-9]+(\[\d\](\[\d\])?)?", message)
             key = m.group(0) if m and m.group(0).split("[")[0] in (*shape_keys, *BODY_KEYS) else None
             message = message.removeprefix(f"{key}: ") if key else message
-            raise self.error(message.rstrip(".") + note, f"[body] {key}" if key else "[body]",
-                             allowed=_SECTION_HELP["body"]) from None
+            raise self.error(
+                message.rstrip(".") + note,
+                f"[body] {key}" if key else "[body]",
+                allowed=_SECTION_HELP["body"],
+            ) from None
 
     # ------------------------------------------------------------ sections
     def read_name(self) -> str:
@@ -455,7 +516,9 @@ class _Reader:
         if not name.strip():
             raise self.error("name is empty", "name", allowed=allowed)
         if len(name) > MAX_SYSTEM_NAME_LENGTH:
-            raise self.error(f"name is longer than {MAX_SYSTEM_NAME_LENGTH} characters", "name", allowed=allowed)
+            raise self.error(
+                f"name is longer than {MAX_SYSTEM_NAME_LENGTH} characters", "name", allowed=allowed
+            )
         bad = next((i for i, c in enumerate(name) if not c.isprintable() or c in '"\\'), None)
         if bad is not None:
             raise self.error(
@@ -470,12 +533,14 @@ class _Reader:
         value = self.data["coordinates"]
         if not isinstance(value, list) or not value:
             raise self.error(
-                f"coordinates must be a non-empty list of names, got {_describe(value)}", "coordinates",
+                f"coordinates must be a non-empty list of names, got {_describe(value)}",
+                "coordinates",
                 allowed=allowed,
             )
         if len(value) > MAX_COORDINATES:
             raise self.error(
-                f"{len(value)} coordinates (limit {MAX_COORDINATES})", "coordinates",
+                f"{len(value)} coordinates (limit {MAX_COORDINATES})",
+                "coordinates",
                 allowed=f"Limit: {MAX_COORDINATES} coordinates.",
             )
         seen: list[str] = []
@@ -494,7 +559,8 @@ class _Reader:
         table = self.table("parameters")
         if len(table) > MAX_PARAMETERS:
             raise self.error(
-                f"{len(table)} parameters (limit {MAX_PARAMETERS})", "[parameters]",
+                f"{len(table)} parameters (limit {MAX_PARAMETERS})",
+                "[parameters]",
                 allowed=f"Limit: {MAX_PARAMETERS} parameters.",
             )
         out: dict[str, float] = {}
@@ -506,7 +572,8 @@ class _Reader:
                 raise exc.located(source=self.source, key=where) from None
             if name in coordinates:
                 raise self.error(
-                    f"{name} is a coordinate; it cannot also be a parameter", where,
+                    f"{name} is a coordinate; it cannot also be a parameter",
+                    where,
                     allowed="Parameters are the constants of the system (masses, lengths …).",
                 )
             out[name] = self.number(value, where)
@@ -532,11 +599,14 @@ class _Reader:
             raise self.error(f"expected a finite number, got {value}", where, allowed=allowed)
         return number
 
-    def expression(self, value: Any, where: str, names: Names, velocity_message: str | None = None) -> sp.Expr:
+    def expression(
+        self, value: Any, where: str, names: Names, velocity_message: str | None = None
+    ) -> sp.Expr:
         if isinstance(value, bool) or not isinstance(value, (str, int, float)):
             raise self.error(
-                f"expected an expression in quotes, got {_describe(value)}", where,
-                allowed="Expressions are strings, e.g. \"m/2*x'^2\".",
+                f"expected an expression in quotes, got {_describe(value)}",
+                where,
+                allowed='Expressions are strings, e.g. "m/2*x\'^2".',
             )
         text = value if isinstance(value, str) else repr(value)
         self.where, self.text = where, text
@@ -552,13 +622,16 @@ class _Reader:
         for key in table:
             if key not in _ENERGY_KEYS:
                 raise self.error(
-                    _unknown(key, _ENERGY_KEYS, "[energy]"), _key("energy", key), allowed=_SECTION_HELP["energy"]
+                    _unknown(key, _ENERGY_KEYS, "[energy]"),
+                    _key("energy", key),
+                    allowed=_SECTION_HELP["energy"],
                 )
         if "T" not in table:
             raise self.error("the kinetic energy T is missing", "[energy]", allowed=_SECTION_HELP["energy"])
         if "V" in table and "U" in table:
             raise self.error(
-                "give the potential energy V or the force function U (U = -V), not both", "[energy]",
+                "give the potential energy V or the force function U (U = -V), not both",
+                "[energy]",
                 allowed=_SECTION_HELP["energy"],
             )
         out: dict[str, Any] = {"kinetic_energy": self.expression(table["T"], _key("energy", "T"), names)}
@@ -581,8 +654,10 @@ class _Reader:
                 if key.endswith("'") and key[:-1] in names.coordinates:
                     hint = f" (write the coordinate, {key[:-1]}, not its velocity)"
                 raise self.error(
-                    f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}", where,
-                    allowed="[forces] keys are coordinates: " + ", ".join(names.coordinates)
+                    f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}",
+                    where,
+                    allowed="[forces] keys are coordinates: "
+                    + ", ".join(names.coordinates)
                     + "; each value is the generalized force Q along it.",
                 )
             out[key] = self.expression(value, where, names)
@@ -594,7 +669,8 @@ class _Reader:
         solved = [k for k in table if k not in _IMPLICIT_KEYS]
         if implicit and solved:
             raise self.error(
-                "mix of solved constraints (\"x'\" = ...) and implicit = [...]", _key("constraints", solved[0]),
+                'mix of solved constraints ("x\'" = ...) and implicit = [...]',
+                _key("constraints", solved[0]),
                 allowed=_SECTION_HELP["constraints"],
             )
         if implicit:
@@ -606,9 +682,11 @@ class _Reader:
             q = key[:-1] if key.endswith("'") else None
             if q is None or q not in names.coordinates:
                 if key in names.coordinates:
-                    reason = f"{key} is a coordinate; a solved constraint gives its velocity: \"{key}'\" = ..."
+                    reason = f'{key} is a coordinate; a solved constraint gives its velocity: "{key}\'" = ...'
                 else:
-                    reason = _unknown(key, [f"{c}'" for c in names.coordinates] + list(_IMPLICIT_KEYS), "[constraints]")
+                    reason = _unknown(
+                        key, [f"{c}'" for c in names.coordinates] + list(_IMPLICIT_KEYS), "[constraints]"
+                    )
                 raise self.error(reason, where, allowed=_SECTION_HELP["constraints"])
             out[key] = self.expression(value, where, names)
         return out, None
@@ -619,28 +697,33 @@ class _Reader:
         if not isinstance(exprs, list) or not exprs:
             raise self.error(
                 f"implicit must be a non-empty list of expressions, got {_describe(exprs)}",
-                _key("constraints", "implicit"), allowed=help_,
+                _key("constraints", "implicit"),
+                allowed=help_,
             )
         dependent = table.get("dependent")
         if dependent is None:
             raise self.error(
                 f"implicit constraints need dependent = [...] naming {len(exprs)} dependent coordinate(s)",
-                _key("constraints", "dependent"), allowed=help_,
+                _key("constraints", "dependent"),
+                allowed=help_,
             )
         if not isinstance(dependent, list):
             raise self.error(
                 f"dependent must be a list of coordinate names, got {_describe(dependent)}",
-                _key("constraints", "dependent"), allowed=help_,
+                _key("constraints", "dependent"),
+                allowed=help_,
             )
         for k, d in enumerate(dependent):
             if not isinstance(d, str) or d not in names.coordinates:
                 raise self.error(
-                    f"{_describe(d)} is not a coordinate", f"[constraints] dependent (item {k + 1})",
+                    f"{_describe(d)} is not a coordinate",
+                    f"[constraints] dependent (item {k + 1})",
                     allowed="The coordinates are " + ", ".join(names.coordinates) + ".",
                 )
             if d in dependent[:k]:
                 raise self.error(
-                    f"the coordinate {d} is listed twice", f"[constraints] dependent (item {k + 1})",
+                    f"the coordinate {d} is listed twice",
+                    f"[constraints] dependent (item {k + 1})",
                     allowed=help_,
                 )
         out = [
@@ -693,7 +776,8 @@ class _Reader:
         except (TypeError, ValueError, AttributeError, NotImplementedError):
             return  # System reports what is wrong with the expressions
         free = sorted(
-            {s for row in coefficients for c in row for s in c.free_symbols} | set(names.coordinates.values()),
+            {s for row in coefficients for c in row for s in c.free_symbols}
+            | set(names.coordinates.values()),
             key=str,
         )
         rng = np.random.default_rng(20000843)
@@ -703,7 +787,8 @@ class _Reader:
             values = {s: sp.Float(v) for s, v in zip(free, rng.uniform(0.3, 1.3, size=len(free)))}
             try:
                 a = np.array(
-                    [[complex(c.xreplace(values).evalf()) for c in row] for row in coefficients], dtype=complex
+                    [[complex(c.xreplace(values).evalf()) for c in row] for row in coefficients],
+                    dtype=complex,
                 )
             except (TypeError, ValueError):  # a pole at this point: try another
                 continue
@@ -742,12 +827,15 @@ class _Reader:
             if key in dependent:
                 raise self.error(
                     f"{key} is the velocity of a dependent coordinate: it follows from the constraints",
-                    where, allowed=allowed,
+                    where,
+                    allowed=allowed,
                 )
             if key not in coords and key not in independent:
                 raise self.error(_unknown(key, coords + independent, "[initial]"), where, allowed=allowed)
-        return {key: (self.number(table[key], _key("initial", key)) if key in table else 0.0)
-                for key in coords + independent}
+        return {
+            key: (self.number(table[key], _key("initial", key)) if key in table else 0.0)
+            for key in coords + independent
+        }
 
 
 _SECTION_HELP = {
@@ -756,14 +844,16 @@ _SECTION_HELP = {
     "parameters": "[parameters] gives every parameter a default value: m = 1.0.",
     "energy": "[energy] has T (kinetic energy, required) and either V (potential energy) or U "
     "(force function, U = -V).",
-    "forces": "[forces] gives generalized forces by coordinate: phi = \"-c*phi'\".",
-    "constraints": "[constraints] has either solved constraints, \"y'\" = \"tan(phi)*x'\" (one per dependent "
-    "velocity), or implicit = [\"sin(phi)*x' - cos(phi)*y'\"] (each = 0) with dependent = [\"y\"].",
-    "initial": "[initial] gives coordinates and independent velocities: theta = 1.0, \"theta'\" = 0.4.",
-    "body": "[body] has shape = " + " | ".join(map(json.dumps, BODY_SHAPES)) + " with its keys ("
+    "forces": '[forces] gives generalized forces by coordinate: phi = "-c*phi\'".',
+    "constraints": '[constraints] has either solved constraints, "y\'" = "tan(phi)*x\'" (one per dependent '
+    'velocity), or implicit = ["sin(phi)*x\' - cos(phi)*y\'"] (each = 0) with dependent = ["y"].',
+    "initial": '[initial] gives coordinates and independent velocities: theta = 1.0, "theta\'" = 0.4.',
+    "body": "[body] has shape = "
+    + " | ".join(map(json.dumps, BODY_SHAPES))
+    + " with its keys ("
     + "; ".join(f"{k}: {', '.join(v[1])}" for k, v in BODY_SHAPES.items())
     + "), mass, inertia = [A, B, C] or a 3 x 3 list, and optionally center_of_mass = [x, y, z], "
-    "angles = \"cardan\" | \"edge\" | \"euler\" and g (default: the parameter g).",
+    'angles = "cardan" | "edge" | "euler" and g (default: the parameter g).',
 }
 
 
@@ -783,9 +873,20 @@ def _describe(value: Any) -> str:
 
 # ---------------------------------------------------------------------------- writing
 _PRINTED_FUNCTIONS: dict[type, str] = {
-    sp.sin: "sin", sp.cos: "cos", sp.tan: "tan", sp.asin: "asin", sp.acos: "acos", sp.atan: "atan",
-    sp.atan2: "atan2", sp.sinh: "sinh", sp.cosh: "cosh", sp.tanh: "tanh", sp.exp: "exp", sp.log: "log",
-    sp.Abs: "abs", sp.sign: "sign",
+    sp.sin: "sin",
+    sp.cos: "cos",
+    sp.tan: "tan",
+    sp.asin: "asin",
+    sp.acos: "acos",
+    sp.atan: "atan",
+    sp.atan2: "atan2",
+    sp.sinh: "sinh",
+    sp.cosh: "cosh",
+    sp.tanh: "tanh",
+    sp.exp: "exp",
+    sp.log: "log",
+    sp.Abs: "abs",
+    sp.sign: "sign",
 }
 
 
@@ -837,7 +938,8 @@ class _Writer:
             if isinstance(node, sp.Symbol):
                 if node.name in RESERVED or node.name in self.coordinates:
                     raise self.fail(
-                        f"the parameter {node.name} has the name of a coordinate, of time or of a constant", what
+                        f"the parameter {node.name} has the name of a coordinate, of time or of a constant",
+                        what,
                     )
                 try:
                     check_name(node.name, "the parameter name")
@@ -933,7 +1035,7 @@ def dumps(
     bad = next((c for c in name if not c.isprintable() or c in '"\\'), None)
     if bad is not None or len(name) > MAX_SYSTEM_NAME_LENGTH or not name.strip():
         raise w.fail(
-            f"the name {name!r} must be at most {MAX_SYSTEM_NAME_LENGTH} printable characters without \" or \\",
+            f'the name {name!r} must be at most {MAX_SYSTEM_NAME_LENGTH} printable characters without " or \\',
             "the name",
         )
     pnames = [p.name for p in system.parameters]
@@ -958,9 +1060,15 @@ def dumps(
             else:
                 out.append(f"{_toml_key(p)} = 1.0  # no value was given")
 
-    out += ["", "[energy]", f"T = {_toml_string(w.expression(system.kinetic_energy, 'the kinetic energy T', names))}"]
+    out += [
+        "",
+        "[energy]",
+        f"T = {_toml_string(w.expression(system.kinetic_energy, 'the kinetic energy T', names))}",
+    ]
     if system.potential_energy is not None:
-        out.append(f"V = {_toml_string(w.expression(system.potential_energy, 'the potential energy V', names))}")
+        out.append(
+            f"V = {_toml_string(w.expression(system.potential_energy, 'the potential energy V', names))}"
+        )
     elif system.force_function != 0:
         out.append(f"U = {_toml_string(w.expression(system.force_function, 'the force function U', names))}")
 
@@ -983,7 +1091,9 @@ def dumps(
             out.append("implicit = [")
             out += [f"    {_toml_string(e)}," for e in exprs]
             out.append("]")
-            out.append("dependent = [" + ", ".join(_toml_string(q.func.__name__) for q in system.dependent) + "]")
+            out.append(
+                "dependent = [" + ", ".join(_toml_string(q.func.__name__) for q in system.dependent) + "]"
+            )
 
     if initial is not None:
         independent = [q.func.__name__ + "'" for q in system.independent]
@@ -996,7 +1106,8 @@ def dumps(
             if k not in coords and k not in independent:
                 raise w.fail(
                     f"{k} is neither a coordinate nor an independent velocity "
-                    f"({', '.join(coords + independent)})", "[initial]",
+                    f"({', '.join(coords + independent)})",
+                    "[initial]",
                 )
             given[k] = float(value)
         out += ["", "[initial]"]
@@ -1006,4 +1117,3 @@ def dumps(
             if k in given
         ]
     return "\n".join(out) + "\n"
-

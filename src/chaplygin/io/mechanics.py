@@ -65,9 +65,7 @@ def _generalized_forces(
         elif isinstance(where, ReferenceFrame):
             velocity = where.ang_vel_in(frame)
         else:
-            raise SystemDefinitionError(
-                f"loads[{k}]: {where!r} is neither a Point nor a ReferenceFrame."
-            )
+            raise SystemDefinitionError(f"loads[{k}]: {where!r} is neither a Point nor a ReferenceFrame.")
         for q, qd in zip(coordinates, speeds):
             term = vector.dot(velocity.diff(qd, frame))
             if term != 0:
@@ -126,6 +124,12 @@ def from_mechanics(
         )
     forces = _generalized_forces(loads, frame, coords)
     return System(
-        coords, sp.expand(T), exprs, dependent=dependent, potential_energy=potential_energy,
-        force_function=force_function, forces=forces or None, name=name,
+        coords,
+        sp.expand(T),
+        exprs,
+        dependent=dependent,
+        potential_energy=potential_energy,
+        force_function=force_function,
+        forces=forces or None,
+        name=name,
     )

@@ -100,13 +100,37 @@ MAX_NAME_LENGTH = 64
 
 #: The functions an expression may call, with their number of arguments.
 FUNCTIONS: dict[str, int] = {
-    "sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan": 1, "atan2": 2,
-    "sinh": 1, "cosh": 1, "tanh": 1, "exp": 1, "log": 1, "sqrt": 1, "abs": 1, "sign": 1,
+    "sin": 1,
+    "cos": 1,
+    "tan": 1,
+    "asin": 1,
+    "acos": 1,
+    "atan": 1,
+    "atan2": 2,
+    "sinh": 1,
+    "cosh": 1,
+    "tanh": 1,
+    "exp": 1,
+    "log": 1,
+    "sqrt": 1,
+    "abs": 1,
+    "sign": 1,
 }
 _SYMPY_FUNCTIONS: dict[str, Callable[..., sp.Expr]] = {
-    "sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "asin": sp.asin, "acos": sp.acos,
-    "atan": sp.atan, "atan2": sp.atan2, "sinh": sp.sinh, "cosh": sp.cosh, "tanh": sp.tanh,
-    "exp": sp.exp, "log": sp.log, "abs": sp.Abs, "sign": sp.sign,
+    "sin": sp.sin,
+    "cos": sp.cos,
+    "tan": sp.tan,
+    "asin": sp.asin,
+    "acos": sp.acos,
+    "atan": sp.atan,
+    "atan2": sp.atan2,
+    "sinh": sp.sinh,
+    "cosh": sp.cosh,
+    "tanh": sp.tanh,
+    "exp": sp.exp,
+    "log": sp.log,
+    "abs": sp.Abs,
+    "sign": sp.sign,
 }
 _HYPERBOLIC = frozenset({"sinh", "cosh", "tanh"})
 #: Named constants.
@@ -193,8 +217,12 @@ class SystemFileError(ChaplyginError, ValueError):
 
     def _fields(self) -> dict[str, Any]:
         return {
-            "source": self.source, "key": self.key, "text": self.text, "column": self.column,
-            "line": self.line, "allowed": self.allowed,
+            "source": self.source,
+            "key": self.key,
+            "text": self.text,
+            "column": self.column,
+            "line": self.line,
+            "allowed": self.allowed,
         }
 
     def located(self, **where: Any) -> SystemFileError:
@@ -208,7 +236,9 @@ class SystemFileError(ChaplyginError, ValueError):
         if self.source:
             head.append(self.source)
         if self.line is not None:
-            head.append(f"line {self.line}" + (f", column {self.column + 1}" if self.column is not None else ""))
+            head.append(
+                f"line {self.line}" + (f", column {self.column + 1}" if self.column is not None else "")
+            )
         if self.key:
             head.append(self.key)
         lines = [": ".join([*head, self.reason])]
@@ -324,9 +354,7 @@ class Names:
             parts.append("parameters " + ", ".join(self.parameters))
         if self.coordinates:
             first = next(iter(self.coordinates))
-            parts.append(
-                "coordinates " + ", ".join(self.coordinates) + f" (and velocities such as {first}')"
-            )
+            parts.append("coordinates " + ", ".join(self.coordinates) + f" (and velocities such as {first}')")
         if self.time:
             parts.append("time t")
         parts.append("constants " + ", ".join(CONSTANTS))
@@ -410,8 +438,10 @@ class _Parser:
                 tokens.append(_Token(kind, m.group(), pos))
                 if len(tokens) > MAX_TOKENS:
                     raise self.error(
-                        f"the expression has more than {MAX_TOKENS} tokens", pos,
-                        f"Limit: {MAX_TOKENS} numbers, names and operators per expression.", "limit",
+                        f"the expression has more than {MAX_TOKENS} tokens",
+                        pos,
+                        f"Limit: {MAX_TOKENS} numbers, names and operators per expression.",
+                        "limit",
                     )
             pos = m.end()
         tokens.append(_Token("end", "", n))
@@ -469,8 +499,10 @@ class _Parser:
         self.depth += 1
         if self.depth > MAX_DEPTH:
             raise self.error(
-                f"the expression is nested more than {MAX_DEPTH} levels deep", pos,
-                f"Limit: {MAX_DEPTH} levels of parentheses, function calls, signs and powers.", "limit",
+                f"the expression is nested more than {MAX_DEPTH} levels deep",
+                pos,
+                f"Limit: {MAX_DEPTH} levels of parentheses, function calls, signs and powers.",
+                "limit",
             )
 
     def leave(self) -> None:
@@ -479,12 +511,16 @@ class _Parser:
     def check_defined(self, value: sp.Expr, pos: int) -> sp.Expr:
         if value.is_number and value.has(*_UNDEFINED):
             raise self.error(
-                "the expression is undefined here (a division by zero or a singular function value)", pos,
-                None, "value",
+                "the expression is undefined here (a division by zero or a singular function value)",
+                pos,
+                None,
+                "value",
             )
         if value.is_Rational:
             if _bits(value) > MAX_NUMBER_BITS:
-                raise self.error(f"a number with more than {MAX_NUMBER_BITS} bits", pos, _NUMBER_LIMITS, "limit")
+                raise self.error(
+                    f"a number with more than {MAX_NUMBER_BITS} bits", pos, _NUMBER_LIMITS, "limit"
+                )
             return value
         # Every constant is bounded as it is built, so that no evaluation by SymPy (which may happen
         # while building a later node) works at a precision as large as a constant's exponent.
@@ -503,26 +539,37 @@ class _Parser:
         value = constant.evalf(15)
         size = max((mpmath.mag(mpmath.mpf(f)) for f in value.atoms(sp.Float) if f != 0), default=0)
         real, imag = value.as_real_imag()
-        if imag.is_Float and imag != 0 and (
-            not real.is_Float or real == 0 or mpmath.mag(mpmath.mpf(imag)) > mpmath.mag(mpmath.mpf(real)) - 40
+        if (
+            imag.is_Float
+            and imag != 0
+            and (
+                not real.is_Float
+                or real == 0
+                or mpmath.mag(mpmath.mpf(imag)) > mpmath.mag(mpmath.mpf(real)) - 40
+            )
         ):
             raise self.error(
-                f"this constant is not a finite real number (it is about {sp.sstr(value)[:60]})", pos,
+                f"this constant is not a finite real number (it is about {sp.sstr(value)[:60]})",
+                pos,
                 "Constants must be real: no square roots or logarithms of negative numbers, "
-                "asin/acos only on [-1, 1].", "value",
+                "asin/acos only on [-1, 1].",
+                "value",
             )
         if size > MAX_NUMBER_BITS:
             digits = size * 30103 // 100000  # log10(2) = 0.30103
             shown = f"about 10^{digits}" if digits < 10**9 else f"more than 10^(10^{len(str(digits)) - 1})"
             raise self.error(
-                f"this constant is {shown} in size (limit 2^{MAX_NUMBER_BITS}, about 10^1233)", pos,
-                _NUMBER_LIMITS, "limit",
+                f"this constant is {shown} in size (limit 2^{MAX_NUMBER_BITS}, about 10^1233)",
+                pos,
+                _NUMBER_LIMITS,
+                "limit",
             )
 
     def check_terms(self, terms: int, pos: int) -> int:
         if terms > MAX_EXPANDED_TERMS:
             raise self.error(
-                f"this expression would expand to more than {MAX_EXPANDED_TERMS} terms", pos,
+                f"this expression would expand to more than {MAX_EXPANDED_TERMS} terms",
+                pos,
                 f"Limit: the full expansion of an expression may have at most {MAX_EXPANDED_TERMS} terms.",
                 "limit",
             )
@@ -559,7 +606,9 @@ class _Parser:
                     if groups[rest] > MAX_NUMBER_BITS:
                         raise self.error(
                             f"the numbers in this sum add up to more than {MAX_NUMBER_BITS} bits",
-                            first.pos, _NUMBER_LIMITS, "limit",
+                            first.pos,
+                            _NUMBER_LIMITS,
+                            "limit",
                         )
         count = self.check_terms(sum(v.terms for v in terms), first.pos)
         return _Value(self.check_defined(sp.Add(*exprs), first.pos), count, first.pos)
@@ -582,8 +631,10 @@ class _Parser:
             radical += q
         if rational > MAX_NUMBER_BITS or radical > MAX_ROOT_BITS:
             raise self.error(
-                "the numbers in this product are too large to multiply exactly", first.pos,
-                _NUMBER_LIMITS, "limit",
+                "the numbers in this product are too large to multiply exactly",
+                first.pos,
+                _NUMBER_LIMITS,
+                "limit",
             )
         count = 1
         for v in factors:
@@ -643,7 +694,9 @@ class _Parser:
             if tok.kind == "op" and tok.text == ")":
                 return self.error("unmatched ')'", tok.pos)
             if tok.kind == "op" and tok.text == ",":
-                return self.error("',' only separates the arguments of a function such as atan2(y, x)", tok.pos)
+                return self.error(
+                    "',' only separates the arguments of a function such as atan2(y, x)", tok.pos
+                )
             if tok.kind in ("number", "name") or (tok.kind == "op" and tok.text == "("):
                 return self.error(
                     f"missing operator before {tok.text!r} (write * for a product, e.g. 2*x)", tok.pos
@@ -666,15 +719,15 @@ class _Parser:
         if exp is not None:
             if len(exp.lstrip("+-").lstrip("0")) > 4 or abs(int(exp)) > MAX_LITERAL_EXPONENT:
                 raise self.error(
-                    f"the exponent of a number may be at most {MAX_LITERAL_EXPONENT} in size", tok.pos,
-                    _NUMBER_LIMITS, "limit",
+                    f"the exponent of a number may be at most {MAX_LITERAL_EXPONENT} in size",
+                    tok.pos,
+                    _NUMBER_LIMITS,
+                    "limit",
                 )
             e = int(exp)
         shift = e - len(frac)
         mantissa = int(digits or "0")
-        value = (
-            sp.Rational(mantissa * 10**shift) if shift >= 0 else sp.Rational(mantissa, 10**-shift)
-        )
+        value = sp.Rational(mantissa * 10**shift) if shift >= 0 else sp.Rational(mantissa, 10**-shift)
         return self.check_defined(value, tok.pos)
 
     def name(self, tok: _Token) -> _Value:
@@ -686,7 +739,8 @@ class _Parser:
             if prime.pos != end:
                 raise self.error(
                     f"a space before the prime: write {name}{chr(39) * (len(primes) + 1)} with no space "
-                    "between the name and its prime", end,
+                    "between the name and its prime",
+                    end,
                 )
             primes.append(prime)
             end += 1
@@ -698,7 +752,8 @@ class _Parser:
             if len(primes) > 1:
                 raise self.error(
                     f"{name}{chr(39) * len(primes)} is a derivative of order {len(primes)}: only velocities "
-                    f"({name}') may appear, accelerations are not part of a system", primes[1].pos,
+                    f"({name}') may appear, accelerations are not part of a system",
+                    primes[1].pos,
                 )
             if self.velocity_message is not None:
                 raise self.error(self.velocity_message, tok.pos, None, "name")
@@ -715,7 +770,9 @@ class _Parser:
             if what is not None:
                 raise self.error(
                     f"{name} is {what}: only coordinates have velocities ({name}' is not defined)",
-                    primes[0].pos, names.describe(), "name",
+                    primes[0].pos,
+                    names.describe(),
+                    "name",
                 )
         if name in names.parameters:
             return _Value(names.parameters[name], 1, tok.pos)
@@ -742,8 +799,10 @@ class _Parser:
         if name not in FUNCTIONS:
             if name in self.names.parameters or name in self.names.coordinates:
                 raise self.error(
-                    f"{name} is not a function: write {name}*(...) for a product", open_.pos,
-                    self.names.describe(), "name",
+                    f"{name} is not a function: write {name}*(...) for a product",
+                    open_.pos,
+                    self.names.describe(),
+                    "name",
                 )
             reason = f"unknown function {name!r}"
             close = difflib.get_close_matches(name, list(FUNCTIONS), n=1)
@@ -758,7 +817,8 @@ class _Parser:
                 comma = self.take()
                 if self.at(")"):
                     raise self.error(
-                        f"a trailing comma after the last argument of {name}: remove the ','", comma.pos,
+                        f"a trailing comma after the last argument of {name}: remove the ','",
+                        comma.pos,
                         "Arguments are separated by commas, with none after the last: atan2(y, x).",
                     )
                 args.append(self.expression())
@@ -773,7 +833,8 @@ class _Parser:
         if len(args) != arity:
             usage = "atan2(y, x)" if name == "atan2" else f"{name}(x)"
             raise self.error(
-                f"{name} takes {arity} argument{'s' if arity > 1 else ''}, got {len(args)}", tok.pos,
+                f"{name} takes {arity} argument{'s' if arity > 1 else ''}, got {len(args)}",
+                tok.pos,
                 f"Write {usage}.",
             )
         if name == "sqrt":
@@ -796,7 +857,8 @@ class _Parser:
         if cost > MAX_HYPERBOLIC_TERMS:
             raise self.error(
                 f"the argument of {name} is too large for SymPy: split into real and imaginary parts it "
-                f"would expand to more than {MAX_HYPERBOLIC_TERMS} terms", pos,
+                f"would expand to more than {MAX_HYPERBOLIC_TERMS} terms",
+                pos,
                 f"Limit: the argument of sinh, cosh or tanh may expand to at most {MAX_HYPERBOLIC_TERMS} "
                 "terms, counting each coordinate, velocity and t as two (its real and imaginary parts).",
                 "limit",
@@ -828,7 +890,10 @@ class _Parser:
             if size > MAX_EXPONENT or denominator > MAX_EXPONENT:
                 raise self.error(
                     f"the exponent is too large (at most {MAX_EXPONENT} in size, with a denominator of "
-                    f"at most {MAX_EXPONENT})", pos, _POWER_LIMITS, "limit",
+                    f"at most {MAX_EXPONENT})",
+                    pos,
+                    _POWER_LIMITS,
+                    "limit",
                 )
             if const.is_Rational:
                 rational, radical = _numeric_factor_bits(b)
@@ -837,13 +902,19 @@ class _Parser:
                 if numeric * whole > MAX_NUMBER_BITS:
                     raise self.error(
                         f"this power would compute a number of about {math.ceil(numeric * whole)} bits "
-                        f"(limit {MAX_NUMBER_BITS})", pos, _POWER_LIMITS, "limit",
+                        f"(limit {MAX_NUMBER_BITS})",
+                        pos,
+                        _POWER_LIMITS,
+                        "limit",
                     )
                 if denominator > 1 and numeric * denominator > MAX_ROOT_BITS:
                     raise self.error(
                         "this power would take an exact root of a large number "
                         f"({math.ceil(numeric)} bits, degree {denominator}; limit {MAX_ROOT_BITS} "
-                        "bits × degree)", pos, _POWER_LIMITS, "limit",
+                        "bits × degree)",
+                        pos,
+                        _POWER_LIMITS,
+                        "limit",
                     )
                 if e.is_number and base.terms > 1 and whole >= 1:
                     expanded = _multinomial(base.terms, whole)
@@ -942,8 +1013,11 @@ def _internal(exc: BaseException, text: str, column: int) -> ParseError:
     detail = str(exc).splitlines()[0][:200] if str(exc) else ""
     return ParseError(
         f"SymPy could not build or evaluate this expression ({type(exc).__name__}"
-        + (f": {detail}" if detail else "") + ")",
-        text=text, column=column, kind="internal",
+        + (f": {detail}" if detail else "")
+        + ")",
+        text=text,
+        column=column,
+        kind="internal",
         allowed="This is a limitation of chaplygin; please report it with the expression. "
         "Rewriting the expression (e.g. smaller constants) may avoid it.",
     )
@@ -980,7 +1054,8 @@ def parse_expression(
     if len(text) > MAX_EXPRESSION_LENGTH:
         raise ParseError(
             f"the expression is {len(text)} characters long (limit {MAX_EXPRESSION_LENGTH})",
-            text=text[:80], allowed=f"Limit: {MAX_EXPRESSION_LENGTH} characters per expression.",
+            text=text[:80],
+            allowed=f"Limit: {MAX_EXPRESSION_LENGTH} characters per expression.",
         )
     parser: _Parser | None = None
     with preserved_state():
@@ -1012,7 +1087,10 @@ def parse_constant(text: str) -> float:
             raise _internal(exc, text, 0) from exc
     if value.imag != 0 or not math.isfinite(value.real):
         raise ParseError(
-            f"{text!r} is not a finite real number (it is {value})", text=text, column=0,
-            allowed="Give a real number, e.g. 0.5 or \"pi/4\".", kind="value",
+            f"{text!r} is not a finite real number (it is {value})",
+            text=text,
+            column=0,
+            allowed='Give a real number, e.g. 0.5 or "pi/4".',
+            kind="value",
         )
     return value.real

@@ -58,6 +58,7 @@ def _check(*polys: PolyElement) -> None:
     if any(len(p) > TERMS for p in polys):
         raise TooLarge
 
+
 #: a rational function as (numerator, denominator), not necessarily cancelled
 Fraction = tuple[PolyElement, PolyElement]
 
@@ -161,7 +162,8 @@ class Algebra:
             else:
                 unit, factors = denom.factor_list()
                 self._bottoms[denom] = sp.Rational(int(unit.numerator), int(unit.denominator)) * sp.Mul(
-                    *(self._poly_expr(f) ** k for f, k in factors))
+                    *(self._poly_expr(f) ** k for f, k in factors)
+                )
         return top / self._bottoms[denom]
 
     def _poly_expr(self, p: PolyElement) -> sp.Expr:
@@ -221,7 +223,9 @@ class Algebra:
         # a rough bound of the determinant's size: the product of the rows' largest entries
         estimate = 1
         for i in range(A.shape[0]):
-            entries = [A[i, j].element for j in range(A.shape[1])] + [b[i, j].element for j in range(b.shape[1])]
+            entries = [A[i, j].element for j in range(A.shape[1])] + [
+                b[i, j].element for j in range(b.shape[1])
+            ]
             estimate *= max(1, *map(len, entries))
         if estimate > 20 * TERMS:
             raise TooLarge

@@ -106,10 +106,7 @@ class Equations:
     @cached_property
     def equations(self) -> list[sp.Eq]:
         """The equations of motion, each as ``sympy.Eq(expression, 0)``."""
-        return [
-            sp.Eq(self._user(r), 0, evaluate=False)
-            for r in readable(self._residuals, self._unknowns)
-        ]
+        return [sp.Eq(self._user(r), 0, evaluate=False) for r in readable(self._residuals, self._unknowns)]
 
     @property
     def unknowns(self) -> tuple[sp.Expr, ...]:
@@ -244,7 +241,6 @@ class Equations:
 
     def __repr__(self) -> str:
         return f"<Equations {self.model}/{self.form} of {self.system.name}: {len(self._residuals)} equations>"
-
 
 
 def virtual_displacements(system: System) -> list[sp.Symbol]:

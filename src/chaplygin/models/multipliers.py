@@ -148,9 +148,7 @@ def _solve_by_reduction(
     return dict(zip([*v.xdd, *unknowns], map(alg.to_expr, [*acc, *mult])))
 
 
-def _solve_nested(
-    system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol]
-) -> dict[sp.Symbol, sp.Expr]:
+def _solve_nested(system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol]) -> dict[sp.Symbol, sp.Expr]:
     """The reduction of :func:`_solve_by_reduction` by LU on SymPy expressions, unexpanded.
 
     For systems whose expanded normal forms are too large to read or to cancel
@@ -170,11 +168,12 @@ def _solve_nested(
         }
     projected = system._C.T * dynamic.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep)
     Mr = jacobian(projected, ind_xdd)
-    out: dict[sp.Symbol, sp.Expr] = dict(zip(ind_xdd, Mr.LUsolve(-projected.xreplace({a: 0 for a in ind_xdd}))))
+    out: dict[sp.Symbol, sp.Expr] = dict(
+        zip(ind_xdd, Mr.LUsolve(-projected.xreplace({a: 0 for a in ind_xdd})))
+    )
     out.update({a: e.xreplace(out) for a, e in acc_dep.items()})
     if g:
         rows = sp.Matrix([dynamic[i] for i in dep])
         rest = rows.xreplace({u: 0 for u in unknowns}).xreplace(out)
         out.update(zip(unknowns, jacobian(rows, unknowns).LUsolve(-rest)))
     return {a: out[a] for a in [*v.xdd, *unknowns]}
-

@@ -71,9 +71,7 @@ class Reduction:
     def reduced_force(self, k: int) -> sp.Expr:
         """``Q̃_σ = (Q_σ + Σ_β B_βσ Q_{ε+β})~``."""
         s = self.s
-        q = s._Q[s._ind[k]] + sum(
-            (s._B[b, k] * s._Q[i] for b, i in enumerate(s._dep)), sp.S.Zero
-        )
+        q = s._Q[s._ind[k]] + sum((s._B[b, k] * s._Q[i] for b, i in enumerate(s._dep)), sp.S.Zero)
         return q.xreplace(self.sub)
 
 
@@ -137,9 +135,7 @@ def unreduced_tilde(system: System, r: Reduction) -> list[sp.Expr]:
     rows = [(E[s] - system._Q[s]).xreplace(tilde) for s in range(system.n)]
     out = []
     for k, i in enumerate(system._ind):
-        res = rows[i] + sum(
-            (system._B[b, k] * rows[j] for b, j in enumerate(system._dep)), sp.S.Zero
-        )
+        res = rows[i] + sum((system._B[b, k] * rows[j] for b, j in enumerate(system._dep)), sp.S.Zero)
         out.append(res)
     return out
 

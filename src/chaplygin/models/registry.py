@@ -116,7 +116,9 @@ MODELS: dict[str, Model] = {
         Model(
             "chetaev",
             {"classic": "Chetaev model: Lagrange-d'Alembert equations with multipliers, eq. (6)/(35)"},
-            motion="true", reduced=False, builder="chetaev",
+            motion="true",
+            reduced=False,
+            builder="chetaev",
             glossary="true (rolling) motion: n + g Lagrange–d'Alembert equations with multipliers λ",
         ),
         Model(
@@ -125,8 +127,12 @@ MODELS: dict[str, Model] = {
                 "classic": "Chaplygin's equations, eq. (15)",
                 "new": "Chaplygin's equations in the paper's new form, eq. (40)",
             },
-            motion="true", reduced=True, builder="reduced", requires_chaplygin=True,
-            checked_by="chetaev", fallback="chetaev",
+            motion="true",
+            reduced=True,
+            builder="reduced",
+            requires_chaplygin=True,
+            checked_by="chetaev",
+            fallback="chetaev",
             glossary="true motion reduced to the independent velocities, for Chaplygin systems",
         ),
         Model(
@@ -135,13 +141,20 @@ MODELS: dict[str, Model] = {
                 "classic": "Voronets' equations",
                 "new": "Voronets' equations in the unreduced form of eq. (40), generalised",
             },
-            motion="true", reduced=True, builder="reduced", checked_by="chetaev", fallback="chetaev",
+            motion="true",
+            reduced=True,
+            builder="reduced",
+            checked_by="chetaev",
+            fallback="chetaev",
             glossary="true motion reduced; T, U and the constraints may depend on every coordinate",
         ),
         Model(
             "vakonomic",
             {"classic": "Vakonomic model: equations with multipliers mu, eqs. (17)-(18)"},
-            motion="vakonomic", reduced=False, builder="vakonomic", multipliers_in_state=True,
+            motion="vakonomic",
+            reduced=False,
+            builder="vakonomic",
+            multipliers_in_state=True,
             glossary="variational motion: n + g equations with multipliers μ integrated with the state",
         ),
         Model(
@@ -150,7 +163,11 @@ MODELS: dict[str, Model] = {
                 "classic": "Lindelöf's equations (vakonomic, c = 0), eq. (22)",
                 "new": "Lindelöf's equations in the paper's new form, eq. (39)",
             },
-            motion="vakonomic", reduced=True, builder="family", family=True, checked_by="vakonomic",
+            motion="vakonomic",
+            reduced=True,
+            builder="family",
+            family=True,
+            checked_by="vakonomic",
             glossary="the constraints substituted into T (Lindelöf's error): the vakonomic motion with c = 0",
         ),
         Model(
@@ -159,8 +176,13 @@ MODELS: dict[str, Model] = {
                 "classic": "Reduced vakonomic family with constants c (c = 0: eq. (22))",
                 "new": "Reduced vakonomic family in the form of eq. (39) with constants c",
             },
-            motion="vakonomic", reduced=True, builder="family", family=True, constants=True,
-            checked_by="vakonomic", fallback="vakonomic",
+            motion="vakonomic",
+            reduced=True,
+            builder="family",
+            family=True,
+            constants=True,
+            checked_by="vakonomic",
+            fallback="vakonomic",
             glossary="the vakonomic motions with constants c_β, reduced",
         ),
     )
@@ -182,8 +204,7 @@ def get(name: Any, form: str | None = None, *, constants: Any = None) -> Model:
         raise ModelError(f"unknown model {name!r}; the models are {', '.join(repr(m) for m in MODELS)}.")
     if form is not None and form not in model.titles:
         raise ModelError(
-            f"model {name!r} has no form {form!r}; its forms are "
-            f"{', '.join(repr(f) for f in model.forms)}."
+            f"model {name!r} has no form {form!r}; its forms are {', '.join(repr(f) for f in model.forms)}."
         )
     if constants is not None and not model.constants:
         with_constants = [m.name for m in MODELS.values() if m.constants]

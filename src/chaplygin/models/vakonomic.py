@@ -79,17 +79,20 @@ def vakonomic_equations(system: System) -> Equations:
     reactions = [-(total_derivative(grad[s], pairs) - grad[n + s]) for s in range(n)]
     dynamic = [E[s] - system._Q[s] - reactions[s] for s in range(system.n)]
     return multiplier_equations(
-        system, "vakonomic", dynamic, mu_dot, reactions,
-        multipliers=mu, derivatives=dict(zip(mu, mu_dot)),
+        system,
+        "vakonomic",
+        dynamic,
+        mu_dot,
+        reactions,
+        multipliers=mu,
+        derivatives=dict(zip(mu, mu_dot)),
     )
 
 
 def constant_symbols(system: System) -> list[sp.Symbol]:
     """The constants ``c_1 … c_g`` of the vakonomic family (renamed if a parameter has the name)."""
     taken = {p.name for p in system.parameters}
-    return [
-        sp.Symbol(f"c_{b + 1}" + ("_" if f"c_{b + 1}" in taken else "")) for b in range(system.g)
-    ]
+    return [sp.Symbol(f"c_{b + 1}" + ("_" if f"c_{b + 1}" in taken else "")) for b in range(system.g)]
 
 
 def _constants(system: System, constants: Any) -> list[sp.Expr]:
@@ -104,16 +107,12 @@ def _constants(system: System, constants: Any) -> list[sp.Expr]:
             names = [s.name for s in symbols]
             k = key - 1 if isinstance(key, int) else names.index(str(key)) if str(key) in names else None
             if k is None or not 0 <= k < system.g:
-                raise ModelError(
-                    f"constants: unknown key {key!r}; use {', '.join(names)} or 1…{system.g}."
-                )
+                raise ModelError(f"constants: unknown key {key!r}; use {', '.join(names)} or 1…{system.g}.")
             values[k] = value if isinstance(value, sp.Basic) else sp.nsimplify(value)
         return values
     if isinstance(constants, Sequence) and not isinstance(constants, str):
         if len(constants) != system.g:
-            raise ModelError(
-                f"constants: {len(constants)} value(s) given for {system.g} constraint(s)."
-            )
+            raise ModelError(f"constants: {len(constants)} value(s) given for {system.g} constraint(s).")
         return [c if isinstance(c, sp.Basic) else sp.nsimplify(c) for c in constants]
     raise ModelError(
         "constants: give a mapping {'c_1': value, ...}, a sequence of g values, or None for symbols."

@@ -174,8 +174,13 @@ def _compile(source: str, cmd: list[str], directory: Path, so: Path, record: Pat
             fh.write(source)
         out = os.path.join(tmp, "kernel.so")
         try:
-            run = subprocess.run([cmd[0], *FLAGS, *cmd[1:], c_file, "-o", out, "-lm"], capture_output=True,
-                                 text=True, timeout=600, check=False)
+            run = subprocess.run(
+                [cmd[0], *FLAGS, *cmd[1:], c_file, "-o", out, "-lm"],
+                capture_output=True,
+                text=True,
+                timeout=600,
+                check=False,
+            )
         except (OSError, subprocess.TimeoutExpired) as exc:
             raise Unavailable(f"the C compiler {cmd[0]!r} could not run: {exc}") from None
         if run.returncode != 0 or not os.path.exists(out):
@@ -240,10 +245,16 @@ def loop_source() -> str:
     """The C source of the DOP853 loop library (tableau from :mod:`chaplygin.numeric._loop`)."""
     from chaplygin.numeric import _loop as tab
 
-    tables = "\n".join([
-        _array("DOP_A", tab._DOP_A), _array("DOP_B", tab._DOP_B), _array("DOP_C", tab._DOP_C),
-        _array("DOP_E3", tab._DOP_E3), _array("DOP_E5", tab._DOP_E5), _array("DOP_D", tab._DOP_D),
-    ])
+    tables = "\n".join(
+        [
+            _array("DOP_A", tab._DOP_A),
+            _array("DOP_B", tab._DOP_B),
+            _array("DOP_C", tab._DOP_C),
+            _array("DOP_E3", tab._DOP_E3),
+            _array("DOP_E5", tab._DOP_E5),
+            _array("DOP_D", tab._DOP_D),
+        ]
+    )
     return _LOOP_C.replace("@TABLES@", tables)
 
 
@@ -543,8 +554,29 @@ def loop() -> _Loop:
     if not _LOOP:
         digest, lib = _open(loop_source(), "dop853")
         dop = getattr(lib, f"chaplygin_dop853_{digest}")
-        dop.argtypes = [_PTR, _I, _I, _I, _I, _DBL, _DBL, _D, _D, _D, _LONG, _DBL, _D, _DBL, _DBL, _LONG,
-                        _D, _L, _D, _D, _D]
+        dop.argtypes = [
+            _PTR,
+            _I,
+            _I,
+            _I,
+            _I,
+            _DBL,
+            _DBL,
+            _D,
+            _D,
+            _D,
+            _LONG,
+            _DBL,
+            _D,
+            _DBL,
+            _DBL,
+            _LONG,
+            _D,
+            _L,
+            _D,
+            _D,
+            _D,
+        ]
         obs = getattr(lib, f"chaplygin_observe_{digest}")
         obs.argtypes = [_PTR, _I, _I, _I, _I, _I, _LONG, _D, _D, _D, _D]
         rhs = getattr(lib, f"chaplygin_rhs_{digest}")
@@ -609,11 +641,24 @@ class CKernel:
         p = np.ascontiguousarray(p, dtype=float)
         rows = np.empty((len(ts), self.N_OBSERVED))
         if len(ts):
-            self._loop.observe(*self._shape(), ys.shape[1], self.n_react, len(ts), _p(ts), _p(ys), _p(p), _p(rows))
+            self._loop.observe(
+                *self._shape(), ys.shape[1], self.n_react, len(ts), _p(ts), _p(ys), _p(p), _p(rows)
+            )
         return rows
 
-    def integrate(self, t0: float, t1: float, y0: np.ndarray, p: np.ndarray, times: np.ndarray, rtol: float,
-                  atol: np.ndarray, max_step: float, first_step: float, max_steps: int) -> LoopOutput:
+    def integrate(
+        self,
+        t0: float,
+        t1: float,
+        y0: np.ndarray,
+        p: np.ndarray,
+        times: np.ndarray,
+        rtol: float,
+        atol: np.ndarray,
+        max_step: float,
+        first_step: float,
+        max_steps: int,
+    ) -> LoopOutput:
         """The C DOP853 loop from ``(t0, y0)`` to ``t1`` sampled at ``times`` (arguments validated by the caller)."""
         y0 = np.ascontiguousarray(y0, dtype=float)
         p = np.ascontiguousarray(p, dtype=float)
@@ -624,10 +669,39 @@ class CKernel:
         info = np.zeros(4, dtype=np.int64)
         dinfo = np.zeros(2)
         y_last, y_fail = np.empty(n), np.empty(n)
-        if self._loop.dop853(*self._shape(), n, float(t0), float(t1), _p(y0), _p(p), _p(times), times.size,
-                             float(rtol), _p(atol), float(max_step), float(first_step), int(max_steps),
-                             _p(out), info.ctypes.data_as(_L), _p(dinfo), _p(y_last), _p(y_fail)) != 0:
+        if (
+            self._loop.dop853(
+                *self._shape(),
+                n,
+                float(t0),
+                float(t1),
+                _p(y0),
+                _p(p),
+                _p(times),
+                times.size,
+                float(rtol),
+                _p(atol),
+                float(max_step),
+                float(first_step),
+                int(max_steps),
+                _p(out),
+                info.ctypes.data_as(_L),
+                _p(dinfo),
+                _p(y_last),
+                _p(y_fail),
+            )
+            != 0
+        ):
             raise MemoryError("the C loop could not allocate its work space")
         filled = int(info[0])
-        return LoopOutput(out[:filled], filled, int(info[1]), float(dinfo[0]), y_last, int(info[2]),
-                          int(info[3]), float(dinfo[1]), y_fail)
+        return LoopOutput(
+            out[:filled],
+            filled,
+            int(info[1]),
+            float(dinfo[0]),
+            y_last,
+            int(info[2]),
+            int(info[3]),
+            float(dinfo[1]),
+            y_fail,
+        )

@@ -67,8 +67,15 @@ def _kind(tr: Trajectory, name: str) -> str:
 
 
 def _attributes(tr: Trajectory) -> dict[str, Any]:
-    return {"model": tr.model, "form": tr.form, "backend": tr.backend, "status": tr.status,
-            "message": tr.message, "failure": tr.failure, "rhs_evaluations": int(tr.rhs_evaluations)}
+    return {
+        "model": tr.model,
+        "form": tr.form,
+        "backend": tr.backend,
+        "status": tr.status,
+        "message": tr.message,
+        "failure": tr.failure,
+        "rhs_evaluations": int(tr.rhs_evaluations),
+    }
 
 
 # ------------------------------------------------------------------ one trajectory
@@ -76,8 +83,11 @@ def trajectory_frame(tr: Trajectory) -> pd.DataFrame:
     """One row per sample, indexed by ``t``; the columns of :attr:`Trajectory.columns` after ``t``."""
     pd = require("pandas", "Trajectory.to_pandas()")
     names = tr.columns[1:]
-    frame = pd.DataFrame({name: np.asarray(tr[name], dtype=float) for name in names},
-                         index=pd.Index(np.asarray(tr.t, dtype=float), name="t"), columns=names)
+    frame = pd.DataFrame(
+        {name: np.asarray(tr[name], dtype=float) for name in names},
+        index=pd.Index(np.asarray(tr.t, dtype=float), name="t"),
+        columns=names,
+    )
     frame.attrs.update(_attributes(tr), parameters=dict(tr.parameters))
     return frame
 
@@ -85,8 +95,9 @@ def trajectory_frame(tr: Trajectory) -> pd.DataFrame:
 def trajectory_dataset(tr: Trajectory) -> xr.Dataset:
     """Coordinate ``t``, one variable per column (attribute ``kind``), the run's attributes."""
     xr = require("xarray", "Trajectory.to_xarray()")
-    variables = {name: ("t", np.asarray(tr[name], dtype=float), {"kind": _kind(tr, name)})
-                 for name in tr.columns[1:]}
+    variables = {
+        name: ("t", np.asarray(tr[name], dtype=float), {"kind": _kind(tr, name)}) for name in tr.columns[1:]
+    }
     attrs = _attributes(tr) | {f"param.{k}": float(v) for k, v in tr.parameters.items()}
     return xr.Dataset(variables, coords={"t": np.asarray(tr.t, dtype=float)}, attrs=attrs)
 
@@ -95,12 +106,16 @@ def trajectory_dataset(tr: Trajectory) -> xr.Dataset:
 def _ensemble_columns(ens: Ensemble) -> dict[str, np.ndarray]:
     """One value per member, named like the sweep's columns."""
     layout = ens.layout
-    columns: dict[str, np.ndarray] = {f"param.{k}": np.asarray(v, dtype=float) for k, v in ens.parameters.items()}
+    columns: dict[str, np.ndarray] = {
+        f"param.{k}": np.asarray(v, dtype=float) for k, v in ens.parameters.items()
+    }
     columns["status"] = np.asarray(ens.status, dtype=object)
     columns["message"] = np.asarray(ens.messages, dtype=object)
     columns["t_reached"] = np.asarray(ens.t, dtype=float)
     columns.update({f"final.{q}": np.asarray(ens.coordinates[q], dtype=float) for q in layout.coordinates})
-    columns.update({f"final.{q}'": np.asarray(ens.velocities[q + "'"], dtype=float) for q in layout.coordinates})
+    columns.update(
+        {f"final.{q}'": np.asarray(ens.velocities[q + "'"], dtype=float) for q in layout.coordinates}
+    )
     columns.update({f"final.{m}": ens.y[:, layout.state.index(m)] for m in layout.multipliers})
     columns["energy_initial"] = np.asarray(ens.energy_initial, dtype=float)
     columns["energy_final"] = np.asarray(ens.energy, dtype=float)
@@ -111,8 +126,14 @@ def _ensemble_columns(ens: Ensemble) -> dict[str, np.ndarray]:
 
 
 def _ensemble_attributes(ens: Ensemble) -> dict[str, Any]:
-    return {"model": ens.model, "form": ens.form, "backend": ens.backend, "members": len(ens),
-            "failed": int(np.count_nonzero(ens.code)), "wall_time": float(ens.wall_time)}
+    return {
+        "model": ens.model,
+        "form": ens.form,
+        "backend": ens.backend,
+        "members": len(ens),
+        "failed": int(np.count_nonzero(ens.code)),
+        "wall_time": float(ens.wall_time),
+    }
 
 
 def ensemble_frame(ens: Ensemble) -> pd.DataFrame:
@@ -137,8 +158,22 @@ def ensemble_dataset(ens: Ensemble) -> xr.Dataset:
 
 # ------------------------------------------------------------------ sweeps
 def _sweep_attributes(meta: dict[str, Any]) -> dict[str, Any]:
-    attrs: dict[str, Any] = {key: meta[key] for key in ("system", "source", "model", "form", "backend", "t_end",
-                                                        "samples", "rtol", "atol", "runs") if key in meta}
+    attrs: dict[str, Any] = {
+        key: meta[key]
+        for key in (
+            "system",
+            "source",
+            "model",
+            "form",
+            "backend",
+            "t_end",
+            "samples",
+            "rtol",
+            "atol",
+            "runs",
+        )
+        if key in meta
+    }
     attrs.update({f"param.{k}": float(v) for k, v in meta.get("parameters", {}).items()})
     attrs.update({f"initial.{k}": float(v) for k, v in meta.get("initial", {}).items()})
     return attrs
@@ -193,7 +228,9 @@ def path_coordinates(tr: Trajectory, path: tuple[str, str] | None) -> tuple[str,
     names = list(tr.coordinates)
     if path is not None:
         if len(path) != 2 or any(c not in names for c in path):
-            raise ChaplyginError(f"path={path!r}: give two coordinates of this trajectory ({', '.join(names)}).")
+            raise ChaplyginError(
+                f"path={path!r}: give two coordinates of this trajectory ({', '.join(names)})."
+            )
         return path[0], path[1]
     if "x" in names and "y" in names:
         return "x", "y"
@@ -203,8 +240,9 @@ def path_coordinates(tr: Trajectory, path: tuple[str, str] | None) -> tuple[str,
     )
 
 
-def plot_trajectory(tr: Trajectory, what: str, ax: Axes | None, path: tuple[str, str] | None,
-                    **kwargs: Any) -> Axes:
+def plot_trajectory(
+    tr: Trajectory, what: str, ax: Axes | None, path: tuple[str, str] | None, **kwargs: Any
+) -> Axes:
     """See :meth:`Trajectory.plot`."""
     if what not in PLOTS:
         raise ChaplyginError(f"what={what!r}: choose one of {', '.join(map(repr, PLOTS))}.")

@@ -91,111 +91,289 @@ STATUS = {
 # Hairer's DOP853 coefficients (the values of SciPy's ``dop853_coefficients``):
 # 12 stages, the derivative at the new point (stage 12), 3 stages for dense output.
 _DOP_C = (
-    0.0, 0.05260015195876773, 0.0789002279381516, 0.1183503419072274, 0.2816496580927726,
-    0.3333333333333333, 0.25, 0.3076923076923077, 0.6512820512820513, 0.6,
-    0.8571428571428571, 1.0, 1.0, 0.1, 0.2, 0.7777777777777778,
+    0.0,
+    0.05260015195876773,
+    0.0789002279381516,
+    0.1183503419072274,
+    0.2816496580927726,
+    0.3333333333333333,
+    0.25,
+    0.3076923076923077,
+    0.6512820512820513,
+    0.6,
+    0.8571428571428571,
+    1.0,
+    1.0,
+    0.1,
+    0.2,
+    0.7777777777777778,
 )
 #: strictly lower-triangular A by rows, stages 1 … 15 (row s has s entries)
 _DOP_A_ROWS = (
+    (0.05260015195876773,),
     (
-        0.05260015195876773,
+        0.0197250569845379,
+        0.0591751709536137,
     ),
     (
-        0.0197250569845379, 0.0591751709536137,
+        0.02958758547680685,
+        0.0,
+        0.08876275643042054,
     ),
     (
-        0.02958758547680685, 0.0, 0.08876275643042054,
+        0.2413651341592667,
+        0.0,
+        -0.8845494793282861,
+        0.924834003261792,
     ),
     (
-        0.2413651341592667, 0.0, -0.8845494793282861, 0.924834003261792,
+        0.037037037037037035,
+        0.0,
+        0.0,
+        0.17082860872947386,
+        0.12546768756682242,
     ),
     (
-        0.037037037037037035, 0.0, 0.0, 0.17082860872947386, 0.12546768756682242,
+        0.037109375,
+        0.0,
+        0.0,
+        0.17025221101954405,
+        0.06021653898045596,
+        -0.017578125,
     ),
     (
-        0.037109375, 0.0, 0.0, 0.17025221101954405, 0.06021653898045596, -0.017578125,
+        0.03709200011850479,
+        0.0,
+        0.0,
+        0.17038392571223998,
+        0.10726203044637328,
+        -0.015319437748624402,
+        0.008273789163814023,
     ),
     (
-        0.03709200011850479, 0.0, 0.0, 0.17038392571223998, 0.10726203044637328,
-        -0.015319437748624402, 0.008273789163814023,
+        0.6241109587160757,
+        0.0,
+        0.0,
+        -3.3608926294469414,
+        -0.868219346841726,
+        27.59209969944671,
+        20.154067550477894,
+        -43.48988418106996,
     ),
     (
-        0.6241109587160757, 0.0, 0.0, -3.3608926294469414, -0.868219346841726,
-        27.59209969944671, 20.154067550477894, -43.48988418106996,
+        0.47766253643826434,
+        0.0,
+        0.0,
+        -2.4881146199716677,
+        -0.590290826836843,
+        21.230051448181193,
+        15.279233632882423,
+        -33.28821096898486,
+        -0.020331201708508627,
     ),
     (
-        0.47766253643826434, 0.0, 0.0, -2.4881146199716677, -0.590290826836843,
-        21.230051448181193, 15.279233632882423, -33.28821096898486, -0.020331201708508627,
-    ),
-    (
-        -0.9371424300859873, 0.0, 0.0, 5.186372428844064, 1.0914373489967295,
-        -8.149787010746927, -18.52006565999696, 22.739487099350505, 2.4936055526796523,
+        -0.9371424300859873,
+        0.0,
+        0.0,
+        5.186372428844064,
+        1.0914373489967295,
+        -8.149787010746927,
+        -18.52006565999696,
+        22.739487099350505,
+        2.4936055526796523,
         -3.0467644718982196,
     ),
     (
-        2.273310147516538, 0.0, 0.0, -10.53449546673725, -2.0008720582248625,
-        -17.9589318631188, 27.94888452941996, -2.8589982771350235, -8.87285693353063,
-        12.360567175794303, 0.6433927460157636,
+        2.273310147516538,
+        0.0,
+        0.0,
+        -10.53449546673725,
+        -2.0008720582248625,
+        -17.9589318631188,
+        27.94888452941996,
+        -2.8589982771350235,
+        -8.87285693353063,
+        12.360567175794303,
+        0.6433927460157636,
     ),
     (
-        0.054293734116568765, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003,
-        -5.801203960010585, 0.3111643669578199, -0.1521609496625161, 0.20136540080403034,
+        0.054293734116568765,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        4.450312892752409,
+        1.8915178993145003,
+        -5.801203960010585,
+        0.3111643669578199,
+        -0.1521609496625161,
+        0.20136540080403034,
         0.04471061572777259,
     ),
     (
-        0.056167502283047954, 0.0, 0.0, 0.0, 0.0, 0.0, 0.25350021021662483,
-        -0.2462390374708025, -0.12419142326381637, 0.15329179827876568, 0.00820105229563469,
-        0.007567897660545699, -0.008298,
+        0.056167502283047954,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.25350021021662483,
+        -0.2462390374708025,
+        -0.12419142326381637,
+        0.15329179827876568,
+        0.00820105229563469,
+        0.007567897660545699,
+        -0.008298,
     ),
     (
-        0.03183464816350214, 0.0, 0.0, 0.0, 0.0, 0.028300909672366776, 0.053541988307438566,
-        -0.05492374857139099, 0.0, 0.0, -0.00010834732869724932, 0.0003825710908356584,
-        -0.00034046500868740456, 0.1413124436746325,
+        0.03183464816350214,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.028300909672366776,
+        0.053541988307438566,
+        -0.05492374857139099,
+        0.0,
+        0.0,
+        -0.00010834732869724932,
+        0.0003825710908356584,
+        -0.00034046500868740456,
+        0.1413124436746325,
     ),
     (
-        -0.42889630158379194, 0.0, 0.0, 0.0, 0.0, -4.697621415361164, 7.683421196062599,
-        4.06898981839711, 0.3567271874552811, 0.0, 0.0, 0.0, -0.0013990241651590145,
-        2.9475147891527724, -9.15095847217987,
+        -0.42889630158379194,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        -4.697621415361164,
+        7.683421196062599,
+        4.06898981839711,
+        0.3567271874552811,
+        0.0,
+        0.0,
+        0.0,
+        -0.0013990241651590145,
+        2.9475147891527724,
+        -9.15095847217987,
     ),
 )
 _DOP_B = (
-    0.054293734116568765, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003,
-    -5.801203960010585, 0.3111643669578199, -0.1521609496625161, 0.20136540080403034,
+    0.054293734116568765,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    4.450312892752409,
+    1.8915178993145003,
+    -5.801203960010585,
+    0.3111643669578199,
+    -0.1521609496625161,
+    0.20136540080403034,
     0.04471061572777259,
 )
 _DOP_E3 = (
-    -0.18980075407240762, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003,
-    -5.801203960010585, -0.4226823213237919, -0.1521609496625161, 0.20136540080403034,
-    0.02265179219836082, 0.0,
+    -0.18980075407240762,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    4.450312892752409,
+    1.8915178993145003,
+    -5.801203960010585,
+    -0.4226823213237919,
+    -0.1521609496625161,
+    0.20136540080403034,
+    0.02265179219836082,
+    0.0,
 )
 _DOP_E5 = (
-    0.01312004499419488, 0.0, 0.0, 0.0, 0.0, -1.2251564463762044, -0.4957589496572502,
-    1.6643771824549864, -0.35032884874997366, 0.3341791187130175, 0.08192320648511571,
-    -0.022355307863886294, 0.0,
+    0.01312004499419488,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    -1.2251564463762044,
+    -0.4957589496572502,
+    1.6643771824549864,
+    -0.35032884874997366,
+    0.3341791187130175,
+    0.08192320648511571,
+    -0.022355307863886294,
+    0.0,
 )
 _DOP_D = (
     (
-        -8.428938276109013, 0.0, 0.0, 0.0, 0.0, 0.5667149535193777, -3.0689499459498917,
-        2.38466765651207, 2.117034582445028, -0.871391583777973, 2.2404374302607883,
-        0.6315787787694688, -0.08899033645133331, 18.148505520854727, -9.194632392478356,
+        -8.428938276109013,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.5667149535193777,
+        -3.0689499459498917,
+        2.38466765651207,
+        2.117034582445028,
+        -0.871391583777973,
+        2.2404374302607883,
+        0.6315787787694688,
+        -0.08899033645133331,
+        18.148505520854727,
+        -9.194632392478356,
         -4.436036387594894,
     ),
     (
-        10.427508642579134, 0.0, 0.0, 0.0, 0.0, 242.28349177525817, 165.20045171727028,
-        -374.5467547226902, -22.113666853125306, 7.733432668472264, -30.674084731089398,
-        -9.332130526430229, 15.697238121770845, -31.139403219565178, -9.35292435884448,
+        10.427508642579134,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        242.28349177525817,
+        165.20045171727028,
+        -374.5467547226902,
+        -22.113666853125306,
+        7.733432668472264,
+        -30.674084731089398,
+        -9.332130526430229,
+        15.697238121770845,
+        -31.139403219565178,
+        -9.35292435884448,
         35.81684148639408,
     ),
     (
-        19.985053242002433, 0.0, 0.0, 0.0, 0.0, -387.0373087493518, -189.17813819516758,
-        527.8081592054236, -11.57390253995963, 6.8812326946963, -1.0006050966910838,
-        0.7777137798053443, -2.778205752353508, -60.19669523126412, 84.32040550667716,
+        19.985053242002433,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        -387.0373087493518,
+        -189.17813819516758,
+        527.8081592054236,
+        -11.57390253995963,
+        6.8812326946963,
+        -1.0006050966910838,
+        0.7777137798053443,
+        -2.778205752353508,
+        -60.19669523126412,
+        84.32040550667716,
         11.99229113618279,
     ),
     (
-        -25.69393346270375, 0.0, 0.0, 0.0, 0.0, -154.18974869023643, -231.5293791760455,
-        357.6391179106141, 93.40532418362432, -37.45832313645163, 104.0996495089623,
-        29.8402934266605, -43.53345659001114, 96.32455395918828, -39.17726167561544,
+        -25.69393346270375,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        -154.18974869023643,
+        -231.5293791760455,
+        357.6391179106141,
+        93.40532418362432,
+        -37.45832313645163,
+        104.0996495089623,
+        29.8402934266605,
+        -43.53345659001114,
+        96.32455395918828,
+        -39.17726167561544,
         -149.72683625798564,
     ),
 )
@@ -304,8 +482,7 @@ def _k_observe(t, y, p, n_react, row, M, b, V, O):  # pragma: no cover - compile
 def _k_observe_new(t, y, p, n_react):  # pragma: no cover - compiled
     """``observe(t, y, p)`` as a new array (for samples taken from Python)."""
     row = np.empty(N_OBSERVED)
-    _k_observe(t, y, p, n_react, row, np.empty((DIM, DIM)), np.empty(DIM), np.empty(N),
-               np.empty(N_OBSERVED))
+    _k_observe(t, y, p, n_react, row, np.empty((DIM, DIM)), np.empty(DIM), np.empty(N), np.empty(N_OBSERVED))
     return row
 
 
@@ -488,7 +665,26 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
     return filled, status, t, y, n_rhs, n_steps, t, y.copy()
 
 
-def _k_batch(t0, t1, Y0, P, t_out, rtol, atol, max_step, max_steps, n_react, out, last, t_last, obs, status, n_rhs, start, stop):  # pragma: no cover
+def _k_batch(
+    t0,
+    t1,
+    Y0,
+    P,
+    t_out,
+    rtol,
+    atol,
+    max_step,
+    max_steps,
+    n_react,
+    out,
+    last,
+    t_last,
+    obs,
+    status,
+    n_rhs,
+    start,
+    stop,
+):  # pragma: no cover
     """``_k_dop853`` for rows ``start … stop-1`` of ``Y0`` (parameters ``P[i]``); releases the GIL."""
     wM = np.empty((DIM, DIM))
     wb = np.empty(DIM)
@@ -549,9 +745,7 @@ def loop_model(compiled: CompiledModel) -> CompiledModel:
     NaN multipliers at a singular mass matrix instead of raising.
     """
     if compiled.backend != "numba":
-        raise ChaplyginError(
-            f"the compiled DOP853 loop needs the 'numba' backend, not {compiled.backend!r}."
-        )
+        raise ChaplyginError(f"the compiled DOP853 loop needs the 'numba' backend, not {compiled.backend!r}.")
     if hasattr(compiled.module, "_k_dop853"):
         return compiled
     source = Path(compiled.module.__file__).read_text(encoding="utf-8")
@@ -585,9 +779,7 @@ def _tolerances(rtol: float, atol: float | np.ndarray, n: int) -> tuple[float, n
     """SciPy's ``validate_tol``: ``rtol`` is raised to ``100·eps``; ``atol`` scalar or ``(n,)``."""
     rtol = float(rtol)
     if rtol < 100 * EPS:
-        warnings.warn(
-            f"rtol = {rtol:g} is below 100·eps; using {100 * EPS:g} (as SciPy does).", stacklevel=3
-        )
+        warnings.warn(f"rtol = {rtol:g} is below 100·eps; using {100 * EPS:g} (as SciPy does).", stacklevel=3)
         rtol = 100 * EPS
     a = np.asarray(atol, dtype=float)
     if a.ndim > 0 and a.shape != (n,):
@@ -597,11 +789,20 @@ def _tolerances(rtol: float, atol: float | np.ndarray, n: int) -> tuple[float, n
     return rtol, np.ascontiguousarray(np.broadcast_to(a, (n,)), dtype=float)
 
 
-def _message(module: ModuleType, code: int, t: float, t_fail: float, y_fail: np.ndarray,
-             p: np.ndarray, max_steps: int, names: tuple[str, ...] = ()) -> str:
+def _message(
+    module: ModuleType,
+    code: int,
+    t: float,
+    t_fail: float,
+    y_fail: np.ndarray,
+    p: np.ndarray,
+    max_steps: int,
+    names: tuple[str, ...] = (),
+) -> str:
     if code == 1:
-        return (f"the integrator stopped at t = {t:.6g}: Required step size is less than "
-                f"spacing between numbers.")
+        return (
+            f"the integrator stopped at t = {t:.6g}: Required step size is less than spacing between numbers."
+        )
     if code == 2:
         return f"the solution blew up (non-finite derivative) at t = {t_fail:.6g}"
     if code == 3:
@@ -614,13 +815,17 @@ def _message(module: ModuleType, code: int, t: float, t_fail: float, y_fail: np.
     if code == 4:
         return f"the integrator stopped at t = {t:.6g}: more than {max_steps} steps"
     if code == 5:
-        return (f"the right-hand side failed at t = {t_fail:.6g}: the mass matrix is singular "
-                f"(M·x = F has no unique solution)")
+        return (
+            f"the right-hand side failed at t = {t_fail:.6g}: the mass matrix is singular "
+            f"(M·x = F has no unique solution)"
+        )
     if code == 9:
-        v = np.asarray(module.observe(t_fail, y_fail, p))[-len(names):] if names else ()
+        v = np.asarray(module.observe(t_fail, y_fail, p))[-len(names) :] if names else ()
         bad = [name + "'" for name, x in zip(names, v) if not math.isfinite(x)] or ["a velocity"]
-        return (f"a pole at t = {t_fail:.6g}: {', '.join(bad)} (solved from the constraints) "
-                f"{'is' if len(bad) == 1 else 'are'} not finite")
+        return (
+            f"a pole at t = {t_fail:.6g}: {', '.join(bad)} (solved from the constraints) "
+            f"{'is' if len(bad) == 1 else 'are'} not finite"
+        )
     return ""
 
 
@@ -676,21 +881,50 @@ def integrate_dop853(
         raise ChaplyginError("max_step must be positive.")
     out = np.empty((times.size, y0.size))
     if model.backend == "c":  # the same loop in C (chaplygin.numeric._ckernel)
-        res = model.module.integrate(t0, t1, y0, p, times, rtol, atol_v, float(max_step),
-                                     float(first_step or 0.0), int(max_steps))
+        res = model.module.integrate(
+            t0, t1, y0, p, times, rtol, atol_v, float(max_step), float(first_step or 0.0), int(max_steps)
+        )
         out, filled, code, t, y, n_rhs, n_steps, t_fail, y_fail = (
-            res.out, res.filled, res.code, res.t, res.y, res.n_rhs, res.n_steps, res.t_fail, res.y_fail)
+            res.out,
+            res.filled,
+            res.code,
+            res.t,
+            res.y,
+            res.n_rhs,
+            res.n_steps,
+            res.t_fail,
+            res.y_fail,
+        )
     else:
         filled, code, t, y, n_rhs, n_steps, t_fail, y_fail = model.module._k_dop853(
-            t0, t1, y0, p, times, rtol, atol_v, float(max_step),
-            float(first_step or 0.0), int(max_steps), out,
+            t0,
+            t1,
+            y0,
+            p,
+            times,
+            rtol,
+            atol_v,
+            float(max_step),
+            float(first_step or 0.0),
+            int(max_steps),
+            out,
         )
     message = _message(model.module, code, t, t_fail, y_fail, p, max_steps, model.layout.coordinates)
     status = "success" if code == 0 else "failed"
     if code == 0:
         message = f"reached t = {t1:g}"
-    return LoopResult(times[:filled], out[:filled], status, message, int(n_rhs), int(code), int(n_steps),
-                      float(t), np.array(y), float(t_fail) if code else math.nan)
+    return LoopResult(
+        times[:filled],
+        out[:filled],
+        status,
+        message,
+        int(n_rhs),
+        int(code),
+        int(n_steps),
+        float(t),
+        np.array(y),
+        float(t_fail) if code else math.nan,
+    )
 
 
 def default_threads() -> int:
@@ -750,8 +984,26 @@ def ensemble_dop853(
     n_react = len(model.layout.reactions)
 
     def run(bound: tuple[int, int]) -> None:
-        kernel(t0, t1, Y0, P, t_out, rtol, atol_v, float(max_step), int(max_steps), n_react,
-               out, last, t_last, obs, code, n_rhs, bound[0], bound[1])
+        kernel(
+            t0,
+            t1,
+            Y0,
+            P,
+            t_out,
+            rtol,
+            atol_v,
+            float(max_step),
+            int(max_steps),
+            n_react,
+            out,
+            last,
+            t_last,
+            obs,
+            code,
+            n_rhs,
+            bound[0],
+            bound[1],
+        )
 
     if workers == 1 or len(bounds) == 1:
         for bound in bounds:

@@ -29,8 +29,23 @@ class NotPrintable(Exception):
     """This printer has no translation of a node; print the expression with SymPy."""
 
 
-_ONE_ARG = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh",
-            "asinh", "acosh", "atanh", "exp", "log", "floor")
+_ONE_ARG = (
+    "sin",
+    "cos",
+    "tan",
+    "asin",
+    "acos",
+    "atan",
+    "sinh",
+    "cosh",
+    "tanh",
+    "asinh",
+    "acosh",
+    "atanh",
+    "exp",
+    "log",
+    "floor",
+)
 #: SymEngine function name → (Python, C)
 _FUNCTIONS: dict[str, tuple[str, str]] = {
     **{name: (f"math.{name}", name) for name in _ONE_ARG},
@@ -152,7 +167,7 @@ def _pow(e: Any, c: bool) -> tuple[str, int]:
     if type(base).__name__ == "Exp1":
         return f"{_FUNCTIONS['exp'][c]}({_print(exp, c)[0]})", _ATOM
     if _negative(exp):
-        return f"{'1.0' if c else '1'}/{_wrap(_print(base ** -exp, c), _MUL)}", _MUL
+        return f"{'1.0' if c else '1'}/{_wrap(_print(base**-exp, c), _MUL)}", _MUL
     if exp == se.S.Half:
         return f"{'sqrt' if c else 'math.sqrt'}({_print(base, c)[0]})", _ATOM
     if c:

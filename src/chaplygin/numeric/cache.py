@@ -164,10 +164,36 @@ def _discard(path: Path) -> bool:
 
 # ====================================================================== expressions as data
 #: operations and functions an expression may be made of, by class name (``Class(*args, evaluate=False)``)
-_OPERATIONS = ("Add", "Mul", "Pow", "Derivative", "Equality",
-               "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "atan2",
-               "sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "exp", "log", "Abs", "sign",
-               "re", "im", "conjugate")
+_OPERATIONS = (
+    "Add",
+    "Mul",
+    "Pow",
+    "Derivative",
+    "Equality",
+    "sin",
+    "cos",
+    "tan",
+    "cot",
+    "sec",
+    "csc",
+    "asin",
+    "acos",
+    "atan",
+    "atan2",
+    "sinh",
+    "cosh",
+    "tanh",
+    "asinh",
+    "acosh",
+    "atanh",
+    "exp",
+    "log",
+    "Abs",
+    "sign",
+    "re",
+    "im",
+    "conjugate",
+)
 #: named constants, by class name
 _CONSTANTS = ("Pi", "Exp1", "ImaginaryUnit")
 
@@ -202,8 +228,12 @@ def expressions_to_data(exprs: Sequence[Any]) -> dict[str, Any] | None:
         elif type(e).__name__ in _CONSTANTS:
             node = ["Constant", type(e).__name__]
         elif isinstance(e, AppliedUndef):
-            node = ["Function", e.func.__name__, dict(getattr(e.func, "_kwargs", {})),
-                    *[visit(a) for a in e.args]]
+            node = [
+                "Function",
+                e.func.__name__,
+                dict(getattr(e.func, "_kwargs", {})),
+                *[visit(a) for a in e.args],
+            ]
         elif isinstance(e, sp.Tuple):
             node = ["Tuple", *[visit(a) for a in e.args]]
         elif type(e).__name__ in _OPERATIONS and type(e) is getattr(sp, type(e).__name__, None):

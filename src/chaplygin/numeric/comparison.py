@@ -119,8 +119,14 @@ class Comparison:
         rows = []
         for label, tr in self.trajectories.items():
             peak, when = self._peak(label)
-            cells = (label, f"{peak:.6g}", f"{when:.4g}", f"{tr.energy_drift():.3g}",
-                     f"{np.max(tr.constraint_residual, initial=0.0):.3g}", tr.status)
+            cells = (
+                label,
+                f"{peak:.6g}",
+                f"{when:.4g}",
+                f"{tr.energy_drift():.3g}",
+                f"{np.max(tr.constraint_residual, initial=0.0):.3g}",
+                tr.status,
+            )
             rows.append([_html.escape(c) for c in cells])
         header = ["model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"]
         text = _html.heading(f"{self.system_name}: models compared with {self.reference}")
@@ -164,11 +170,25 @@ class Comparison:
         else:
             fig = Figure(figsize=(7, 5), layout="constrained")
             top, bottom = fig.subplots(2, 1, sharex=True)
-            drift = [(label, tr.t, np.abs(tr.energy - (e0 := tr.energy[0] if len(tr.energy) else 0.0))
-                      / max(1.0, abs(e0)) + 1e-18) for label, tr in runs]
+            drift = [
+                (
+                    label,
+                    tr.t,
+                    np.abs(tr.energy - (e0 := tr.energy[0] if len(tr.energy) else 0.0)) / max(1.0, abs(e0))
+                    + 1e-18,
+                )
+                for label, tr in runs
+            ]
             _draw(top, drift, legend=True, log=True)
-            _draw(bottom, [(label, tr.t, tr.constraint_residual + 1e-18) for label, tr in runs], legend=False, log=True)
-            top.set(yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: invariants")
+            _draw(
+                bottom,
+                [(label, tr.t, tr.constraint_residual + 1e-18) for label, tr in runs],
+                legend=False,
+                log=True,
+            )
+            top.set(
+                yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: invariants"
+            )
             bottom.set(yscale="log", ylabel="constraint residual", xlabel="t")
         return fig
 
@@ -192,8 +212,9 @@ def _span(values: list[np.ndarray]) -> float:
     return max(float(np.ptp(finite)), 1e-9 * float(np.max(np.abs(finite))))
 
 
-def coincide(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray],
-             spans: tuple[float, float]) -> bool:
+def coincide(
+    a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], spans: tuple[float, float]
+) -> bool:
     """Whether curves ``a`` and ``b`` (x, y) are the same to plotting precision: as many points,
     NaN at the same ones, and nowhere apart by more than :data:`COINCIDE` of ``spans`` (x, y)."""
     if len(a[0]) != len(b[0]) or not len(a[0]):
@@ -208,23 +229,43 @@ def coincide(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray],
     return True
 
 
-def _draw(ax: Any, curves: list[tuple[str, np.ndarray, np.ndarray]], *, legend: bool, log: bool = False) -> None:
+def _draw(
+    ax: Any, curves: list[tuple[str, np.ndarray, np.ndarray]], *, legend: bool, log: bool = False
+) -> None:
     """Draw one curve per model, each in its own style; a curve that coincides with an earlier
     one is labelled ``"label (same as earlier)"``.  A legend when asked or when any coincides."""
+
     def scaled(y: np.ndarray) -> np.ndarray:  # coincidence as seen on a log axis
         y = np.asarray(y, dtype=float)
         return np.log10(np.where(y > 0, y, np.nan)) if log else y
 
-    spans = (_span([np.asarray(x, dtype=float) for _, x, _ in curves]), _span([scaled(y) for _, _, y in curves]))
+    spans = (
+        _span([np.asarray(x, dtype=float) for _, x, _ in curves]),
+        _span([scaled(y) for _, _, y in curves]),
+    )
     any_same = False
     for i, (label, x, y) in enumerate(curves):
-        same = next((curves[j][0] for j in range(i)
-                     if coincide((curves[j][1], scaled(curves[j][2])), (x, scaled(y)), spans)), None)
+        same = next(
+            (
+                curves[j][0]
+                for j in range(i)
+                if coincide((curves[j][1], scaled(curves[j][2])), (x, scaled(y)), spans)
+            ),
+            None,
+        )
         any_same |= same is not None
         linestyle, marker = STYLES[i % len(STYLES)]
         every = max(1, len(x) // 12)
-        ax.plot(x, y, linestyle=linestyle, marker=marker, ms=4, markevery=(i * every // len(curves), every),
-                lw=max(1.0, 2.2 - 0.4 * i), label=label if same is None else f"{label} (same as {same})")
+        ax.plot(
+            x,
+            y,
+            linestyle=linestyle,
+            marker=marker,
+            ms=4,
+            markevery=(i * every // len(curves), every),
+            lw=max(1.0, 2.2 - 0.4 * i),
+            label=label if same is None else f"{label} (same as {same})",
+        )
     if legend or any_same:
         ax.legend(fontsize="small")
 
@@ -278,8 +319,15 @@ def compare(
         Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them).
     """
     options: dict[str, Any] = {
-        "rtol": rtol, "atol": atol, "method": method, "samples": samples, "backend": backend,
-        "constants": constants, "multipliers": multipliers, "max_step": max_step, "step": step,
+        "rtol": rtol,
+        "atol": atol,
+        "method": method,
+        "samples": samples,
+        "backend": backend,
+        "constants": constants,
+        "multipliers": multipliers,
+        "max_step": max_step,
+        "step": step,
         "reduction": reduction,
     }
     if not models:
@@ -295,12 +343,18 @@ def compare(
         if tr.failure == "pole":
             fallback = registry.get(name).fallback
             if fallback is None:
-                note = f"{label} stops at {tr.message.split(';')[0]} (these equations have no multiplier form)"
+                note = (
+                    f"{label} stops at {tr.message.split(';')[0]} (these equations have no multiplier form)"
+                )
             else:
-                note = (f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
-                        f"shown instead: the {fallback} model (the same motion with multipliers, no pole)")
+                note = (
+                    f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
+                    f"shown instead: the {fallback} model (the same motion with multipliers, no pole)"
+                )
                 tr = simulate(system, fallback, t_span, initial, parameters, **options)
             warnings.warn(note, ChaplyginWarning, stacklevel=2)
             notes.append(note)
         trajectories[label] = tr
-    return Comparison(system.name, trajectories, next(iter(trajectories)), path or _default_path(system), notes)
+    return Comparison(
+        system.name, trajectories, next(iter(trajectories)), path or _default_path(system), notes
+    )

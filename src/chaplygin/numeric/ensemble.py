@@ -170,8 +170,7 @@ def _parameter_matrix(
             arr = np.full(n, float(arr))
         if arr.shape != (n,):
             raise ChaplyginError(
-                f"parameters: {name} must be a number or one value per member ({n}), "
-                f"not shape {arr.shape}."
+                f"parameters: {name} must be a number or one value per member ({n}), not shape {arr.shape}."
             )
         columns[name] = arr
     missing = [name for name in layout.parameters if name not in columns]
@@ -180,13 +179,22 @@ def _parameter_matrix(
             f"parameters: no value for {', '.join(missing)}; every parameter of {system.name} "
             f"({', '.join(layout.parameters)}) needs a number or an array."
         )
-    P = np.column_stack([columns[name] for name in layout.parameters]) if layout.parameters else np.zeros((n, 0))
+    P = (
+        np.column_stack([columns[name] for name in layout.parameters])
+        if layout.parameters
+        else np.zeros((n, 0))
+    )
     return np.ascontiguousarray(P), {name: columns[name] for name in layout.parameters}
 
 
 def _states(
-    system: System, model: str, layout: Layout, initial_states: Any, P: np.ndarray | None,
-    vak: dict[str, Any] | None, t0: float,
+    system: System,
+    model: str,
+    layout: Layout,
+    initial_states: Any,
+    P: np.ndarray | None,
+    vak: dict[str, Any] | None,
+    t0: float,
 ) -> np.ndarray:
     """``Y0`` (N × len(layout.state)) from an array in layout order or a list of mappings."""
     if isinstance(initial_states, np.ndarray) or (
@@ -208,8 +216,15 @@ def _states(
             "of mappings like simulate()'s `initial`."
         )
     Q, QD = _given(system, initial_states)
-    params = {name: P[:, j] for j, name in enumerate(layout.parameters)
-              if name in {p.name for p in system.parameters}} if P is not None else {}
+    params = (
+        {
+            name: P[:, j]
+            for j, name in enumerate(layout.parameters)
+            if name in {p.name for p in system.parameters}
+        }
+        if P is not None
+        else {}
+    )
     if system.g:
         _dependent_velocities(system, Q, QD, params, t0)
     entry = registry.get(model)
@@ -240,7 +255,9 @@ def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, n
                 try:
                     kind, i = _lookup(system, key)
                 except ChaplyginError as exc:
-                    raise ChaplyginError(f"initial_states[{k}]: {str(exc).removeprefix('initial: ')}") from None
+                    raise ChaplyginError(
+                        f"initial_states[{k}]: {str(exc).removeprefix('initial: ')}"
+                    ) from None
                 with suppress(TypeError):
                     where[key] = kind, i
             try:
@@ -261,8 +278,12 @@ def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, n
 
 
 def _evaluate_all(
-    system: System, exprs: Sequence[Any], Q: np.ndarray, QD: np.ndarray,
-    params: Mapping[str, np.ndarray], t0: float,
+    system: System,
+    exprs: Sequence[Any],
+    Q: np.ndarray,
+    QD: np.ndarray,
+    params: Mapping[str, np.ndarray],
+    t0: float,
 ) -> np.ndarray:
     """``exprs`` (internal symbols) at every member's state: one vectorised call, N × len(exprs)."""
     from chaplygin.core._sampling import compile_function
@@ -307,8 +328,12 @@ def _dependent_velocities(
 
 
 def _multipliers(
-    system: System, vak: dict[str, Any], Q: np.ndarray, QD: np.ndarray,
-    params: Mapping[str, np.ndarray], t0: float,
+    system: System,
+    vak: dict[str, Any],
+    Q: np.ndarray,
+    QD: np.ndarray,
+    params: Mapping[str, np.ndarray],
+    t0: float,
 ) -> np.ndarray:
     """μ(0) of every member of the vakonomic model (N × g).
 
@@ -432,15 +457,31 @@ def simulate_ensemble(
         from chaplygin.numeric._loop import ensemble_dop853
 
         res = ensemble_dop853(
-            compiled, (t0, t1), Y0, P, times=times, rtol=rtol, atol=atol, max_step=max_step,
-            max_steps=max_steps, threads=threads,
+            compiled,
+            (t0, t1),
+            Y0,
+            P,
+            times=times,
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+            max_steps=max_steps,
+            threads=threads,
         )
     else:
         from chaplygin.numeric.jaxbackend import solve_ensemble
 
         res = solve_ensemble(
-            compiled, (t0, t1), Y0, P, times=times, rtol=rtol, atol=atol, method=method,
-            max_step=max_step, max_steps=max_steps or 1_000_000,
+            compiled,
+            (t0, t1),
+            Y0,
+            P,
+            times=times,
+            rtol=rtol,
+            atol=atol,
+            method=method,
+            max_step=max_step,
+            max_steps=max_steps or 1_000_000,
         )
     wall = time.perf_counter() - start
 

@@ -51,9 +51,7 @@ try:
     import jax
     import jax.numpy as jnp
 except ImportError as exc:  # pragma: no cover - exercised only without the extra
-    raise ChaplyginError(
-        "the 'jax' backend needs jax and diffrax: pip install 'chaplygin[jax]'"
-    ) from exc
+    raise ChaplyginError("the 'jax' backend needs jax and diffrax: pip install 'chaplygin[jax]'") from exc
 
 jax.config.update("jax_enable_x64", True)
 
@@ -197,7 +195,8 @@ def _code(diffrax: Any, result: Any) -> Any:
     """diffrax's result → the loop's status codes (0 ok, 1 step underflow, 4 max steps, 6 other)."""
     R = diffrax.RESULTS
     return jnp.where(
-        result == R.successful, 0,
+        result == R.successful,
+        0,
         jnp.where(result == R.dt_min_reached, 1, jnp.where(result == R.max_steps_reached, 4, 6)),
     )
 
@@ -213,15 +212,24 @@ def _solver_fn(model: CompiledModel, method: str, max_steps: int, final_only: bo
     term = diffrax.ODETerm(lambda t, y, args: model.module.rhs_jax(t, y, args))
 
     def one(t0: Any, t1: Any, y0: Any, p: Any, ts: Any, rtol: Any, atol: Any, dtmax: Any, dtmin: Any) -> Any:
-        controller = diffrax.PIDController(
-            rtol=rtol, atol=atol, dtmax=dtmax, dtmin=dtmin, force_dtmin=False
+        controller = diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax, dtmin=dtmin, force_dtmin=False)
+        subs = (
+            [diffrax.SubSaveAt(t1=True)]
+            if final_only
+            else [diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)]
         )
-        subs = [diffrax.SubSaveAt(t1=True)] if final_only else [
-            diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)
-        ]
         sol = diffrax.diffeqsolve(
-            term, solver, t0, t1, None, y0, args=p, saveat=diffrax.SaveAt(subs=subs),
-            stepsize_controller=controller, max_steps=max_steps, throw=False,
+            term,
+            solver,
+            t0,
+            t1,
+            None,
+            y0,
+            args=p,
+            saveat=diffrax.SaveAt(subs=subs),
+            stepsize_controller=controller,
+            max_steps=max_steps,
+            throw=False,
             adjoint=diffrax.ForwardMode(),
         )
         ys = None if final_only else sol.ys[0]
@@ -274,8 +282,15 @@ def solve(
     rtol, atol_j, dtmax, dtmin = _settings(t0, t1, rtol, atol, max_step)
     fn = _solver_fn(model, method, int(max_steps), False)
     ys, t_last, _y_last, code, steps = fn(
-        t0, t1, jnp.asarray(y0, dtype=jnp.float64), jnp.asarray(p, dtype=jnp.float64),
-        jnp.asarray(times, dtype=jnp.float64), rtol, atol_j, dtmax, dtmin,
+        t0,
+        t1,
+        jnp.asarray(y0, dtype=jnp.float64),
+        jnp.asarray(p, dtype=jnp.float64),
+        jnp.asarray(times, dtype=jnp.float64),
+        rtol,
+        atol_j,
+        dtmax,
+        dtmin,
     )
     ys = np.asarray(ys)
     code, t_last, steps = int(code), float(t_last), int(steps)
@@ -285,8 +300,13 @@ def solve(
     if code == 0:
         return JaxResult(times, ys, "success", f"reached t = {t1:g}", n_rhs, 0, steps)
     return JaxResult(
-        times[:reached], ys[:reached], "failed", _message(code, t_last, method, max_steps),
-        n_rhs, code, steps,
+        times[:reached],
+        ys[:reached],
+        "failed",
+        _message(code, t_last, method, max_steps),
+        n_rhs,
+        code,
+        steps,
     )
 
 
@@ -317,8 +337,13 @@ def solve_ensemble(
     ts = jnp.zeros(0) if times is None else jnp.asarray(times, dtype=jnp.float64)
     jitted = _ensemble_jit(model, t0, t1, final_only, method, int(max_steps))
     ys, t_last, y_last, code, steps, obs = jitted(
-        jnp.asarray(Y0, dtype=jnp.float64), jnp.asarray(P, dtype=jnp.float64), ts,
-        rtol, atol_j, dtmax, dtmin,
+        jnp.asarray(Y0, dtype=jnp.float64),
+        jnp.asarray(P, dtype=jnp.float64),
+        ts,
+        rtol,
+        atol_j,
+        dtmax,
+        dtmin,
     )
     steps = np.asarray(steps)
     out = {

@@ -65,7 +65,9 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     half a second more; ``backend="numba"`` still asks for it.
     """
     if backend not in BACKENDS:
-        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}.")
+        raise ChaplyginError(
+            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
+        )
     if backend != "auto":
         return backend
     if method == "DOP853":
@@ -77,6 +79,8 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
         except Unavailable:
             pass
     return "numpy"
+
+
 #: the most samples one run returns: each is a row of every column in memory (10**6 samples
 #: of a ten-coordinate system take about 0.2 GB, more while they are observed)
 MAX_SAMPLES = 10**6
@@ -184,10 +188,15 @@ class Trajectory:
 
         span = f"{self.t[0]:g} … {self.t[-1]:g}" if len(self.t) else "none"
         residual = float(np.max(self.constraint_residual, initial=0.0))
-        rows = [("model", f"{self.model}/{self.form}"), ("backend", self.backend),
-                ("status", f"{self.status} {self.message}".strip()), ("t", span),
-                ("samples", str(len(self.t))), ("max energy drift", f"{self.energy_drift():.3g}"),
-                ("max constraint residual", f"{residual:.3g}")]
+        rows = [
+            ("model", f"{self.model}/{self.form}"),
+            ("backend", self.backend),
+            ("status", f"{self.status} {self.message}".strip()),
+            ("t", span),
+            ("samples", str(len(self.t))),
+            ("max energy drift", f"{self.energy_drift():.3g}"),
+            ("max constraint residual", f"{residual:.3g}"),
+        ]
         text = _html.fields((label, _html.escape(value)) for label, value in rows)
         if len(self.t):
             ax = self.plot("coordinates", ax=Figure(figsize=(5, 3), layout="constrained").add_subplot())
@@ -218,8 +227,9 @@ class Trajectory:
 
         return trajectory_dataset(self)
 
-    def plot(self, what: str = "coordinates", ax: Any = None, *, path: tuple[str, str] | None = None,
-             **kwargs: Any) -> Any:
+    def plot(
+        self, what: str = "coordinates", ax: Any = None, *, path: tuple[str, str] | None = None, **kwargs: Any
+    ) -> Any:
         """Draw the run with matplotlib and return the ``Axes``.
 
         Parameters
@@ -394,15 +404,20 @@ def _check_options(t0: float, t1: float, samples: Any, rtol: Any, atol: Any, max
     _finite(rtol, "rtol", "a positive finite tolerance, e.g. 1e-10")
     if not float(rtol) > 0:
         raise InputError(f"rtol = {rtol}: give a positive finite tolerance, e.g. 1e-10.")
-    a = np.asarray(atol, dtype=float) if np.ndim(atol) else np.asarray(_finite(
-        atol, "atol", "a positive finite tolerance, e.g. 1e-12"))
+    a = (
+        np.asarray(atol, dtype=float)
+        if np.ndim(atol)
+        else np.asarray(_finite(atol, "atol", "a positive finite tolerance, e.g. 1e-12"))
+    )
     if not (np.all(np.isfinite(a)) and np.all(a > 0)):
         raise InputError(f"atol = {atol}: give positive finite tolerances, e.g. 1e-12.")
     if not (float(max_step) > 0):  # NaN fails too
         raise InputError(f"max_step = {max_step}: give a positive bound on the step (inf: none).")
 
 
-def _check_mass(system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float) -> None:
+def _check_mass(
+    system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+) -> None:
     """Refuse a start where the reduced mass matrix ``Cᵀ M C`` is not positive definite or is
     ill-conditioned (condition number above :data:`MAX_CONDITION`), naming the velocity along
     which the kinetic energy fails and the parameters of T that are not positive."""
@@ -423,8 +438,11 @@ def _check_mass(system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[s
     along = ind[int(np.argmax(np.abs(v[:, 0])))] if len(w) else ""
     symbols = {str(x) for x in system.kinetic_energy.free_symbols}
     bad = [f"{k} = {val:g}" for k, val in params.items() if k in symbols and val <= 0]
-    hint = f" Check the parameters of T that are not positive: {', '.join(bad)}." if bad else (
-        " Check the parameters and the kinetic energy.")
+    hint = (
+        f" Check the parameters of T that are not positive: {', '.join(bad)}."
+        if bad
+        else (" Check the parameters and the kinetic energy.")
+    )
     if biggest == 0 or w[0] < -1e-12 * biggest:
         raise InputError(
             f"the kinetic energy is not positive definite at the initial state: it is "
@@ -440,8 +458,9 @@ def _check_mass(system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[s
         )
 
 
-def _numeric(system: System, matrix: Any, q: np.ndarray, qd: np.ndarray,
-             params: Mapping[str, float], t0: float) -> np.ndarray:
+def _numeric(
+    system: System, matrix: Any, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+) -> np.ndarray:
     """A SymPy or SymEngine matrix of internal symbols at ``(t0, q, q̇)`` and the parameters."""
     import sympy as sp
 
@@ -480,9 +499,7 @@ def _vakonomic_setup(
             return None, {"mu": multipliers}
         return None, {"constants": [0.0] * system.g if constants is None else constants}
     if constants is not None or multipliers is not None:
-        raise ChaplyginError(
-            f"constants/multipliers are for the vakonomic models, not for {model!r}."
-        )
+        raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
     return None, None
 
 
@@ -541,8 +558,10 @@ def simulate(
     not positive definite or whose condition number exceeds :data:`MAX_CONDITION`.
     """
     t0, t1 = (0.0, t_span) if np.isscalar(t_span) else t_span  # type: ignore[misc]
-    t0, t1 = _finite(t0, "t_span: the start time", "a finite number"), _finite(
-        t1, "t_span: the end time", "a finite number after the start")
+    t0, t1 = (
+        _finite(t0, "t_span: the start time", "a finite number"),
+        _finite(t1, "t_span: the end time", "a finite number after the start"),
+    )
     _check_options(t0, t1, samples, rtol, atol, max_step)
     if method not in METHODS:
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
@@ -552,9 +571,20 @@ def simulate(
     q, qd = initial_state(system, initial, params, t0)
     _check_mass(system, q, qd, params, t0)
     if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.numeric.symmetric
-        tr = _simulate_symmetric(system, model, (t0, t1), initial, parameters, method=method, step=step,
-                                form=form, samples=samples, backend=backend, constants=constants,
-                                multipliers=multipliers)
+        tr = _simulate_symmetric(
+            system,
+            model,
+            (t0, t1),
+            initial,
+            parameters,
+            method=method,
+            step=step,
+            form=form,
+            samples=samples,
+            backend=backend,
+            constants=constants,
+            multipliers=multipliers,
+        )
         return _watch(system, tr, params, reduced=True)
     if step is not None:
         raise ChaplyginError(
@@ -583,8 +613,19 @@ def simulate(
     if entry.multipliers_in_state:
         y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
     p = parameter_vector(layout, params)
-    tr = integrate(compiled, (t0, t1), np.array(y0), p, params, rtol=rtol, atol=atol,
-                   method=method, samples=samples, max_step=max_step, g=system.g)
+    tr = integrate(
+        compiled,
+        (t0, t1),
+        np.array(y0),
+        p,
+        params,
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        samples=samples,
+        max_step=max_step,
+        g=system.g,
+    )
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
 
 
@@ -658,8 +699,13 @@ def _simulate_symmetric(
 
 # ------------------------------------------------------------------ checks along a run
 def _watch(
-    system: System, tr: Trajectory, params: Mapping[str, float], *, reduced: bool,
-    compiled: CompiledModel | None = None, p: np.ndarray | None = None,
+    system: System,
+    tr: Trajectory,
+    params: Mapping[str, float],
+    *,
+    reduced: bool,
+    compiled: CompiledModel | None = None,
+    p: np.ndarray | None = None,
 ) -> Trajectory:
     """``tr`` cut at the first sample where the motion stops making sense, with status
     ``"failed"`` and a message that says where and along which coordinate.
@@ -678,8 +724,10 @@ def _watch(
         k = int(np.argmin(finite))
         bad = [c + "'" for c, x in zip(names, vel[k]) if not np.isfinite(x)]
         k_bad, kind = k, "pole"
-        why = (f"a pole at t = {tr.t[k]:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
-               f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite")
+        why = (
+            f"a pole at t = {tr.t[k]:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+            f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite"
+        )
     if reduced and system.g and k_bad > 0:
         k, found = _pole(system, tr, params, k_bad)
         if k < k_bad:
@@ -697,10 +745,13 @@ def _watch(
     tr.t, tr.energy, tr.constraint_residual = tr.t[keep], tr.energy[keep], tr.constraint_residual[keep]
     tr.status, tr.failure = "failed", kind
     entry = registry.get(tr.model)
-    tr.message = why + (f"; the {tr.model} equations do not hold there" if kind == "pole" and entry.reduced else "")
+    tr.message = why + (
+        f"; the {tr.model} equations do not hold there" if kind == "pole" and entry.reduced else ""
+    )
     if kind == "pole" and entry.reduced and entry.is_true_motion:
-        tr.message += (f" (the multiplier model {entry.fallback!r} does not solve the constraints and has "
-                       "no such pole)")
+        tr.message += (
+            f" (the multiplier model {entry.fallback!r} does not solve the constraints and has no such pole)"
+        )
     return tr
 
 
@@ -717,12 +768,19 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
         return stop, ""
     evaluate, n_factors = _pole_functions(system)
     names = [q.func.__name__ for q in system.coordinates]
-    columns = [tr.t[:stop], *(tr.coordinates[c][:stop] for c in names),
-               *(np.full(stop, params[par.name]) for par in system.parameters)]
+    columns = [
+        tr.t[:stop],
+        *(tr.coordinates[c][:stop] for c in names),
+        *(np.full(stop, params[par.name]) for par in system.parameters),
+    ]
     with np.errstate(all="ignore"):
         values = [np.asarray(x) for x in evaluate(*columns)]
-    values = [np.broadcast_to(np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else
-                              x.astype(float), (stop,)) for x in values]
+    values = [
+        np.broadcast_to(
+            np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else x.astype(float), (stop,)
+        )
+        for x in values
+    ]
     g, n, dep = system.g, system.n, list(system._dep)
     a = np.stack(values[: g * n], axis=1).reshape(stop, g, n)
     factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((stop, 1))
@@ -732,11 +790,15 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
         sign = np.sign(np.linalg.det(np.where(np.isfinite(a), a, 0.0)[:, :, dep]) * np.prod(factors, axis=1))
     for k in range(stop):
         if not finite[k] or sign[k] == 0 or not _solvable(a[k], dep):
-            return k, (f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
-                       f"solved for {dep_names} there")
+            return k, (
+                f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
+                f"solved for {dep_names} there"
+            )
         if k and sign[k] != sign[k - 1]:
-            return k, (f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
-                       f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between")
+            return k, (
+                f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
+                f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
+            )
     return stop, ""
 
 
@@ -751,9 +813,12 @@ def _pole_functions(system: System) -> tuple[Any, int]:
     from chaplygin.core._symbols import TIME
 
     quotients = {
-        sp.tan: lambda a: sp.sin(a) / sp.cos(a), sp.cot: lambda a: sp.cos(a) / sp.sin(a),
-        sp.sec: lambda a: 1 / sp.cos(a), sp.csc: lambda a: 1 / sp.sin(a),
-        sp.tanh: lambda a: sp.sinh(a) / sp.cosh(a), sp.coth: lambda a: sp.cosh(a) / sp.sinh(a),
+        sp.tan: lambda a: sp.sin(a) / sp.cos(a),
+        sp.cot: lambda a: sp.cos(a) / sp.sin(a),
+        sp.sec: lambda a: 1 / sp.cos(a),
+        sp.csc: lambda a: 1 / sp.sin(a),
+        sp.tanh: lambda a: sp.sinh(a) / sp.cosh(a),
+        sp.coth: lambda a: sp.cosh(a) / sp.sinh(a),
     }
     factors: list[sp.Expr] = []
     for entry in [*system._A, *system._A0]:
@@ -775,7 +840,11 @@ def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, s
     for the models whose ``M`` is not a mass matrix)."""
     module = compiled.module
     evaluate = getattr(module, "evaluate", None)
-    if evaluate is None or int(module.DIM) != int(module.K) or not registry.get(compiled.layout.model).reduced:
+    if (
+        evaluate is None
+        or int(module.DIM) != int(module.K)
+        or not registry.get(compiled.layout.model).reduced
+    ):
         return stop, ""
     layout = compiled.layout
     for k in range(stop):
@@ -788,15 +857,21 @@ def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, s
         except np.linalg.LinAlgError:
             w, vec = np.linalg.eigh(m)
             along = layout.velocities[int(np.argmax(np.abs(vec[:, 0])))]
-            return k, (f"the mass matrix is no longer positive definite at t = {tr.t[k]:.6g}: the "
-                       f"kinetic energy is {'zero' if w[0] == 0 else 'negative' if w[0] < 0 else 'nearly zero'} "
-                       f"along {along} (eigenvalue {w[0]:.3g})")
+            return k, (
+                f"the mass matrix is no longer positive definite at t = {tr.t[k]:.6g}: the "
+                f"kinetic energy is {'zero' if w[0] == 0 else 'negative' if w[0] < 0 else 'nearly zero'} "
+                f"along {along} (eigenvalue {w[0]:.3g})"
+            )
     return stop, ""
 
 
 def _evaluate(
-    system: System, expr: Any, q: np.ndarray, qd: np.ndarray,
-    params: Mapping[str, float], t0: float,
+    system: System,
+    expr: Any,
+    q: np.ndarray,
+    qd: np.ndarray,
+    params: Mapping[str, float],
+    t0: float,
 ) -> Any:
     """``expr`` (internal symbols; a matrix gives an array) at time ``t0``, state ``(q, q̇)``
     and the parameter values (velocities that are NaN are left out)."""
@@ -824,19 +899,23 @@ def _matching_constants(
 
 
 def _initial_multipliers(
-    system: System, vak: dict[str, Any], q: np.ndarray, qd: np.ndarray,
-    params: Mapping[str, float], t0: float,
+    system: System,
+    vak: dict[str, Any],
+    q: np.ndarray,
+    qd: np.ndarray,
+    params: Mapping[str, float],
+    t0: float,
 ) -> np.ndarray:
     names = [m for m in system.equations("vakonomic").multipliers]
     if "mu" in vak:
         given = vak["mu"]
-        values = [given[k] for k in range(system.g)] if isinstance(given, Sequence) else [
-            given.get(m, given.get(m.func.__name__)) for m in names
-        ]
+        values = (
+            [given[k] for k in range(system.g)]
+            if isinstance(given, Sequence)
+            else [given.get(m, given.get(m.func.__name__)) for m in names]
+        )
         if any(v is None for v in values) or len(values) != system.g:
-            raise ChaplyginError(
-                f"multipliers: give μ(0) for {', '.join(m.func.__name__ for m in names)}."
-            )
+            raise ChaplyginError(f"multipliers: give μ(0) for {', '.join(m.func.__name__ for m in names)}.")
         return np.array(values, dtype=float)
     c = vak["constants"]
     if isinstance(c, str) and c == "match":
@@ -906,7 +985,10 @@ def integrate(
 
 def _pinned(
     attempt: Callable[[float, np.ndarray, np.ndarray, float, float | None], _Attempt],
-    t0: float, y0: np.ndarray, times: np.ndarray, max_step: float,
+    t0: float,
+    y0: np.ndarray,
+    times: np.ndarray,
+    max_step: float,
 ) -> tuple[np.ndarray, np.ndarray, str, int]:
     """Samples at ``times`` from ``attempt``s: after a failure inside a step, again from the
     last accepted step with ``max_step`` half the distance to the failure (see :func:`integrate`)."""
@@ -926,17 +1008,22 @@ def _pinned(
     return np.concatenate(t_parts), np.concatenate(y_parts).reshape(k, len(y0)), run.message, n_rhs
 
 
-def _loop_attempt(looped: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any) -> Callable[..., _Attempt]:
+def _loop_attempt(
+    looped: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any
+) -> Callable[..., _Attempt]:
     """An attempt of :func:`_pinned` with the compiled DOP853 loop."""
     from chaplygin.numeric._loop import integrate_dop853
 
-    def attempt(t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float,
-                first: float | None) -> _Attempt:
-        res = integrate_dop853(looped, (t_start, t1), y_start, p, times, rtol=rtol, atol=atol,
-                               max_step=cap, first_step=first)
+    def attempt(
+        t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float, first: float | None
+    ) -> _Attempt:
+        res = integrate_dop853(
+            looped, (t_start, t1), y_start, p, times, rtol=rtol, atol=atol, max_step=cap, first_step=first
+        )
         message = "" if res.code == 0 else res.message
-        return _Attempt(res.t, res.y, message, res.code in (2, 3, 5, 9), res.t_last, res.y_last,
-                        res.t_fail, res.n_rhs)
+        return _Attempt(
+            res.t, res.y, message, res.code in (2, 3, 5, 9), res.t_last, res.y_last, res.t_fail, res.n_rhs
+        )
 
     return attempt
 
@@ -960,23 +1047,28 @@ def _scipy_attempt(
         if not np.all(np.isfinite(dy)):
             bad = [c + "'" for c, x in zip(names, dy[:n]) if not math.isfinite(x)]
             if bad:
-                raise _StepFailure(f"a pole at t = {t:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
-                                   f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite", t)
+                raise _StepFailure(
+                    f"a pole at t = {t:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+                    f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite",
+                    t,
+                )
             raise _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}", t)
         return dy
 
     count = [0]
 
-    def attempt(t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float,
-                first: float | None) -> _Attempt:
+    def attempt(
+        t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float, first: float | None
+    ) -> _Attempt:
         count[0] = 0
         out = np.empty((len(times), len(y_start)))
         k, t_last, y_last = 0, t_start, y_start
         message, retry, t_fail = "", False, math.nan
         stepper = None
         try:
-            stepper = getattr(si, method)(fun, t_start, y_start, t1, rtol=rtol, atol=atol,
-                                          max_step=cap, first_step=first)
+            stepper = getattr(si, method)(
+                fun, t_start, y_start, t1, rtol=rtol, atol=atol, max_step=cap, first_step=first
+            )
             if len(times) and times[0] == t_start:
                 out[0], k = y_start, 1
             while k < len(times):
@@ -998,22 +1090,30 @@ def _scipy_attempt(
             message, retry, t_fail = str(exc), True, exc.t
             if stepper is not None:  # (None: the stepper's own first evaluations failed)
                 t_last, y_last = stepper.t, stepper.y
-        return _Attempt(times[:k], out[:k], message, retry, float(t_last), np.array(y_last),
-                        t_fail, count[0])
+        return _Attempt(times[:k], out[:k], message, retry, float(t_last), np.array(y_last), t_fail, count[0])
 
     return attempt
 
 
 def _trajectory(
-    compiled: CompiledModel, times: np.ndarray, ys: np.ndarray, p: np.ndarray,
-    params: dict[str, float], status: str, message: str, evaluations: int, g: int,
+    compiled: CompiledModel,
+    times: np.ndarray,
+    ys: np.ndarray,
+    p: np.ndarray,
+    params: dict[str, float],
+    status: str,
+    message: str,
+    evaluations: int,
+    g: int,
 ) -> Trajectory:
     layout = compiled.layout
     n = len(layout.coordinates)
     if compiled.backend == "c":  # every sample in one call
         obs = compiled.module.observe_many(times, ys, p)
     else:
-        obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(len(times), compiled.n_observed)
+        obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(
+            len(times), compiled.n_observed
+        )
     n_react = len(layout.reactions)
     velocities = obs[:, obs.shape[1] - n :] if len(times) else np.empty((0, n))
     residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g and len(times) else np.zeros(len(times))
@@ -1021,9 +1121,17 @@ def _trajectory(
     base = n + len(layout.velocities)
     multipliers.update({name: ys[:, base + j] for j, name in enumerate(layout.multipliers)})
     return Trajectory(
-        layout.model, layout.form, compiled.backend, times,
+        layout.model,
+        layout.form,
+        compiled.backend,
+        times,
         {name: ys[:, i] for i, name in enumerate(layout.coordinates)},
         {name + "'": velocities[:, i] for i, name in enumerate(layout.coordinates)},
-        multipliers, obs[:, 0] if len(times) else np.empty(0), residual,
-        status, message, dict(params), evaluations,
+        multipliers,
+        obs[:, 0] if len(times) else np.empty(0),
+        residual,
+        status,
+        message,
+        dict(params),
+        evaluations,
     )

@@ -99,8 +99,15 @@ if TYPE_CHECKING:
     pass
 
 __all__ = [
-    "METHODS", "STATUS", "TRUE_MODELS", "SymmetricResult", "extrapolation", "grid",
-    "integrate_symmetric", "stepping_module", "tableau",
+    "METHODS",
+    "STATUS",
+    "TRUE_MODELS",
+    "SymmetricResult",
+    "extrapolation",
+    "grid",
+    "integrate_symmetric",
+    "stepping_module",
+    "tableau",
 ]
 
 #: the fixed-step symmetric methods, by name → number of Gauss–Legendre stages
@@ -134,23 +141,26 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     b, c : ndarray, shape (s,)
     """
     if method not in METHODS:
-        raise ChaplyginError(
-            f"method {method!r} is not a symmetric method; they are {', '.join(METHODS)}."
-        )
+        raise ChaplyginError(f"method {method!r} is not a symmetric method; they are {', '.join(METHODS)}.")
     s = METHODS[method]
     if s == 1:
         return np.array([[0.5]]), np.array([1.0]), np.array([0.5])
     if s == 2:
         r = math.sqrt(3.0) / 6.0
-        return (np.array([[0.25, 0.25 - r], [0.25 + r, 0.25]]), np.array([0.5, 0.5]),
-                np.array([0.5 - r, 0.5 + r]))
+        return (
+            np.array([[0.25, 0.25 - r], [0.25 + r, 0.25]]),
+            np.array([0.5, 0.5]),
+            np.array([0.5 - r, 0.5 + r]),
+        )
     r = math.sqrt(15.0)
     return (
-        np.array([
-            [5 / 36, 2 / 9 - r / 15, 5 / 36 - r / 30],
-            [5 / 36 + r / 24, 2 / 9, 5 / 36 - r / 24],
-            [5 / 36 + r / 30, 2 / 9 + r / 15, 5 / 36],
-        ]),
+        np.array(
+            [
+                [5 / 36, 2 / 9 - r / 15, 5 / 36 - r / 30],
+                [5 / 36 + r / 24, 2 / 9, 5 / 36 - r / 24],
+                [5 / 36 + r / 30, 2 / 9 + r / 15, 5 / 36],
+            ]
+        ),
         np.array([5 / 18, 4 / 9, 5 / 18]),
         np.array([0.5 - r / 10, 0.5, 0.5 + r / 10]),
     )
@@ -343,8 +353,9 @@ def _gl_integrate(t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats): 
                             for e in range(s):
                                 acc += E[a, e] * Zold[e, i]
                             Z[a, i] = acc
-                code, iterations, t_fail = _gl_stages(t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter,
-                                                      wM, wb, wV, wO, stats)
+                code, iterations, t_fail = _gl_stages(
+                    t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, stats
+                )
                 stats[1] += iterations
                 stats[2] = max(stats[2], iterations)
                 if code == 0:
@@ -511,13 +522,25 @@ def integrate_symmetric(
     n_steps = int(stats[4])
     if code == 0:
         status = "success"
-        message = (f"reached t = {t1:g}: {n_steps} {method} steps of h = {h:.6g}, "
-                   f"{stats[1] / max(n_steps, 1):.2f} Newton iterations per step")
+        message = (
+            f"reached t = {t1:g}: {n_steps} {method} steps of h = {h:.6g}, "
+            f"{stats[1] / max(n_steps, 1):.2f} Newton iterations per step"
+        )
     else:
         status = "failed"
         message = _failure(code, method, t_fail, h, int(max_iterations), module, y_fail, p)
-    return SymmetricResult(times, out[:filled], status, message, int(stats[0]), n_steps, h,
-                           int(stats[1]), int(stats[3]), int(code))
+    return SymmetricResult(
+        times,
+        out[:filled],
+        status,
+        message,
+        int(stats[0]),
+        n_steps,
+        h,
+        int(stats[1]),
+        int(stats[3]),
+        int(code),
+    )
 
 
 def _tolerant(compiled: CompiledModel) -> CompiledModel:
@@ -540,17 +563,22 @@ def _tolerant(compiled: CompiledModel) -> CompiledModel:
     return model
 
 
-def _failure(code: int, method: str, t: float, h: float, max_iterations: int, module: Any,
-             y: np.ndarray, p: np.ndarray) -> str:
+def _failure(
+    code: int, method: str, t: float, h: float, max_iterations: int, module: Any, y: np.ndarray, p: np.ndarray
+) -> str:
     """The message of a failed run (kernel status ``code``, see :data:`STATUS`) at ``(t, y)``.
 
     Codes 2, 3 and 5 come from the right-hand-side kernels shared with
     :mod:`chaplygin.numeric._loop`, and are worded by its ``_message``.
     """
     if code == 7:
-        return (f"the Newton iteration for the {method} stages did not converge at t = {t:.6g} "
-                f"in {max_iterations} iterations (h = {h:.3g}); try a smaller step")
+        return (
+            f"the Newton iteration for the {method} stages did not converge at t = {t:.6g} "
+            f"in {max_iterations} iterations (h = {h:.3g}); try a smaller step"
+        )
     if code == 8:
-        return (f"the Newton matrix of the {method} stages is singular at t = {t:.6g} "
-                f"(h = {h:.3g}); try a smaller step")
+        return (
+            f"the Newton matrix of the {method} stages is singular at t = {t:.6g} "
+            f"(h = {h:.3g}); try a smaller step"
+        )
     return _message(module, code, t, t, y, p, 0)
