@@ -431,7 +431,10 @@ class _Reader:
         if system.parameters and numeric:  # the checks of rolling_body, at the [parameters] values
 
             def at_defaults(v: Any) -> Any:
-                return [at_defaults(e) for e in v] if isinstance(v, list) else sp.S(v).xreplace(numeric)
+                if isinstance(v, list):
+                    return [at_defaults(e) for e in v]
+                number = v if isinstance(v, sp.Basic) else sp.Integer(v) if isinstance(v, int) else sp.Float(v)
+                return number.xreplace(numeric)
 
             self.build_body(
                 cls,
