@@ -433,7 +433,9 @@ class _Reader:
             def at_defaults(v: Any) -> Any:
                 if isinstance(v, list):
                     return [at_defaults(e) for e in v]
-                number = v if isinstance(v, sp.Basic) else sp.Integer(v) if isinstance(v, int) else sp.Float(v)
+                number = (
+                    v if isinstance(v, sp.Basic) else sp.Integer(v) if isinstance(v, int) else sp.Float(v)
+                )
                 return number.xreplace(numeric)
 
             self.build_body(

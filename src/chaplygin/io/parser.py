@@ -21,8 +21,9 @@ directly from a whitelist.  The grammar (``docs/system-files.md``)::
 * the functions of :data:`FUNCTIONS`, with their number of arguments checked.
 
 Limits (:data:`MAX_EXPRESSION_LENGTH`, :data:`MAX_TOKENS`, :data:`MAX_DEPTH`,
-:data:`MAX_EXPONENT`, :data:`MAX_NUMBER_BITS`, :data:`MAX_ROOT_BITS`,
-:data:`MAX_EXPANDED_TERMS`) are checked *before* SymPy is asked to build
+:data:`MAX_EXPONENT`, :data:`MAX_EXPONENT_NUMERATOR`, :data:`MAX_NUMBER_BITS`,
+:data:`MAX_ROOT_BITS`, :data:`MAX_EXPANDED_TERMS`, :data:`MAX_HYPERBOLIC_TERMS`,
+:data:`MAX_REDUCED_ANGLE`) are checked *before* SymPy is asked to build
 anything that could be expensive, so hostile text such as ``9^9^9^9`` or a
 hundred thousand nested parentheses is refused at once instead of hanging.
 
@@ -54,11 +55,13 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_EXPANDED_TERMS",
     "MAX_EXPONENT",
+    "MAX_EXPONENT_NUMERATOR",
     "MAX_EXPRESSION_LENGTH",
     "MAX_HYPERBOLIC_TERMS",
     "MAX_LITERAL_DIGITS",
     "MAX_NAME_LENGTH",
     "MAX_NUMBER_BITS",
+    "MAX_REDUCED_ANGLE",
     "MAX_ROOT_BITS",
     "MAX_TOKENS",
     "RESERVED",
@@ -82,6 +85,11 @@ MAX_TOKENS = 10_000
 MAX_DEPTH = 50
 #: Largest absolute value of a numeric exponent (and largest denominator of a rational one).
 MAX_EXPONENT = 1000
+#: Largest numerator of a rational coefficient in an exponent, that of a power or the argument of
+#: ``exp`` (its constant term and the coefficient of each of its terms): SymPy's polynomial code
+#: (used, e.g., when it decides whether ``sinh(u)`` is real) stores ``exp(p*u/q)`` as the power
+#: ``p`` of a generator ``exp(u/q)``, in a list of ``p`` coefficients.
+MAX_EXPONENT_NUMERATOR = 10_000
 #: Largest exact number (in bits, numerator plus denominator) an expression may produce; also
 #: the largest size of any constant (``exp(3000)`` is about ``2**4328``: refused), as ``log2 |c|``.
 MAX_NUMBER_BITS = 4096
@@ -90,8 +98,13 @@ MAX_ROOT_BITS = 1024
 #: Most terms the full expansion of an expression may have (SymPy expands kinetic energies).
 MAX_EXPANDED_TERMS = 10_000
 #: Most terms the argument of sinh, cosh or tanh may have when expanded into real and imaginary
-#: parts (each coordinate, velocity and t counting two); see ``_Parser.check_hyperbolic``.
+#: parts (each coordinate, velocity and t counting two); see ``_Parser.check_hyperbolic``.  The
+#: same bound applies to the base of a power whose exponent has a sum in a denominator (SymPy
+#: splits such a base into real and imaginary parts too).
 MAX_HYPERBOLIC_TERMS = 32
+#: Largest constant ``c`` in ``asin``, ``acos`` or ``atan`` of ``sin(c)``, ``cos(c)`` or ``tan(c)``:
+#: SymPy reduces ``c`` modulo π exactly there, which fails or takes minutes for huge ``c``.
+MAX_REDUCED_ANGLE = 10**50
 #: Most digits in one number literal, and the largest power of ten of its exponent.
 MAX_LITERAL_DIGITS = 100
 MAX_LITERAL_EXPONENT = 400
@@ -842,6 +855,10 @@ class _Parser:
             return _Value(value.expr, value.terms, tok.pos)
         if name in _HYPERBOLIC:
             self.check_hyperbolic(name, args[0].expr, tok.pos)
+        elif name == "exp":
+            self.check_exp(args[0].expr, tok.pos)
+        elif name in ("asin", "acos", "atan"):
+            self.check_reduced_angle(name, args[0].expr, tok.pos)
         result = _SYMPY_FUNCTIONS[name](*[a.expr for a in args])
         return _Value(self.check_defined(result, tok.pos), 1, tok.pos)
 
@@ -863,6 +880,83 @@ class _Parser:
                 "terms, counting each coordinate, velocity and t as two (its real and imaginary parts).",
                 "limit",
             )
+
+    def check_exp(self, arg: sp.Expr, pos: int) -> None:
+        """Refuse ``exp(arg)`` when SymPy would compute a huge exact number or polynomial for it.
+
+        ``exp(arg)`` is ``E**arg``: the numerators in ``arg`` are bounded as in any exponent (see
+        :data:`MAX_EXPONENT_NUMERATOR`).  And SymPy rewrites ``exp(c*log(N))`` as ``N**c`` (after
+        combining the logarithms anywhere inside ``arg``, with ``logcombine``), computing that power
+        exactly even when the result is thrown away.  SymPy does that for each product term of
+        ``arg``: inside each of its factors, and for the term itself when its other factors are
+        numbers.  Each such product ``c*log(N)``, ``N`` a number, gets the limits of ``N**c``.
+        """
+        self.check_exponent_numerators(arg, pos, "the argument of exp")
+        for term in sp.Add.make_args(arg):
+            if not term.is_Mul:
+                continue
+            if all(f.is_comparable for f in term.args):
+                self.check_log_power(term, pos)
+            for factor in term.args:
+                for node in sp.preorder_traversal(factor):
+                    if node.is_Mul:
+                        self.check_log_power(node, pos)
+
+    def check_log_power(self, product: sp.Expr, pos: int) -> None:
+        """Refuse ``c*log(N)*…`` (``N`` a number) when the power ``N**c`` is beyond the power limits."""
+        c = product.as_coeff_Mul()[0]
+        if not c.is_Rational or abs(c) == 1:
+            return
+        bits = 0.0
+        for factor in product.args:
+            for term in sp.Add.make_args(factor):
+                for f in sp.Mul.make_args(term):
+                    if isinstance(f, sp.log) and f.args[0].is_number:
+                        bits += sum(_numeric_factor_bits(f.args[0]))
+        q = int(c.q)
+        if bits and (
+            q > MAX_EXPONENT
+            or bits * math.ceil(abs(c)) > MAX_NUMBER_BITS
+            or (q > 1 and bits * q > MAX_ROOT_BITS)
+        ):
+            raise self.error(
+                f"exp of {sp.sstr(c)[:40]}*log(...) of a number: SymPy would compute that number to the power "
+                f"{sp.sstr(c)[:40]} exactly, which is too large",
+                pos,
+                "Limits: exp(c*log(N)) is the power N**c, and a power of a number may produce at most "
+                f"{MAX_NUMBER_BITS} bits, with a denominator of the exponent of at most {MAX_EXPONENT} "
+                f"and an exact root of at most {MAX_ROOT_BITS} bits × degree.",
+                "limit",
+            )
+
+    def check_exponent_numerators(self, exponent: sp.Expr, pos: int, what: str) -> None:
+        """Refuse an exponent with a rational coefficient whose numerator is above the limit."""
+        for term in sp.Add.make_args(exponent):
+            c = term.as_coeff_Mul(rational=True)[0]
+            if c.is_Rational and abs(int(c.p)) > MAX_EXPONENT_NUMERATOR:
+                raise self.error(
+                    f"{what} has a number with a numerator above {MAX_EXPONENT_NUMERATOR} "
+                    f"({sp.sstr(c)[:60]}): SymPy would store it as a polynomial of that degree",
+                    pos,
+                    f"Limit: the numbers in an exponent (and in the argument of exp), in lowest terms, have "
+                    f"numerators of at most {MAX_EXPONENT_NUMERATOR}: exp(-0.5*x), exp(2.5), x^(3/2).",
+                    "limit",
+                )
+
+    def check_reduced_angle(self, name: str, arg: sp.Expr, pos: int) -> None:
+        """Refuse ``asin(sin(c))`` & co. for a huge constant ``c``: SymPy reduces ``c`` modulo π."""
+        for inner in (arg, -arg):
+            if isinstance(inner, (sp.sin, sp.cos, sp.tan, sp.cot)) and inner.args[0].is_number:
+                value = inner.args[0].evalf(15)
+                if value.is_Float and abs(value) > MAX_REDUCED_ANGLE:
+                    raise self.error(
+                        f"{name} of {type(inner).__name__} of a constant of about {sp.sstr(value.evalf(3))}: SymPy would "
+                        "reduce that constant modulo pi exactly, which needs more digits than it has",
+                        pos,
+                        f"Limit: in asin, acos or atan of sin(c), cos(c) or tan(c), the constant c is at most "
+                        f"10^{round(math.log10(MAX_REDUCED_ANGLE))} in size.",
+                        "limit",
+                    )
 
     def complex_atoms(self) -> frozenset[sp.Expr]:
         """The objects SymPy does not know to be real: coordinates, velocities, t."""
@@ -921,7 +1015,27 @@ class _Parser:
                     self.check_terms(expanded, pos)
                     if const > 0:
                         terms = expanded
+        self.check_exponent_numerators(e, pos, "the exponent")
+        if b == sp.E:
+            self.check_exp(e, pos)
+        # SymPy splits b into real and imaginary parts when the exponent has a sum in a denominator
+        if (
+            not e.is_number
+            and any(p.base.is_Add and p.exp.is_negative for p in e.atoms(sp.Pow))
+            and _complex_terms(b, self.complex_atoms(), MAX_HYPERBOLIC_TERMS) > MAX_HYPERBOLIC_TERMS
+        ):
+            raise self.error(
+                "the base of this power is too large for SymPy: its exponent has a sum in a "
+                "denominator, and SymPy splits such a base into real and imaginary parts, which would "
+                f"expand to more than {MAX_HYPERBOLIC_TERMS} terms",
+                pos,
+                f"Limit: the base of a power like b^(1/(a + x)) may expand to at most {MAX_HYPERBOLIC_TERMS} "
+                "terms, counting each coordinate, velocity and t as two (its real and imaginary parts).",
+                "limit",
+            )
         result = sp.Pow(b, e)
+        if isinstance(result, (sp.Pow, sp.exp)):  # (x^a)^b may have become x^(a*b)
+            self.check_exponent_numerators(result.as_base_exp()[1], pos, "the exponent")
         return _Value(self.check_defined(result, pos), terms, base.pos)
 
 
