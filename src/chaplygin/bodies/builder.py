@@ -29,7 +29,7 @@ import numpy as np
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
-from chaplygin.bodies.shapes import Shape
+from chaplygin.bodies.shapes import Shape, positive
 from chaplygin.core._symbols import TIME
 from chaplygin.core.system import System
 from chaplygin.errors import SystemDefinitionError
@@ -64,23 +64,6 @@ def _unit(k: int) -> sp.Matrix:
     return e
 
 
-def _positive(value: Any, key: str) -> sp.Expr:
-    if isinstance(value, str):
-        if not value.isidentifier():
-            raise SystemDefinitionError(
-                f"{key}: {value!r} is not a symbol name; give a number, a SymPy symbol or a name."
-            )
-        return sp.Symbol(value, positive=True)
-    if isinstance(value, bool) or not isinstance(value, (int, float, sp.Expr)):
-        raise SystemDefinitionError(
-            f"{key}: expected a positive number or a SymPy expression, got {value!r}."
-        )
-    expr = sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value)
-    if expr.is_positive is False or (expr.is_number and not (expr.is_finite and expr > 0)):
-        raise SystemDefinitionError(f"{key} = {expr}: must be a finite number > 0.")
-    return expr
-
-
 def _scalar(value: Any, key: str) -> sp.Expr:
     if isinstance(value, str):
         if not value.isidentifier():
@@ -100,7 +83,7 @@ def _inertia(value: Any) -> sp.Matrix:
         )
     rows = list(rows)
     if len(rows) == 3 and all(not isinstance(r, (Sequence, np.ndarray)) or isinstance(r, str) for r in rows):
-        moments = [_positive(r, f"inertia[{k}]") for k, r in enumerate(rows)]
+        moments = [positive(r, f"inertia[{k}]", "a principal moment") for k, r in enumerate(rows)]
         I = sp.diag(*moments)
     elif len(rows) == 3 and all(isinstance(r, (Sequence, np.ndarray)) and len(r) == 3 for r in rows):
         I = sp.Matrix(
@@ -215,9 +198,9 @@ def rolling_body(
     convention = angles or shape.default_angles
     if convention not in ANGLES:
         raise SystemDefinitionError(f"angles={convention!r}: expected one of {', '.join(map(repr, ANGLES))}.")
-    m = _positive(mass, "mass")
+    m = positive(mass, "mass", "a mass")
     I = _inertia(inertia)
-    gravity = sp.Symbol("g", positive=True) if g is None else _positive(g, "g")
+    gravity = sp.Symbol("g", positive=True) if g is None else positive(g, "g", "gravity")
     if (
         isinstance(center_of_mass, (str, sp.Basic))
         or not isinstance(center_of_mass, (Sequence, np.ndarray))

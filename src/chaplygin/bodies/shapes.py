@@ -37,8 +37,8 @@ __all__ = [
 Vector: TypeAlias = Any
 
 
-def _length(value: Any, key: str) -> sp.Expr:
-    """A positive length: a number, a SymPy expression or a name; anything else is refused."""
+def positive(value: Any, key: str, what: str = "a length") -> sp.Expr:
+    """A positive quantity (``what``): a number, a SymPy expression or a name; anything else is refused."""
     if isinstance(value, str):
         if not value.isidentifier():
             raise SystemDefinitionError(
@@ -52,10 +52,10 @@ def _length(value: Any, key: str) -> sp.Expr:
     expr = sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value)
     if expr.free_symbols:
         if expr.is_positive is False:
-            raise SystemDefinitionError(f"{key} = {expr} is not positive; a length must be > 0.")
+            raise SystemDefinitionError(f"{key} = {expr} is not positive; {what} must be > 0.")
         return expr
     if not (expr.is_real and expr.is_finite) or expr <= 0:
-        raise SystemDefinitionError(f"{key} = {expr}: a length must be a finite number > 0.")
+        raise SystemDefinitionError(f"{key} = {expr}: {what} must be a finite number > 0.")
     return expr
 
 
@@ -131,7 +131,7 @@ class Sphere(Shape):
     """A sphere of radius ``radius`` about its centre: ``h(u) = r |u|``, contact ``r u``."""
 
     def __init__(self, radius: Any) -> None:
-        self.radius = _length(radius, "radius")
+        self.radius = positive(radius, "radius")
 
     def support(self, u: Vector) -> sp.Expr:
         return self.radius * norm(u)
@@ -150,7 +150,7 @@ class Disk(Shape):
     default_angles = "edge"
 
     def __init__(self, radius: Any) -> None:
-        self.radius = _length(radius, "radius")
+        self.radius = positive(radius, "radius")
 
     def support(self, u: Vector) -> sp.Expr:
         return self.radius * norm(u[:2])
@@ -175,8 +175,8 @@ class Torus(Shape):
     default_angles = "edge"
 
     def __init__(self, R: Any, r: Any) -> None:
-        self.R = _length(R, "R")
-        self.r = _length(r, "r")
+        self.R = positive(R, "R")
+        self.r = positive(r, "r")
 
     def support(self, u: Vector) -> sp.Expr:
         return self.R * norm(u[:2]) + self.r * norm(u)
@@ -190,7 +190,7 @@ class Ellipsoid(Shape):
     contact ``(a²u_x, b²u_y, c²u_z)/h``."""
 
     def __init__(self, a: Any, b: Any, c: Any) -> None:
-        self.a, self.b, self.c = _length(a, "a"), _length(b, "b"), _length(c, "c")
+        self.a, self.b, self.c = positive(a, "a"), positive(b, "b"), positive(c, "c")
 
     def support(self, u: Vector) -> sp.Expr:
         return sp.sqrt(self.a**2 * u[0] ** 2 + self.b**2 * u[1] ** 2 + self.c**2 * u[2] ** 2)
@@ -208,7 +208,7 @@ class Paraboloid(Shape):
     reference = "vertex"
 
     def __init__(self, rho1: Any, rho2: Any) -> None:
-        self.rho1, self.rho2 = _length(rho1, "rho1"), _length(rho2, "rho2")
+        self.rho1, self.rho2 = positive(rho1, "rho1"), positive(rho2, "rho2")
 
     def support(self, u: Vector) -> sp.Expr:
         return -(self.rho1 * u[0] ** 2 + self.rho2 * u[1] ** 2) / (2 * u[2])
