@@ -255,7 +255,7 @@ class Revolution(Shape):
             )
         alpha = sp.Dummy("alpha", real=True)
         try:
-            p = sp.sympify(profile(alpha))
+            p = sp.sympify(profile(alpha), strict=True)
         except (TypeError, ValueError, sp.SympifyError) as exc:
             raise SystemDefinitionError(
                 f"profile: calling it with a SymPy symbol failed ({exc}); it must accept and return SymPy expressions."
@@ -328,7 +328,7 @@ class SupportFunction(Shape):
             )
         self._u = sp.symbols("u1:4", real=True)
         try:
-            expr = sp.sympify(h(*self._u))
+            expr = sp.sympify(h(*self._u), strict=True)
         except (TypeError, ValueError, sp.SympifyError) as exc:
             raise SystemDefinitionError(f"h: calling it with three SymPy symbols failed ({exc}).") from None
         if not isinstance(expr, sp.Expr):
