@@ -80,6 +80,18 @@ def _model_name(text: str) -> str:
     return text
 
 
+def _model_option(verb: str) -> Any:
+    """``--model`` of a command whose default is the true motion (:func:`registry.true_motion`)."""
+    return typer.Option(
+        None,
+        "--model",
+        "-m",
+        parser=_model_name,
+        metavar="MODEL",
+        help=f"The model to {verb}; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
+    )
+
+
 class Form(str, Enum):
     classic = "classic"
     new = "new"
@@ -417,14 +429,7 @@ class _Derivation:
 @app.command()
 def derive(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: str | None = typer.Option(
-        None,
-        "--model",
-        "-m",
-        parser=_model_name,
-        metavar="MODEL",
-        help="The model to derive; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
-    ),
+    model: str | None = _model_option("derive"),
     form: Form = typer.Option(
         Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."
     ),
@@ -651,14 +656,7 @@ def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
 @app.command()
 def simulate(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
-    model: str | None = typer.Option(
-        None,
-        "--model",
-        "-m",
-        parser=_model_name,
-        metavar="MODEL",
-        help="The model to simulate; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
-    ),
+    model: str | None = _model_option("simulate"),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the run starts at t = 0)."),
     out: Path = typer.Option(
         ..., "--out", "-o", help="Output file: .csv or .npz (missing folders are created)."
@@ -1306,14 +1304,7 @@ def export(
     to: ExportTarget = typer.Option(
         ..., "--to", help="c: one C99 file; python: a module that needs only numpy."
     ),
-    model: str | None = typer.Option(
-        None,
-        "--model",
-        "-m",
-        parser=_model_name,
-        metavar="MODEL",
-        help="The model to export; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
-    ),
+    model: str | None = _model_option("export"),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     out: Path | None = typer.Option(
         None,

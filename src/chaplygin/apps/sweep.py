@@ -562,6 +562,11 @@ def _unique_sorted(table: pa.Table) -> pa.Table:
     return table.take(order[first])
 
 
+def _meta(directory: Path) -> dict[str, Any]:
+    """The sweep's description, ``directory / META_FILE``."""
+    return json.loads((directory / META_FILE).read_text(encoding="utf-8"))
+
+
 def read_results(path: str | os.PathLike[str], columns: Sequence[str] | None = None) -> pa.Table:
     """The rows of a sweep (finished or not) as a ``pyarrow.Table``, sorted by ``run_id``.
 
@@ -587,7 +592,7 @@ def read_results(path: str | os.PathLike[str], columns: Sequence[str] | None = N
     wanted = None if columns is None else ["run_id", *[c for c in columns if c != "run_id"]]
     tables = [_read_part(p, wanted) for _, p in _parts(directory)]
     if not tables:
-        meta = json.loads((directory / META_FILE).read_text(encoding="utf-8"))
+        meta = _meta(directory)
         schema = pa.schema(
             [
                 pa.field(
@@ -725,7 +730,7 @@ def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: 
             )
         if resume:
             try:
-                old = json.loads((directory / META_FILE).read_text(encoding="utf-8"))
+                old = _meta(directory)
             except (OSError, ValueError) as exc:
                 raise ChaplyginError(f"{directory / META_FILE}: cannot read it ({exc}).") from None
             differences = _differences(old, meta)
@@ -845,7 +850,7 @@ class SweepResult:
         """
         from chaplygin.numeric._dataout import sweep_frame
 
-        return sweep_frame(self, json.loads((self.path / META_FILE).read_text(encoding="utf-8")))
+        return sweep_frame(self, _meta(self.path))
 
     def to_xarray(self) -> Any:
         """The rows as an ``xarray.Dataset`` on the grid: one dimension per axis.
@@ -858,7 +863,7 @@ class SweepResult:
         """
         from chaplygin.numeric._dataout import sweep_dataset
 
-        return sweep_dataset(self, json.loads((self.path / META_FILE).read_text(encoding="utf-8")))
+        return sweep_dataset(self, _meta(self.path))
 
 
 def _axes(system: System, grid: Mapping[str, Any]) -> tuple[Axis, ...]:

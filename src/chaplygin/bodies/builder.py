@@ -71,7 +71,7 @@ def _scalar(value: Any, key: str) -> sp.Expr:
         return sp.Symbol(value, real=True)
     if isinstance(value, bool) or not isinstance(value, (int, float, sp.Expr)):
         raise SystemDefinitionError(f"{key}: expected a number or a SymPy expression, got {value!r}.")
-    return sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value)
+    return sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value, strict=True)
 
 
 def _inertia(value: Any) -> sp.Matrix:

@@ -49,7 +49,7 @@ def positive(value: Any, key: str, what: str = "a length") -> sp.Expr:
         raise SystemDefinitionError(
             f"{key}: expected a positive number or a SymPy expression, got {value!r}."
         )
-    expr = sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value)
+    expr = sp.nsimplify(value) if isinstance(value, float) else sp.sympify(value, strict=True)
     if expr.free_symbols:
         if expr.is_positive is False:
             raise SystemDefinitionError(f"{key} = {expr} is not positive; {what} must be > 0.")

@@ -96,9 +96,8 @@ class Model:
         """Why this model does not apply to ``system``, or ``None`` when it does."""
         if self.requires_chaplygin and not system.is_chaplygin:
             return "not a Chaplygin system: " + "; ".join(system.chaplygin_obstructions)
-        if self.family and family_obstructions(system):
-            return "; ".join(family_obstructions(system))
-        return None
+        found = family_obstructions(system) if self.family else []
+        return "; ".join(found) if found else None
 
 
 def family_obstructions(system: System) -> list[str]:
