@@ -121,6 +121,26 @@ def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
     assert bad.returncode == 1 and "violates the constraints" in bad.stderr
 
 
+@pytest.mark.parametrize(
+    ("backend", "env"),
+    [("numpy", {}), ("auto", {"CHAPLYGIN_CC": "none"}), ("numba", {})],
+)
+def test_warm_runs_of_the_python_backends_need_no_sympy(tmp_path, backend, env):
+    """The numpy and numba backends have run plans too (auto without a C compiler is numpy)."""
+    cache, out = tmp_path / "cache", [str(tmp_path / f"{k}.npz") for k in "abc"]
+    args = [*RUN, "-b", backend]
+    cold = _python(CLI, [*args, "-o", out[0]], cache, **env)
+    warm = _python(CLI, [*args, "-o", out[1]], cache, **env)
+    assert cold["code"] == warm["code"] == 0 and cold["sympy"] and not warm["sympy"]
+    assert warm["stdout"].replace(out[1], out[0]) == cold["stdout"]
+    a, b = np.load(out[0]), np.load(out[1])
+    assert a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files)
+    # a plan is kept per backend: the c backend's run does not answer from this one
+    if HAVE_CC and backend != "auto":
+        other = _python(CLI, [*RUN, "-b", "c", "-o", out[2]], cache)
+        assert other["code"] == 0 and other["sympy"] and "chaplygin [c]" in other["stdout"]
+
+
 @needs_cc
 def test_a_corrupt_run_plan_is_ignored_and_replaced(tmp_path):
     cache = tmp_path / "cache"

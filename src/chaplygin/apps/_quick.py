@@ -1,15 +1,17 @@
-"""Warm runs of ``chaplygin simulate`` without SymPy: the run plans of the ``c`` backend.
+"""Warm runs of ``chaplygin simulate`` without SymPy: run plans.
 
 A run of ``chaplygin simulate`` spends half a second importing SymPy and
 building the system before it integrates for a few milliseconds.  So after a
-run with the ``c`` backend the command line stores a *run plan* in the
-derivation cache (:mod:`chaplygin.numeric.cache`: JSON, keyed by the system file's
-bytes or the example's name, the model, form and library version, verified on
-read): the model's layout, its generated C ``fill`` (source, not code: built
-into the kernel cache, :mod:`chaplygin.numeric._ckernel`), and the file's default
-parameters and initial state.  The next run of the same system and model
-loads the compiled kernel (or builds it from the stored source) and
-integrates without importing SymPy, numba or SciPy.
+run the command line stores a *run plan* in the derivation cache
+(:mod:`chaplygin.numeric.cache`: JSON, keyed by the system file's bytes or the
+example's name, the model, form, backend and library version, verified on
+read): the model's layout, its generated code (source, not code: the C
+``fill`` built into the kernel cache, :mod:`chaplygin.numeric._ckernel`, or the
+generated Python module of the ``numpy`` and ``numba`` backends, which the code
+cache and numba's own cache keep compiled), and the file's default parameters
+and initial state.  The next run of the same system, model and backend loads
+the compiled code (or builds it from the stored source) and integrates
+without importing SymPy (nor SciPy or numba, with the ``c`` backend).
 
 A plan answers only what it can answer exactly as the full path would: a
 reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose state is the
@@ -37,18 +39,21 @@ __all__ = ["key", "plan", "remember", "run"]
 
 #: the reduced models without constants, whose state a plan builds from the given numbers alone
 REDUCED = tuple(m.name for m in registry.MODELS.values() if m.reduced and not m.constants)
+#: the backends whose runs a plan answers
+PLANNED = ("c", "numpy", "numba")
 #: what the command line asks for when no --model is given: the true motion (Chaplygin's
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's shape changes
-FORMAT = 2
+FORMAT = 3
 
 
-def key(definition: bytes, model: str, form: str) -> str:
-    """The cache key of the plan for ``model``/``form`` of the system ``definition``."""
+def key(definition: bytes, model: str, form: str, backend: str) -> str:
+    """The cache key of the plan for ``model``/``form`` of the system ``definition`` on ``backend``."""
     from chaplygin.numeric._ckernel import FLAGS, compiler
 
-    return cache.key("simulate-plan", str(FORMAT), definition, model, form, "\0".join([*compiler(), *FLAGS]))
+    built = "\0".join([*compiler(), *FLAGS]) if backend == "c" else ""
+    return cache.key("simulate-plan", str(FORMAT), definition, model, form, backend, built)
 
 
 def applies(backend: str, model: str, method: str, constants: Any, step: Any) -> bool:
@@ -60,8 +65,7 @@ def applies(backend: str, model: str, method: str, constants: Any, step: Any) ->
         and method == "DOP853"
         and constants is None
         and step is None
-        and backend in ("auto", "c")
-        and choose_backend(backend, method) == "c"
+        and choose_backend(backend, method) in PLANNED
     )
 
 
@@ -71,31 +75,34 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     ``asked`` is the model as the command line asked for it (:data:`TRUE_MOTION` for none);
     only a run that succeeded makes a plan, so the checks of its start passed.
     """
-    if definition is None or tr.backend != "c" or tr.model not in REDUCED or not tr.success:
+    if definition is None or tr.backend not in PLANNED or tr.model not in REDUCED or not tr.success:
         return
+    from pathlib import Path
+
     from chaplygin.numeric.codegen import compile_model
 
-    compiled = compile_model(loaded.system, tr.model, form, "c")  # the run's model (cached on the system)
+    # the run's model (cached on the system)
+    compiled = compile_model(loaded.system, tr.model, form, tr.backend)
     kernel, layout = compiled.module, compiled.layout
     system = loaded.system
+    if tr.backend == "c":
+        code = {"fill": kernel.fill_source, "dim": kernel.DIM, "n": kernel.N, "k": kernel.K}
+        code |= {"n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react}
+    else:
+        code = {"module": Path(kernel.__file__).read_text(encoding="utf-8")}
     value = {
         "layout": {
             f: list(getattr(layout, f))
             for f in ("coordinates", "velocities", "multipliers", "parameters", "reactions")
         }
         | {"model": layout.model, "form": layout.form},
-        "fill": kernel.fill_source,
-        "dim": kernel.DIM,
-        "n": kernel.N,
-        "k": kernel.K,
-        "n_observed": kernel.N_OBSERVED,
-        "n_react": kernel.n_react,
+        **code,
         "g": system.g,
         "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
         "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
         "defaulted": list(getattr(loaded, "defaulted", ())),
     }
-    cache.store(key(definition, asked, form), value)
+    cache.store(key(definition, asked, form, tr.backend), value)
 
 
 def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
@@ -114,9 +121,9 @@ def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
         )
 
 
-def plan(definition: bytes, model: str, form: str) -> dict[str, Any] | None:
+def plan(definition: bytes, model: str, form: str, backend: str) -> dict[str, Any] | None:
     """The stored plan, or None."""
-    value = cache.load(key(definition, model, form))
+    value = cache.load(key(definition, model, form, backend))
     return value if isinstance(value, dict) else None
 
 
@@ -144,7 +151,7 @@ def run(
     constraints are the same: the same parameters and coordinates (velocities
     may differ), every number finite, ``samples`` within the full path's limits.
     """
-    from chaplygin.numeric.simulate import MAX_SAMPLES
+    from chaplygin.numeric.simulate import MAX_SAMPLES, choose_backend
 
     if (
         definition is None
@@ -153,17 +160,19 @@ def run(
         or not applies(backend, model, method, constants, step)
     ):
         return None
-    found = plan(definition, model, form)
+    chosen = choose_backend(backend, method)
+    found = plan(definition, model, form, chosen)
     if found is None:
         return None
     try:
-        return _run(found, t_end, samples, params, initial, rtol, atol)
+        return _run(found, chosen, t_end, samples, params, initial, rtol, atol)
     except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
         return None
 
 
 def _run(
     found: dict[str, Any],
+    backend: str,
     t_end: float,
     samples: int,
     params: Mapping[str, float],
@@ -171,7 +180,7 @@ def _run(
     rtol: float,
     atol: float,
 ) -> Trajectory | None:
-    from chaplygin.numeric._ckernel import CKernel, CompiledModel, Layout, Unavailable
+    from chaplygin.numeric._ckernel import Layout
     from chaplygin.numeric.simulate import integrate
 
     lay = found["layout"]
@@ -191,27 +200,18 @@ def _run(
     every = set(layout.coordinates) | {c + "'" for c in layout.coordinates}
     if not set(state) <= every or not set(layout.coordinates) | set(layout.velocities) <= set(state):
         return None
-    try:
-        kernel = CKernel(
-            found["fill"],
-            int(found["dim"]),
-            int(found["n"]),
-            int(found["k"]),
-            int(found["n_observed"]),
-            int(found["n_react"]),
-        )
-    except Unavailable:
+    compiled = _compiled(found, layout, backend)
+    if compiled is None:
         return None
     y0 = np.array([state[name] for name in layout.coordinates + layout.velocities], dtype=float)
     p = np.array([values[name] for name in layout.parameters], dtype=float)
-    velocities = kernel.observe(0.0, y0, p)[-len(layout.coordinates) :]
+    velocities = compiled.observe(0.0, y0, p)[-len(layout.coordinates) :]
     for name, implied in zip(layout.coordinates, velocities):
         given = state.get(name + "'")
         if not np.isfinite(implied) or (
             given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))
         ):
             return None  # a dependent velocity that violates the constraints: the full path's error
-    compiled = CompiledModel(layout, kernel, "c")
     warn_defaulted(found["defaulted"], initial)  # as the full path does (chaplygin.apps.cli._numbers)
     return integrate(
         compiled,
@@ -226,3 +226,25 @@ def _run(
         max_step=np.inf,
         g=int(found["g"]),
     )
+
+
+def _compiled(found: dict[str, Any], layout: Any, backend: str) -> Any:
+    """The plan's compiled model on ``backend`` (built from its stored source where needed), or None."""
+    from chaplygin.numeric._ckernel import CKernel, CompiledModel, Unavailable
+
+    if backend == "c":
+        try:
+            kernel = CKernel(
+                found["fill"],
+                *(int(found[k]) for k in ("dim", "n", "k", "n_observed", "n_react")),
+            )
+        except Unavailable:
+            return None
+        return CompiledModel(layout, kernel, "c")
+    module = cache.import_source(str(found["module"]), backend)
+    compiled = CompiledModel(layout, module, backend)
+    if backend == "numba":  # the module with the DOP853 loop, as the run integrates it
+        from chaplygin.numeric._loop import loop_model
+
+        compiled = loop_model(compiled)
+    return compiled

@@ -63,7 +63,7 @@ __all__ = [
 
 BACKENDS = ("numpy", "numba", "jax", "c")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
-CODE_FORMAT = 5
+CODE_FORMAT = 6
 
 
 def _docstring_safe(text: str) -> str:
@@ -167,22 +167,33 @@ def _assignments(block: _Block) -> tuple[list[tuple[Any, Any]], list[tuple[Targe
     return replacements, stores
 
 
-def _python_body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> list[str]:
+def _python_body(
+    fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]], lists: bool = False
+) -> list[str]:
     """``fill``'s body as Python lines (``math`` calls; run by numpy, compiled by numba).
 
-    ``assigned``: :func:`_assignments` of each of ``fill.blocks()``.
+    ``assigned``: :func:`_assignments` of each of ``fill.blocks()``.  With ``lists``
+    the arrays are Python lists (``M[i][j]``; ``y`` and ``p`` lists of floats too):
+    what the ``numpy`` backend runs, as indexing a list costs a fraction of
+    indexing an array from Python.
     """
+    g = fill.solve
     out: list[str] = []
-    if fill.solve:
-        out += [f"    Ad = np.zeros(({fill.solve}, {fill.solve}))", f"    b = np.zeros({fill.solve})"]
+    if g:
+        out += (
+            [f"    Ad = [[0.0] * {g} for _ in range({g})]", f"    b = [0.0] * {g}"]
+            if lists
+            else [f"    Ad = np.zeros(({g}, {g}))", f"    b = np.zeros({g})"]
+        )
     for block, (replacements, stores) in zip(fill.blocks(), assigned):
         out += [f"    {sym} = {code(e, 'python')}" for sym, e in replacements]
         out += [
-            f"    {name}[{f'{i // w}, {i % w}' if w else i}] = {code(e, 'python')}"
+            f"    {name}[{(f'{i // w}][{i % w}' if lists else f'{i // w}, {i % w}') if w else i}] = "
+            + code(e, "python")
             for (name, i, w), e in stores
         ]
         if block is fill.pre:
-            out.append("    d = np.linalg.solve(Ad, b)")
+            out.append(f"    d = {'_lsolve' if lists else 'np.linalg.solve'}(Ad, b)")
     return out or ["    pass"]
 
 
@@ -362,8 +373,70 @@ def _fill_source(fill: _Fill, backend: str) -> str:
                 RuntimeWarning,
                 stacklevel=4,
             )
+    if backend == "numpy":
+        return _LIST_FILL + "\n".join(_python_body(fill, assigned, lists=True)) + "\n"
     deco = "@_jit\n" if backend == "numba" else ""
     return f"{deco}def fill(t, y, p, M, F, V, O):\n" + "\n".join(_python_body(fill, assigned)) + "\n"
+
+
+#: the numpy backend's ``fill`` (arrays, as everywhere) on top of ``_fill`` (lists), its
+#: list solver and its ``rhs``: no array is indexed from Python in a right-hand side
+_LIST_FILL = '''def fill(t, y, p, M, F, V, O):
+    m, f, v, o = _lists()
+    _fill(t, _floats(y), _floats(p), m, f, v, o)
+    M[:, :] = m
+    F[:] = f
+    V[:] = v
+    O[:] = o
+
+
+def _lists():
+    return [[0.0] * DIM for _ in range(DIM)], [0.0] * DIM, [0.0] * N, [0.0] * N_OBSERVED
+
+
+def _floats(a):
+    return a.tolist() if type(a) is np.ndarray else [float(x) for x in a]
+
+
+def _lsolve(M, b):
+    """``M⁻¹b`` for lists (``M`` and ``b`` are overwritten): partial pivoting, as LAPACK's gesv."""
+    n = len(b)
+    if n > 8:
+        return np.linalg.solve(np.array(M), np.array(b)).tolist()
+    for c in range(n):
+        piv, big = c, abs(M[c][c])
+        for r in range(c + 1, n):
+            if abs(M[r][c]) > big:
+                piv, big = r, abs(M[r][c])
+        if big == 0.0:
+            raise np.linalg.LinAlgError("Matrix is singular.")
+        if piv != c:
+            M[c], M[piv], b[c], b[piv] = M[piv], M[c], b[piv], b[c]
+        row, pivot = M[c], M[c][c]
+        for r in range(c + 1, n):
+            other = M[r]
+            factor = other[c] / pivot
+            if factor:
+                for j in range(c + 1, n):
+                    other[j] -= factor * row[j]
+                b[r] -= factor * b[c]
+    for c in range(n - 1, -1, -1):
+        row, acc = M[c], b[c]
+        for j in range(c + 1, n):
+            acc -= row[j] * b[j]
+        b[c] = acc / row[c]
+    return b
+
+
+def _rhs(t, y, p):
+    """The numpy backend's ``rhs``: lists all the way, one array at the end."""
+    m, f, v, o = _lists()
+    _fill(t, _floats(y), _floats(p), m, f, v, o)
+    return np.array(v + _lsolve(m, f)[:K])
+
+
+def _fill(t, y, p, M, F, V, O):
+'''
 
 
 def _solver_source(jit: bool) -> str:
@@ -386,6 +459,24 @@ def _solve(M, F):
     return F
 '''
     return source
+
+
+def _rhs_source(jit: bool) -> str:
+    """``rhs``: numba's on arrays; the numpy backend's is ``_rhs`` (on lists, see :data:`_LIST_FILL`)."""
+    if not jit:
+        return "rhs = _rhs  # dy/dt = [velocities of q, solve(M, F)[:K]]\n"
+    return '''@_jit
+def rhs(t, y, p):
+    """dy/dt = [velocities of q, solve(M, F)[:K]]."""
+    M, F, V, O = evaluate(t, y, p)
+    x = _solve(M, F)
+    dy = np.empty(N + K)
+    for i in range(N):  # loops, not slices: numba compiles them much faster
+        dy[i] = V[i]
+    for i in range(K):
+        dy[N + i] = x[i]
+    return dy
+'''
 
 
 def _module(s: System, layout: Layout, fill: _Fill, dim: int, k: int, backend: str) -> str:
@@ -442,16 +533,7 @@ N_OBSERVED = {n_observed}
     return M, F, V, O
 
 
-{deco}def rhs(t, y, p):
-    """dy/dt = [velocities of q, solve(M, F)[:K]]."""
-    M, F, V, O = evaluate(t, y, p)
-    x = {solve}(M, F)
-    dy = np.empty(N + K)
-    for i in range(N):  # loops, not slices: numba compiles them much faster
-        dy[i] = V[i]
-    for i in range(K):
-        dy[N + i] = x[i]
-    return dy
+{_rhs_source(jit)}
 
 
 {deco}def observe(t, y, p):
