@@ -383,7 +383,7 @@ def _fill_source(fill: _Fill, backend: str) -> str:
 #: list solver and its ``rhs``: no array is indexed from Python in a right-hand side
 _LIST_FILL = '''def fill(t, y, p, M, F, V, O):
     m, f, v, o = _lists()
-    _fill(t, _floats(y), _floats(p), m, f, v, o)
+    _fill_floats(t, y, p, m, f, v, o)
     M[:, :] = m
     F[:] = f
     V[:] = v
@@ -431,8 +431,17 @@ def _lsolve(M, b):
 def _rhs(t, y, p):
     """The numpy backend's ``rhs``: lists all the way, one array at the end."""
     m, f, v, o = _lists()
-    _fill(t, _floats(y), _floats(p), m, f, v, o)
+    _fill_floats(t, y, p, m, f, v, o)
     return np.array(v + _lsolve(m, f)[:K])
+
+
+def _fill_floats(t, y, p, m, f, v, o):
+    """``_fill`` on Python floats; where one overflows (``**``, ``exp``), again on NumPy's
+    scalars, which give ``inf`` as the arrays of the other backends do."""
+    try:
+        _fill(t, _floats(y), _floats(p), m, f, v, o)
+    except OverflowError:
+        _fill(t, list(np.asarray(y, dtype=float)), list(np.asarray(p, dtype=float)), m, f, v, o)
 
 
 def _fill(t, y, p, M, F, V, O):
