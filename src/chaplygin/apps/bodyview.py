@@ -43,7 +43,8 @@ __all__ = ["Mesh", "Scene", "body_section", "body_views", "scenes", "show_rollin
 
 #: the camera: azimuth and elevation (degrees) of the direction it looks from
 AZIMUTH, ELEVATION = -58.0, 26.0
-#: per run, in order: the body's two checker colours and its path colour
+#: per run, in order: the body's dark and pale checker colours (the dark one draws its path); the
+#: runs' colours have the same lightness, so that their views differ in hue only
 PALETTE = (("#2f6db3", "#b9d2ee"), ("#c2452d", "#f2c3b5"), ("#3f8f3f", "#c4e3c0"), ("#7b4fa8", "#ddc9ee"))
 ACCENT = "#e8b10e"
 GROUND = "#f4f1ea"
@@ -462,7 +463,7 @@ def _figure(system: RollingBody, mesh: Mesh, times: list[float], rows: list[list
     half = (half_w, half_w * cell_h / cell_w)
     for i, row in enumerate(rows):
         for j, scene in enumerate(row):
-            ax = fig.add_subplot(grid[1 + i, j])
+            ax = fig.add_subplot(grid[1 + i, j], gid=f"bodyview-{i + 1}-{j + 1}")
             _draw_scene(ax, scene, [s for s in row if s is not scene], half, PALETTE[j % len(PALETTE)][0])
             if j == 0:
                 ax.text(-0.012, 0.5, str(i + 1), transform=ax.transAxes, ha="right", va="center", fontsize=8)
