@@ -431,7 +431,7 @@ def _figure(system: RollingBody, mesh: Mesh, times: list[float], rows: list[list
     from matplotlib.figure import Figure
 
     ncol = len(rows[0])
-    cell_w, cell_h, top_h = 3.6, 2.5, 2.7
+    cell_w, cell_h, top_h = 4.2, 2.9, 3.0
     fig = Figure(figsize=(cell_w * ncol, top_h + cell_h * len(rows)), layout="constrained")
     grid = fig.add_gridspec(1 + len(rows), ncol, height_ratios=[top_h] + [cell_h] * len(rows))
     # the whole contact paths from above, the snapshots numbered
