@@ -15,7 +15,7 @@ from matplotlib.path import Path as MplPath
 
 import chaplygin
 from chaplygin import InputError, compare, examples, simulate
-from chaplygin.apps.bodyview import body_views, scenes, show_rolling
+from chaplygin.apps.bodyview import body_views, scenes, show_rolling, surface
 from chaplygin.apps.report import write_report
 from chaplygin.bodies import Ellipsoid, Sphere, Torus, initial_state, motion, rolling_body
 from test_report import chromium, run_chromium
@@ -222,3 +222,21 @@ def test_report_shows_the_body_rolling_in_chromium(coin, tmp_path: Path) -> None
         for a, b in itertools.pairwise(seen):
             a, b = trimmed(a, b)
             assert (a & b).sum() < 0.7 * (a | b).sum()
+
+
+@pytest.mark.parametrize(
+    "shape, extent",
+    [
+        (Ellipsoid(0.2, 0.03, 0.02), (0.2, 0.03, 0.02)),  # the rattleback: long and thin
+        (Torus(1.0, 0.2), (1.2, 1.2, 0.2)),
+        (Sphere(1.0), (1.0, 1.0, 1.0)),
+    ],
+)
+def test_the_mesh_is_the_shape(shape, extent) -> None:
+    mesh = surface(shape)
+    # the drawn surface reaches the body's semi-axes, each way, and no further
+    assert np.allclose(mesh.points.max(axis=0), extent, rtol=1e-3)
+    assert np.allclose(mesh.points.min(axis=0), -np.array(extent), rtol=1e-3)
+    if isinstance(shape, Ellipsoid):  # every vertex on the ellipsoid
+        assert np.allclose(np.sum((mesh.points / extent) ** 2, axis=1)[:-2], 1.0)
+    assert set(mesh.paint) == {0, 1, 2} and len(mesh.faces) == len(mesh.normals)

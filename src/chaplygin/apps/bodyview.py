@@ -100,9 +100,11 @@ def _normals(alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
 
 
 def _even(values: np.ndarray, steps: np.ndarray, count: int) -> np.ndarray:
-    """``count`` values spaced evenly in the cumulative length of ``steps`` along ``values``."""
-    steps = steps + 1e-3 * (steps.mean() + 1e-300)  # strictly increasing, flat parts kept
-    s = np.concatenate([[0.0], np.cumsum(steps)])
+    """``count`` values spaced evenly in ``steps`` (lengths between successive ``values``), half
+    the weight on length, half on ``values`` themselves: no part of the surface is left coarse."""
+    total = steps.sum()
+    weight = (steps / total if total > 0 else 0.0) + 1.0 / len(steps)
+    s = np.concatenate([[0.0], np.cumsum(weight)])
     return np.interp(np.linspace(0.0, s[-1], count), s, values)
 
 
@@ -111,7 +113,7 @@ def surface(
     values: Mapping[sp.Symbol, float] | None = None,
     *,
     center_of_mass: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
-    rings: int = 14,
+    rings: int = 15,
     meridians: int = 28,
 ) -> Mesh:
     """Sample a shape's surface as ``∇h(n)`` over unit normals ``n``: a :class:`Mesh`.
@@ -125,7 +127,7 @@ def surface(
         Only for a paraboloid (an unbounded cap): its lid is drawn above the centre of mass.
     rings, meridians : int
         Rings of normals from the bottom pole to the top, and meridians around the z axis;
-        both are spaced evenly along the surface (from a fine grid).
+        both are spaced evenly along the surface (from a fine grid) and in angle.
 
     Returns
     -------
@@ -161,9 +163,9 @@ def surface(
         top = fine[..., 2].max(axis=1)
         cut = max(2, int(np.searchsorted(top, lid)) + 1)
         alpha, fine = alpha[:cut], fine[:cut]
-    ring_steps = np.linalg.norm(np.diff(fine, axis=0), axis=2).mean(axis=1)
+    ring_steps = np.linalg.norm(np.diff(fine, axis=0), axis=2).max(axis=1)  # the longest chord
     wrapped = np.concatenate([fine, fine[:, :1]], axis=1)
-    meridian_steps = np.linalg.norm(np.diff(wrapped, axis=1), axis=2).mean(axis=0)
+    meridian_steps = np.linalg.norm(np.diff(wrapped, axis=1), axis=2).max(axis=0)
     a = _even(alpha, ring_steps, rings)
     b = _even(beta, meridian_steps, meridians + 1)[:-1]
     n = _normals(a[:, None], b[None, :])
