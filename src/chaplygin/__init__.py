@@ -24,6 +24,7 @@ if TYPE_CHECKING:
         classify,
         compare_models,
     )
+    from chaplygin.apps.bodyview import show_rolling
     from chaplygin.bodies import (
         Disk,
         Ellipsoid,
@@ -86,6 +87,7 @@ _HOME = {
     "compare": "chaplygin.numeric.comparison",
     "Comparison": "chaplygin.numeric.comparison",
     "from_mechanics": "chaplygin.io.mechanics",
+    "show_rolling": "chaplygin.apps.bodyview",
     "SystemFile": "chaplygin.io.files",
     "SystemFileError": "chaplygin.io.files",
     "dumps": "chaplygin.io.files",
@@ -154,6 +156,7 @@ __all__ = [
     "loads",
     "motion",
     "rolling_body",
+    "show_rolling",
     "simulate",
     "simulate_ensemble",
 ]

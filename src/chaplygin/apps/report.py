@@ -11,6 +11,8 @@ network, that holds
 * the equations of every model that applies, as MathML (rendered natively by browsers);
 * the models simulated from the same initial state: a summary table, figures as inline SVG,
   energy drift and constraint drift;
+* for a rolling body (:func:`chaplygin.bodies.rolling_body`), the body drawn rolling in 3-D,
+  the models side by side (:mod:`chaplygin.apps.bodyview`);
 * for the paper's sphere, the paper's printed equations (49)-(62) beside the derived ones,
   line by line: agree, differ by a transcription error, or differ in substance
   (:func:`paper_table`).
@@ -939,6 +941,9 @@ def render_report(
                 backend=backend,
             )
     parts.append(_simulation_section(comparison, note, stage))
+    from chaplygin.apps.bodyview import body_section
+
+    parts.append(body_section(system, comparison))  # a rolling body drawn rolling; "" for others
     stage("paper")
     if paper is None:
         paper = is_paper_sphere(system)
