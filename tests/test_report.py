@@ -22,6 +22,7 @@ from chaplygin.apps.report import (
     PaperLine,
     is_paper_sphere,
     mathml,
+    mathml_pieces,
     paper_table,
     render_report,
     write_report,
@@ -62,6 +63,63 @@ def table():
     return paper_table()
 
 
+#: A sled carrying a point mass ``mp`` (a multi-letter parameter) at an angle ``alpha`` given
+#: as ``"pi/6"``, with a damping moment in [forces].
+DAMPED_SLED = """
+name = "Damped sled"
+coordinates = ["x", "y", "phi"]
+
+[parameters]
+m = 1.0
+mp = 0.5
+l = 0.3
+J = 0.2
+alpha = "pi/6"
+
+[energy]
+T = "(m + mp)/2*(x'^2 + y'^2) + (J + mp*l^2*sin(2*alpha))/2*phi'^2"
+
+[forces]
+phi = "-0.1*phi'"
+
+[constraints]
+"y'" = "tan(phi)*x'"
+
+[initial]
+phi = 0.3
+"x'" = 1.0
+"phi'" = 0.5
+"""
+
+
+@pytest.fixture(scope="module")
+def sled_file():
+    from chaplygin.io import files
+
+    return files.loads(DAMPED_SLED)
+
+
+@pytest.fixture(scope="module")
+def sled_comparison(sled_file):
+    from chaplygin import compare
+
+    return compare(
+        sled_file.system,
+        ["chaplygin", "chetaev"],  # reduced, and with multipliers
+        2.0,
+        sled_file.initial,
+        sled_file.parameters,
+        samples=41,
+        backend="numpy",
+    )
+
+
+@pytest.fixture(scope="module")
+def sled_report(sled_file, sled_comparison, tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("report") / "sled.html"
+    return write_report(sled_file, path, comparison=sled_comparison)
+
+
 # ---------------------------------------------------------------- MathML
 def test_mathml_prints_dots_and_is_well_formed() -> None:
     theta, x = dynamicsymbols("theta x")
@@ -72,6 +130,35 @@ def test_mathml_prints_dots_and_is_well_formed() -> None:
     assert "<mover><mi>x</mi><mo>&#729;</mo></mover>" in markup  # ẋ
     assert "(t)" not in markup and "&dd;" not in markup
     assert "<mo>\u2212</mo>" in mathml(-x + 1)
+
+
+def test_multi_letter_names_are_one_word_set_apart_in_products() -> None:
+    """``mp`` is one upright name, not the product m·p, and a thin space keeps it (and a
+    function) apart from its neighbours: ``l² mp sin(2α)``, not ``l²mpsin(2α)``."""
+    mp, l, alpha, m, p = sp.symbols("mp l alpha m p")
+    markup = mathml(l**2 * mp * sp.sin(2 * alpha))
+    ET.fromstring(markup)
+    assert markup.count("<mi>mp</mi>") == 1 and "<mi>m</mi><mo>\u2062</mo><mi>p</mi>" not in markup
+    space = '<mo>\u2062</mo><mspace width="0.1667em"/>'
+    assert f"{space}<mi>mp</mi>{space}<mrow><mi>sin</mi>" in markup
+    assert "<mi>&#945;</mi>" in markup and "alpha" not in markup  # Greek names stay letters
+    assert "mspace" not in mathml(m * p)  # single letters: an ordinary product
+
+
+def test_long_formulas_are_cut_between_terms() -> None:
+    x, y, a = dynamicsymbols("x y a")
+    c = sp.Symbol("c")
+    expr = sp.Eq(x.diff(t, 2) - c * (x + y.diff(t)) / 5, a - 1, evaluate=False)
+    pieces = mathml_pieces(expr)
+    for piece in pieces:
+        ET.fromstring(piece)  # each one well-formed <math>
+    texts = ["".join(ET.fromstring(p).itertext()) for p in pieces]
+    # the sum leaves the fraction (c/5)(x + ẏ) and is cut inside its parentheses
+    assert texts == ["\u2212c5\u2062(x", "+y\u02d9)", "+x\u00a8", "=a", "\u22121"]
+    # binary spacing for the operator a piece begins with; a sign stays a sign
+    assert all('<mo form="infix">' in p for p in pieces[1:]) and "infix" not in pieces[0]
+    assert '<mrow><mo form="prefix">\u2212</mo><mfrac><mi>c</mi><mn>5</mn></mfrac>' in pieces[0]
+    assert all('displaystyle="true"' in p for p in pieces)
 
 
 # ---------------------------------------------------------------- contents
@@ -106,6 +193,54 @@ def test_report_of_a_system_without_numbers_and_of_a_voronets_system(tmp_path: P
     )
     assert "Voronets' equations" in text and "Chaplygin's equations, eq. (15)" not in text
     assert "No Lindelöf comparison" in text and text.count("<svg") == 3
+
+
+def test_report_keeps_values_given_exactly(sled_file, sled_comparison) -> None:
+    assert sled_file.exact == {"alpha": sp.pi / 6}
+    assert sled_file.parameters["alpha"] == pytest.approx(np.pi / 6, rel=1e-15)
+    text = render_report(sled_file, comparison=sled_comparison)
+    row = re.search(r"<tr><td><math[^>]*><mi>&#945;</mi></math></td>(.*?)</tr>", text).group(1)
+    assert "<mfrac><mi>\u03c0</mi><mn>6</mn></mfrac>" in row and "0.52" not in row  # π/6
+    assert "0.5235987756" not in text
+    # a number given on top of the file's is shown as the number it is
+    override = render_report(sled_file, comparison=sled_comparison, parameters={"alpha": 0.25})
+    row = re.search(r"<tr><td><math[^>]*><mi>&#945;</mi></math></td>(.*?)</tr>", override).group(1)
+    assert "0.25" in row and "\u03c0" not in row
+
+
+def test_energy_note_knows_non_potential_forces(sphere_report: Path, sled_report: Path) -> None:
+    conservative = sphere_report.read_text(encoding="utf-8")
+    assert "<th>energy drift</th>" in conservative and "E is an invariant here" in conservative
+    damped = sled_report.read_text(encoding="utf-8")
+    assert "invariant here" not in damped.replace("not an invariant here", "")
+    assert "<th>energy change</th>" in damped and "<th>energy drift</th>" not in damped
+    forces = re.search(r"The non-potential forces \((.*?)\) do work", damped)
+    assert forces and ET.fromstring(forces.group(1)).findtext(".//{*}mi") == "Q"  # Q_φ, typeset
+    assert "changes by their work" in damped
+
+
+def _axes(figure_html: str) -> int:
+    return len(re.findall(r'<g id="axes_\d+">', figure_html))
+
+
+def test_no_residual_plot_for_models_that_satisfy_the_constraints_by_construction(
+    sphere_report: Path, sled_report: Path, sled_comparison
+) -> None:
+    # the sphere's default models (chaplygin, lindelof) are both reduced: no residual panel
+    sphere = sphere_report.read_text(encoding="utf-8")
+    invariants = sphere.split('id="figure-invariants"')[1].split("</div>")[0]
+    assert _axes(invariants) == 1
+    cell = '<td class="note" colspan="2">0 by construction (reduced)</td>'
+    assert sphere.count(cell) == 2 and "chaplygin, lindelof: they" in sphere
+    # chaplygin beside chetaev: a residual panel with chetaev's curve only, in chetaev's colour
+    fig = sled_comparison.figure("invariants")
+    top, bottom = fig.axes
+    drawn = [line for line in bottom.lines if len(line.get_xdata())]
+    assert len(drawn) == 1 and drawn[0].get_color() == top.lines[1].get_color()
+    assert "chaplygin: 0 by construction" in bottom.get_title()
+    sled = sled_report.read_text(encoding="utf-8")
+    assert _axes(sled.split('id="figure-invariants"')[1].split("</div>")[0]) == 2
+    assert sled.count(cell) == 1
 
 
 def test_is_paper_sphere() -> None:
@@ -185,6 +320,23 @@ MEASURE = """<script>
   const box = e => { const r = e.getBoundingClientRect(); return [r.width, r.height]; };
   const maths = [...document.querySelectorAll('math')];
   const svgs = [...document.querySelectorAll('.figure svg')];
+  const scrolls = (axis, e) => ['auto', 'scroll'].includes(getComputedStyle(e)['overflow' + axis]);
+  const all = [...document.querySelectorAll('body *')];
+  // a formula sticking out of the block that holds it (a cell, a paragraph, a formula's row)
+  const outside = maths.filter(m => {
+    const r = m.getBoundingClientRect();
+    const c = m.parentElement.closest('div, td, p, li').getBoundingClientRect();
+    return r.left < c.left - 0.5 || r.right > c.right + 0.5;
+  });
+  // the gap after each name "mp" to the next identifier of its formula
+  const gaps = [];
+  for (const m of maths) {
+    const ids = [...m.querySelectorAll('mi')];
+    ids.forEach((mi, k) => {
+      if (mi.textContent === 'mp' && k + 1 < ids.length)
+        gaps.push(ids[k + 1].getBoundingClientRect().left - mi.getBoundingClientRect().right);
+    });
+  }
   const out = {
     element: maths.length ? maths[0].constructor.name : null,
     math: maths.map(box),
@@ -192,6 +344,12 @@ MEASURE = """<script>
     symbols: [...document.querySelectorAll('#system p math')].slice(0, 5).map(box),
     svg: svgs.map(box),
     svgPaths: svgs.map(s => s.querySelectorAll('path').length),
+    scrollX: all.filter(e => scrolls('X', e) && e.scrollWidth > e.clientWidth).map(e => e.outerHTML.slice(0, 300)),
+    scrollY: all.filter(e => scrolls('Y', e) && e.scrollHeight > e.clientHeight).map(e => e.outerHTML.slice(0, 300)),
+    outside: outside.map(m => m.outerHTML.slice(0, 300)),
+    page: [document.documentElement.scrollWidth, document.documentElement.clientWidth],
+    wrapped: [...document.querySelectorAll('.eq')].filter(e => e.getBoundingClientRect().height > 70).length,
+    gaps: gaps,
   };
   const pre = document.createElement('pre');
   pre.id = 'measurements';
@@ -199,6 +357,9 @@ MEASURE = """<script>
   document.body.appendChild(pre);
 })();
 </script>"""
+
+#: The browser window of the rendering tests (a laptop's page width)
+WINDOW = "--window-size=1000,2000"
 
 
 def chromium() -> str:
@@ -225,16 +386,21 @@ def run_chromium(binary: str, profile: Path, *args: str) -> subprocess.Completed
     )
 
 
-def test_report_renders_in_chromium(sphere_report: Path, tmp_path: Path) -> None:
-    binary = chromium()
+def measure(binary: str, report: Path, tmp_path: Path) -> dict:
+    """Boxes of the report as Chromium lays it out in :data:`WINDOW` (see :data:`MEASURE`)."""
     probe = tmp_path / "probe.html"
     probe.write_text(
-        sphere_report.read_text(encoding="utf-8").replace("</body>", MEASURE + "</body>"), encoding="utf-8"
+        report.read_text(encoding="utf-8").replace("</body>", MEASURE + "</body>"), encoding="utf-8"
     )
-    dom = run_chromium(binary, tmp_path / "profile", "--dump-dom", probe.as_uri())
+    dom = run_chromium(binary, tmp_path / "profile", WINDOW, "--dump-dom", probe.as_uri())
     found = re.search(r'<pre id="measurements">(.*?)</pre>', dom.stdout, re.S)
     assert found, f"no measurements in Chromium's DOM dump: {dom.stderr[-2000:]}"
-    m = json.loads(html.unescape(found.group(1)))
+    return json.loads(html.unescape(found.group(1)))
+
+
+def test_report_renders_in_chromium(sphere_report: Path, tmp_path: Path) -> None:
+    binary = chromium()
+    m = measure(binary, sphere_report, tmp_path)
     assert m["element"] == "MathMLElement"  # parsed as MathML, not unknown tags
     sizes = np.array(m["math"])
     assert len(sizes) > 100 and np.all(sizes[:, 0] > 0) and np.all(sizes[:, 1] > 0)
@@ -244,18 +410,23 @@ def test_report_renders_in_chromium(sphere_report: Path, tmp_path: Path) -> None
     figures = np.array(m["svg"])
     assert figures.shape == (3, 2) and np.all(figures > 200)
     assert min(m["svgPaths"]) > 10
+    # no formula scrolls or sticks out of its block: the long ones wrap between terms (the
+    # vakonomic family and the paper's table have some), none is wider than the page here
+    assert m["scrollX"] == [] and m["scrollY"] == [] and m["outside"] == []
+    assert m["page"][0] <= m["page"][1] and m["wrapped"] >= 3
 
     shot = tmp_path / "shot.png"
-    run_chromium(
-        binary,
-        tmp_path / "profile",
-        "--window-size=1200,2400",
-        f"--screenshot={shot}",
-        sphere_report.as_uri(),
-    )
+    run_chromium(binary, tmp_path / "profile", WINDOW, f"--screenshot={shot}", sphere_report.as_uri())
     assert shot.exists()
     import matplotlib.image
 
     pixels = matplotlib.image.imread(shot)[..., :3]
     dark = np.mean(pixels < 0.5)
     assert 0.005 < dark < 0.5 and pixels.std() > 0.05  # text and equations drawn, not blank
+
+
+def test_multi_letter_name_is_set_apart_in_chromium(sled_report: Path, tmp_path: Path) -> None:
+    """``l² mp sin(2α)``: a visible space after ``mp`` wherever a name follows it."""
+    m = measure(chromium(), sled_report, tmp_path)
+    assert len(m["gaps"]) >= 5 and min(m["gaps"]) > 2.0  # px: a thin space (1/6 em) is about 3
+    assert m["scrollX"] == [] and m["scrollY"] == [] and m["outside"] == []

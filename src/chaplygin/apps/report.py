@@ -18,7 +18,10 @@ network, that holds
   (:func:`paper_table`).
 
 Math is rendered with SymPy's MathML presentation printer, extended to print time
-derivatives of coordinates with dots.
+derivatives of coordinates with dots and to set multi-letter names and functions apart by a thin
+space in products.  Displayed formulas are rows of inline ``<math>`` pieces cut between terms
+(:func:`mathml_pieces`), so that the browser wraps a long one as it wraps text: only a single term
+wider than the page would scroll.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import html
 import io
 import os
 import re
+import unicodedata
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from html.entities import html5 as _HTML5
@@ -37,6 +41,7 @@ import numpy as np
 import sympy as sp
 from sympy.core.function import AppliedUndef
 from sympy.printing.mathml import MathMLPresentationPrinter
+from sympy.printing.precedence import PRECEDENCE
 
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
@@ -56,6 +61,7 @@ __all__ = [
     "default_models",
     "is_paper_sphere",
     "mathml",
+    "mathml_pieces",
     "paper_table",
     "render_report",
     "write_report",
@@ -72,8 +78,43 @@ VERDICTS = ("agree", "transcription error", "differs in substance")
 
 
 # ====================================================================== MathML
+#: The space set beside a multi-letter name or a function in a product (LaTeX's ``\,``), so that
+#: ``l² mp sin(2α)`` does not read ``l²mpsin(2α)``, a product of letters.
+THIN_SPACE = "0.1667em"
+_INVISIBLE_TIMES = "&InvisibleTimes;"
+
+
+def _letters(node: Any) -> int:
+    """The letters of an ``<mi>`` (combining marks such as the tilde of T̃ not counted), else 0."""
+    if node.nodeType != node.ELEMENT_NODE or node.tagName != "mi":
+        return 0
+    text = "".join(c.data for c in node.childNodes if c.nodeType == c.TEXT_NODE)
+    return sum(not unicodedata.combining(ch) for ch in text)
+
+
+def _starts_word(node: Any) -> bool:
+    """The box begins with an upright word: a multi-letter name, or a function (``sin(…)``)."""
+    if _letters(node) > 1:
+        return True
+    if node.nodeType == node.ELEMENT_NODE and node.tagName in ("mrow", "msup", "msub", "msubsup", "mover"):
+        return bool(node.childNodes) and _starts_word(node.firstChild)
+    return False
+
+
+def _ends_word(node: Any) -> bool:
+    """The box ends with a multi-letter name (dotted or not)."""
+    if _letters(node) > 1:
+        return True
+    if node.nodeType == node.ELEMENT_NODE and node.tagName in ("mrow", "mover"):
+        return bool(node.childNodes) and _ends_word(
+            node.firstChild if node.tagName == "mover" else node.lastChild
+        )
+    return False
+
+
 class _Printer(MathMLPresentationPrinter):
-    """SymPy's presentation MathML with ``q(t)`` printed as ``q`` and ``q̇``, ``q̈`` with dots."""
+    """SymPy's presentation MathML with ``q(t)`` printed as ``q`` and ``q̇``, ``q̈`` with dots, and
+    a thin space beside multi-letter names and functions in products."""
 
     _DOTS: ClassVar[dict[int, str]] = {1: "\u02d9", 2: "\u00a8"}
 
@@ -81,6 +122,46 @@ class _Printer(MathMLPresentationPrinter):
         if e.args == (TIME,):
             return self._print(sp.Symbol(e.func.__name__))
         return self._print_Function(e)
+
+    def _print_Mul(self, expr: Any) -> Any:
+        mrow = self._coefficient_first(expr) or super()._print_Mul(expr)
+        kids = list(mrow.childNodes)
+        for before, op, after in zip(kids, kids[1:], kids[2:]):
+            if (
+                op.tagName == "mo"
+                and op.firstChild is not None
+                and op.firstChild.data == _INVISIBLE_TIMES
+                and (_ends_word(before) or _starts_word(after))
+            ):
+                space = self.dom.createElement("mspace")
+                space.setAttribute("width", THIN_SPACE)
+                mrow.insertBefore(space, after)
+        return mrow
+
+    def _coefficient_first(self, expr: Any) -> Any:
+        """``a(… + …)/5`` as ``(a/5)(… + …)``: the sum out of the fraction, where it can wrap;
+        ``None`` unless the denominator is an integer and the numerator has a sum factor."""
+        negative = expr.could_extract_minus_sign()
+        numer, denom = sp.fraction(-expr if negative else expr)
+        factors = sp.Mul.make_args(numer)
+        sums = [f for f in factors if isinstance(f, sp.Add)]
+        if not (denom.is_Integer and denom > 1 and sums):
+            return None
+        mrow = self.dom.createElement("mrow")
+        if negative:
+            minus = self.dom.createElement("mo")
+            minus.appendChild(self.dom.createTextNode("-"))
+            mrow.appendChild(minus)
+        frac = self.dom.createElement("mfrac")
+        frac.appendChild(self._print(sp.Mul(*[f for f in factors if not isinstance(f, sp.Add)])))
+        frac.appendChild(self._print(denom))
+        mrow.appendChild(frac)
+        for term in sums:
+            times = self.dom.createElement("mo")
+            times.appendChild(self.dom.createTextNode(_INVISIBLE_TIMES))
+            mrow.appendChild(times)
+            mrow.appendChild(self.parenthesize(term, PRECEDENCE["Mul"]))
+        return mrow
 
     @staticmethod
     def _dotted(e: Any) -> bool:
@@ -117,6 +198,7 @@ class _Printer(MathMLPresentationPrinter):
 
 
 _ENTITY = re.compile(r"&([A-Za-z][A-Za-z0-9]*);")
+_MINUS = re.compile(r"(<mo(?: [^>]*)?>)-</mo>")
 
 
 def _plain_entities(text: str) -> str:
@@ -131,24 +213,112 @@ def _plain_entities(text: str) -> str:
     return _ENTITY.sub(repl, text)
 
 
-def mathml(expr: Any, *, display: str = "inline") -> str:
-    """``<math>`` markup for a SymPy expression or equation, dots for time derivatives."""
+def _as_basic(expr: Any, who: str) -> sp.Basic:
     if isinstance(expr, bool) or not isinstance(expr, (sp.Basic, int, float)):
-        raise TypeError(f"mathml: expected a SymPy object or a number, got {type(expr).__name__}")
+        raise TypeError(f"{who}: expected a SymPy object or a number, got {type(expr).__name__}")
     if not isinstance(expr, sp.Basic):
         expr = sp.Integer(expr) if isinstance(expr, int) else sp.Float(expr)
-    body = _Printer({"order": None}).doprint(expr)
-    body = _plain_entities(body).replace("<mo>-</mo>", "<mo>\u2212</mo>")
-    return f'<math xmlns="http://www.w3.org/1998/Math/MathML" display="{display}">{body}</math>'
+    return expr
+
+
+def _markup(nodes: Sequence[Any], *, display: str, displaystyle: bool = False) -> str:
+    """One ``<math>`` element holding the printed ``nodes``."""
+    body = "".join(node.toxml() for node in nodes).encode("ascii", "xmlcharrefreplace").decode()
+    body = _MINUS.sub("\\1\u2212</mo>", _plain_entities(body))
+    if len(nodes) > 1:
+        body = f"<mrow>{body}</mrow>"
+    style = ' displaystyle="true"' if displaystyle else ""
+    return f'<math xmlns="http://www.w3.org/1998/Math/MathML" display="{display}"{style}>{body}</math>'
+
+
+def mathml(expr: Any, *, display: str = "inline") -> str:
+    """``<math>`` markup for a SymPy expression or equation, dots for time derivatives."""
+    expr = _as_basic(expr, "mathml")
+    return _markup([_Printer({"order": None})._print(expr)], display=display)
+
+
+_BREAKS = ("+", "-", "=")
+
+
+def _is_op(node: Any, ops: Sequence[str]) -> bool:
+    return node.tagName == "mo" and node.firstChild is not None and node.firstChild.data in ops
+
+
+def _is_sum(node: Any) -> bool:
+    """An ``<mrow>`` of terms between ``+``, ``−`` or ``=``: a printed sum or equation."""
+    kids = node.childNodes
+    return (
+        node.tagName == "mrow"
+        and len(kids) >= 3
+        and len(kids) % 2 == 1
+        and all(_is_op(k, _BREAKS) == (i % 2 == 1) for i, k in enumerate(kids))
+    )
+
+
+def _parenthesized_sum(node: Any) -> Any:
+    """The sum inside ``node`` when it is ``( sum )``, else ``None``."""
+    kids = node.childNodes
+    if (
+        node.tagName == "mrow"
+        and len(kids) == 3
+        and _is_op(kids[0], ("(",))
+        and _is_op(kids[2], (")",))
+        and _is_sum(kids[1])
+    ):
+        return kids[1]
+    return None
+
+
+def _tokens(node: Any) -> list[tuple[Any, bool]]:
+    """``node`` as a flat row of ``(node, break before it)``: sums and equations are opened,
+    and so are the sums in parentheses among the factors of a product (``m a² (… + …)``)."""
+    if _is_sum(node):
+        out: list[tuple[Any, bool]] = []
+        for i, kid in enumerate(node.childNodes):
+            out += [(kid, True)] if i % 2 else _tokens(kid)
+        return out
+    kids = list(node.childNodes) if node.tagName == "mrow" else []
+    if not (any(_is_op(k, (_INVISIBLE_TIMES,)) for k in kids) and any(map(_parenthesized_sum, kids))):
+        return [(node, False)]
+    if _is_op(kids[0], ("-",)):  # the product's sign: it stays a prefix in a longer row
+        kids[0].setAttribute("form", "prefix")
+    out = []
+    for kid in kids:
+        inner = _parenthesized_sum(kid)
+        out += (
+            [(kid, False)]
+            if inner is None
+            else [(kid.firstChild, False), *_tokens(inner), (kid.lastChild, False)]
+        )
+    return out
+
+
+def mathml_pieces(expr: Any) -> list[str]:
+    """The expression as a row of inline ``<math>`` elements in display style, cut before each
+    ``+``, ``−`` and ``=`` between terms (of the expression, of both sides of an equation, and
+    of a sum in parentheses among the factors of a product), so that a browser wraps a long
+    formula between terms as it wraps words.  The operator that begins a piece is marked
+    ``form="infix"``: it keeps the spacing of a binary operator."""
+    expr = _as_basic(expr, "mathml_pieces")
+    pieces: list[list[Any]] = []
+    for node, cut in _tokens(_Printer({"order": None})._print(expr)):
+        if cut:
+            node.setAttribute("form", "infix")
+        if cut or not pieces:
+            pieces.append([node])
+        else:
+            pieces[-1].append(node)
+    return [_markup(p, display="inline", displaystyle=True) for p in pieces]
 
 
 def _block(expr: Any) -> str:
-    return f'<div class="eq">{mathml(expr, display="block")}</div>'
+    """A displayed formula: its pieces wrap between terms when wider than the page."""
+    return f'<div class="eq">{"<wbr>".join(mathml_pieces(expr))}</div>'
 
 
 def _cell(expr: Any) -> str:
-    """Math in a table cell: inline, left-aligned, scrolling when wider than the cell."""
-    return f'<div class="eq">{mathml(expr)}</div>'
+    """Math in a table cell: left-aligned, wrapping between terms when wider than the cell."""
+    return f'<div class="eq cell">{"<wbr>".join(mathml_pieces(expr))}</div>'
 
 
 def _esc(text: Any) -> str:
@@ -583,6 +753,8 @@ class _Source:
     initial: dict[str, float]
     name: str
     source: str
+    #: the values given exactly (``pi/6``), by key, where the number used is that value
+    exact: dict[str, sp.Expr] = field(default_factory=dict)
 
 
 def _source(obj: Any, parameters: Mapping[str, float] | None, initial: Mapping[str, float] | None) -> _Source:
@@ -596,10 +768,20 @@ def _source(obj: Any, parameters: Mapping[str, float] | None, initial: Mapping[s
             f"write_report: expected a System or a system file (chaplygin.io.files.SystemFile), "
             f"got {type(obj).__name__}."
         )
+    given = {**(getattr(obj, "parameters", None) or {}), **(getattr(obj, "initial", None) or {})}
     params = {**(getattr(obj, "parameters", None) or {}), **(parameters or {})}
     start = {**(getattr(obj, "initial", None) or {}), **(initial or {})}
+    used = {**params, **start}
+    exact = {  # an override that replaced the file's number is shown as given
+        k: v for k, v in (getattr(obj, "exact", None) or {}).items() if k in given and used.get(k) == given[k]
+    }
     return _Source(
-        system, params, start, getattr(obj, "name", "") or system.name, str(getattr(obj, "source", "") or "")
+        system,
+        params,
+        start,
+        getattr(obj, "name", "") or system.name,
+        str(getattr(obj, "source", "") or ""),
+        exact,
     )
 
 
@@ -625,9 +807,10 @@ table { border-collapse: collapse; margin: 0.8rem 0; }
 th, td { border: 1px solid #d0d0d0; padding: 0.3rem 0.55rem; vertical-align: top; text-align: left; }
 th { background: #f3f3f3; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
-.eq { overflow-x: auto; padding: 0.15rem 0; }
+.eq { text-align: center; padding: 0.25rem 0; overflow-x: auto; overflow-y: hidden; }
+.eq math { margin-block: 0.25em; }
+.eq.cell { text-align: left; padding: 0.1rem 0; }
 math { font-size: 1.08em; }
-td .eq math { math-style: normal; }
 .figure { margin: 1rem 0; overflow-x: auto; }
 .figure svg { max-width: 100%; height: auto; }
 code, pre { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.85em; }
@@ -635,7 +818,7 @@ pre { background: #f7f7f7; padding: 0.6rem; overflow-x: auto; }
 .verdict { font-weight: 600; }
 td .verdict { white-space: nowrap; }
 table.paper { width: 100%; table-layout: fixed; }
-table.paper td { overflow-wrap: anywhere; }
+table.paper td { overflow-wrap: break-word; }
 .agree { color: #17652b; } .transcription { color: #8a5a00; } .substance { color: #a8141c; }
 .holds { color: #17652b; } .fails { color: #a8141c; }
 .note { color: #555; font-size: 0.92em; }
@@ -648,6 +831,11 @@ _VERDICT_CLASS = {VERDICTS[0]: "agree", VERDICTS[1]: "transcription", VERDICTS[2
 
 def _name(q: Any) -> str:
     return q.func.__name__
+
+
+def _value(src: _Source, key: str, number: float) -> str:
+    """A parameter or initial value as given: ``π/6`` where the file wrote ``"pi/6"``."""
+    return "".join(mathml_pieces(src.exact[key])) if key in src.exact else f"{number:.10g}"
 
 
 def _system_section(src: _Source) -> str:
@@ -689,12 +877,12 @@ def _system_section(src: _Source) -> str:
     if src.parameters or src.initial:
         out.append("<table><tr><th>parameter / initial value</th><th>value</th></tr>")
         out += [
-            f'<tr><td>{mathml(sp.Symbol(k))}</td><td class="num">{v:.10g}</td></tr>'
+            f'<tr><td>{mathml(sp.Symbol(k))}</td><td class="num">{_value(src, k, v)}</td></tr>'
             for k, v in src.parameters.items()
         ]
         for k, v in src.initial.items():
             label = mathml(sp.Function(k[:-1])(TIME).diff(TIME)) if k.endswith("'") else mathml(sp.Symbol(k))
-            out.append(f'<tr><td>{label}(0)</td><td class="num">{v:.10g}</td></tr>')
+            out.append(f'<tr><td>{label}(0)</td><td class="num">{_value(src, k, v)}</td></tr>')
         out.append("</table>")
     out.append("</section>")
     return "\n".join(out)
@@ -792,6 +980,36 @@ def _equations_section(system: System) -> str:
     return "\n".join(out)
 
 
+def _exact_constraints(trajectory: Any) -> bool:
+    """The run's model is reduced: it integrates only the independent velocities, so its
+    constraint residual is zero by construction (round-off), not a measurement."""
+    model = registry.MODELS.get(trajectory.model)
+    return model is not None and model.reduced
+
+
+def _energy_note(system: System) -> tuple[str, str]:
+    """The energy column's heading, and (HTML) what E = T − U is for ``system``: an invariant
+    whose drift measures the integration error, or a quantity that changes with the motion."""
+    measure = "max |E − E(0)| / max(1, |E(0)|), E = T − U"
+    forced = [mathml(sp.Symbol(f"Q_{_name(q)}")) for q, f in system.forces.items() if f != 0]
+    if forced:
+        return "energy change", (
+            f"Energy change: {measure}. The non-potential forces ({', '.join(forced)}) do work, so "
+            "E is not an invariant here: it changes by their work, dE/dt = Σ_s Q_s q̇_s, and this "
+            "column measures that change, not an integration error."
+        )
+    if system.is_affine or not system.is_scleronomic:
+        why = "the constraints are affine" if system.is_affine else "the system depends on time explicitly"
+        return "energy change", (
+            f"Energy change: {measure}. E is not an invariant here ({why}): this column measures "
+            "how it changes along the motion, not an integration error."
+        )
+    return "energy drift", (
+        f"Energy drift: {measure}; E is an invariant here (scleronomic homogeneous constraints, no "
+        "non-potential forces), so the drift measures the integration error."
+    )
+
+
 def _simulation_rows(comparison: Comparison) -> str:
     rows = []
     for label, tr in comparison.trajectories.items():
@@ -799,17 +1017,24 @@ def _simulation_rows(comparison: Comparison) -> str:
         k = int(np.argmax(dist)) if len(dist) else 0
         dmax = f"{dist[k]:.6g}" if len(dist) else "–"
         at = f"{tr.t[k]:.4g}" if len(dist) else "–"
+        if _exact_constraints(tr):
+            residual = '<td class="note" colspan="2">0 by construction (reduced)</td>'
+        else:
+            residual = (
+                f'<td class="num">{np.max(tr.constraint_residual, initial=0.0):.3g}</td>'
+                f'<td class="num">{(tr.constraint_residual[-1] if len(tr.t) else float("nan")):.3g}</td>'
+            )
         rows.append(
             f'<tr><td><code>{_esc(label)}</code></td><td class="num">{dmax}</td><td class="num">{at}</td>'
-            f'<td class="num">{tr.energy_drift():.3g}</td>'
-            f'<td class="num">{np.max(tr.constraint_residual, initial=0.0):.3g}</td>'
-            f'<td class="num">{(tr.constraint_residual[-1] if len(tr.t) else float("nan")):.3g}</td>'
+            f'<td class="num">{tr.energy_drift():.3g}</td>{residual}'
             f"<td>{_esc(tr.status)}{': ' + _esc(tr.message) if not tr.success else ''}</td></tr>"
         )
     return "\n".join(rows)
 
 
-def _simulation_section(comparison: Comparison | None, note: str, stage: Callable[[str], None]) -> str:
+def _simulation_section(
+    system: System, comparison: Comparison | None, note: str, stage: Callable[[str], None]
+) -> str:
     out = ['<section id="simulation"><h2>The models from the same initial state</h2>']
     if comparison is None:
         out.append(f'<p class="note">{_esc(note)}</p></section>')
@@ -821,18 +1046,23 @@ def _simulation_section(comparison: Comparison | None, note: str, stage: Callabl
         f"<p>{len(comparison.trajectories)} model(s) from t = {ref.t[0]:g} to {ref.t[-1]:g}, "
         f"{len(ref.t)} samples; distance: {_esc(what)}, from <code>{_esc(comparison.reference)}</code>.</p>"
     )
+    energy, energy_note = _energy_note(system)
     out.append(
-        "<table><tr><th>model</th><th>max distance</th><th>at t</th><th>energy drift</th>"
+        f"<table><tr><th>model</th><th>max distance</th><th>at t</th><th>{energy}</th>"
         "<th>max constraint residual</th><th>final residual</th><th>status</th></tr>"
     )
     out.append(_simulation_rows(comparison))
     out.append("</table>")
     out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
-    out.append(
-        '<p class="note">Energy drift: max |E − E(0)| / max(1, |E(0)|), E = T − U; it is an '
-        "invariant for scleronomic homogeneous constraints. Constraint residual: "
-        "max_β |Σ A_βs q̇_s + A_β0| (the reduced models satisfy the constraints exactly).</p>"
-    )
+    exact = [label for label, tr in comparison.trajectories.items() if _exact_constraints(tr)]
+    residual = "Constraint residual: max_β |Σ A_βs q̇_s + A_β0|"
+    if exact:
+        residual += (
+            f"; identically zero by construction for the reduced model(s) {', '.join(exact)}: they "
+            "integrate only the independent velocities and compute the others from the "
+            "constraints, so it is not plotted"
+        )
+    out.append(f'<p class="note">{energy_note} {_esc(residual)}.</p>')
     stage("figures")
     from chaplygin.numeric.comparison import FIGURES
 
@@ -856,8 +1086,8 @@ def _paper_section(table: PaperTable) -> str:
         "\\psi = ψ, \\theta = θ, \\varphi = φ; forces of (44)-(46): moments M_ψ, M_θ, M_φ on "
         "the angles and (V₁, V₂) on the centre.</p>",
         f'<p class="verdict">{_esc(table.summary())}.</p>',
-        '<table class="paper"><colgroup><col style="width:9%"><col style="width:38%">'
-        '<col style="width:31%"><col style="width:22%"></colgroup>'
+        '<table class="paper"><colgroup><col style="width:12%"><col style="width:36%">'
+        '<col style="width:30%"><col style="width:22%"></colgroup>'
         "<tr><th>eq.</th><th>as printed (OCR text; typed as it stands; restored)</th>"
         "<th>derived by chaplygin</th><th>verdict and restorations</th></tr>",
     ]
@@ -940,10 +1170,11 @@ def render_report(
                 samples=samples,
                 backend=backend,
             )
-    parts.append(_simulation_section(comparison, note, stage))
+    parts.append(_simulation_section(system, comparison, note, stage))
     from chaplygin.apps.bodyview import body_section
 
-    parts.append(body_section(system, comparison))  # a rolling body drawn rolling; "" for others
+    body = body_section(system, comparison)  # a rolling body drawn rolling; "" for others
+    parts.append(body)
     stage("paper")
     if paper is None:
         paper = is_paper_sphere(system)
@@ -965,6 +1196,7 @@ def render_report(
             '<nav><a href="#system">system</a> · <a href="#integrability">integrability</a> · '
             '<a href="#models">models</a> · <a href="#equations">equations</a> · '
             '<a href="#simulation">simulation</a>'
+            + (' · <a href="#body">the body rolling</a>' if body else "")
             + (' · <a href="#paper">the paper\'s equations</a>' if paper is not False else "")
             + "</nav>",
             *parts,

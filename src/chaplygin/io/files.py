@@ -54,7 +54,7 @@ import os
 import re
 import sys
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -153,6 +153,10 @@ class SystemFile:
         The keys of :attr:`initial` that ``[initial]`` did not give (set to 0).
     body : dict or None
         The ``[body]`` table as read (TOML values), for a system built from a body.
+    exact : dict of str → sympy.Expr
+        The values of :attr:`parameters` and :attr:`initial` given as strings of constants,
+        exactly as SymPy numbers (``"pi/6"`` → ``pi/6``), by key; for display: the
+        computations use the floats.
     """
 
     system: System
@@ -162,6 +166,7 @@ class SystemFile:
     source: str
     defaulted: tuple[str, ...] = ()
     body: dict[str, Any] | None = None
+    exact: dict[str, sp.Expr] = field(default_factory=dict)
 
     def dumps(self) -> str:
         """This file written back as TOML: its ``[body]`` table if it has one, else as :func:`dumps`."""
@@ -299,6 +304,8 @@ class _Reader:
         # the key and text being read, for errors that escape from SymPy (see _loads)
         self.where: str | None = None
         self.text: str | None = None
+        # [parameters] and [initial] values given as constant strings, exactly (SystemFile.exact)
+        self.exact: dict[str, sp.Expr] = {}
 
     def error(self, reason: str, key: str | None = None, **fields: Any) -> SystemFileError:
         return SystemFileError(reason, source=self.source, key=key, **fields)
@@ -356,7 +363,14 @@ class _Reader:
         initial = self.read_initial(system)
         given = self.table("initial")
         return SystemFile(
-            system, parameters, initial, name, self.source, tuple(k for k in initial if k not in given), body
+            system,
+            parameters,
+            initial,
+            name,
+            self.source,
+            tuple(k for k in initial if k not in given),
+            body,
+            self.exact,
         )
 
     # ------------------------------------------------------------ [body]
@@ -581,10 +595,12 @@ class _Reader:
                     where,
                     allowed="Parameters are the constants of the system (masses, lengths …).",
                 )
-            out[name] = self.number(value, where)
+            out[name] = self.number(value, where, exact=name)
         return out
 
-    def number(self, value: Any, where: str) -> float:
+    def number(self, value: Any, where: str, exact: str | None = None) -> float:
+        """A finite float; a string of constants is also kept exactly in ``self.exact[exact]``
+        (unless it is a plain decimal such as ``"0.5"``)."""
         allowed = 'A number such as 1, 0.5 or -2e-3, or a string of constants such as "pi/4".'
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
             raise self.error(f"expected a number, got {_describe(value)}", where, allowed=allowed)
@@ -592,9 +608,12 @@ class _Reader:
             self.where, self.text = where, value
             try:
                 number = parse_constant(value)
+                symbolic = parse_expression(value, Names(time=False)) if exact is not None else None
             except ParseError as exc:
                 raise exc.located(source=self.source, key=where) from None
             self.where = self.text = None
+            if exact is not None and isinstance(symbolic, sp.Expr) and not symbolic.is_Float:
+                self.exact[exact] = symbolic
             return number
         try:
             number = float(value)
@@ -838,7 +857,7 @@ class _Reader:
             if key not in coords and key not in independent:
                 raise self.error(_unknown(key, coords + independent, "[initial]"), where, allowed=allowed)
         return {
-            key: (self.number(table[key], _key("initial", key)) if key in table else 0.0)
+            key: (self.number(table[key], _key("initial", key), exact=key) if key in table else 0.0)
             for key in coords + independent
         }
 

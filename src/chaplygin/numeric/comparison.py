@@ -137,6 +137,11 @@ class Comparison:
     def figure(self, kind: str = "paths") -> Figure:
         """A matplotlib figure: ``"paths"``, ``"coordinates"`` or ``"invariants"``.
 
+        ``"invariants"`` draws the energy change of every model and, below, the constraint
+        residual of the models with multipliers; a reduced model (the registry's ``reduced``)
+        satisfies the constraints by construction, so its residual (zero, round-off) is not
+        drawn, and without a model with multipliers there is no residual panel.
+
         Each model has its own line style and marker (:data:`STYLES`), and a curve that
         coincides with an earlier model's to plotting precision (:data:`COINCIDE`) is labelled
         ``"lindelof (same as chaplygin)"`` in the legend of its axes, so that no model hides
@@ -168,8 +173,11 @@ class Comparison:
             axes[-1].set_xlabel("t")
             axes[0].set_title(f"{self.system_name}: coordinates")
         else:
-            fig = Figure(figsize=(7, 5), layout="constrained")
-            top, bottom = fig.subplots(2, 1, sharex=True)
+            # a reduced model's residual is zero by construction: drawn only for the others
+            exact = [label for label, tr in runs if registry.MODELS[tr.model].reduced]
+            residual = len(exact) < len(self.trajectories)
+            fig = Figure(figsize=(7, 5 if residual else 3), layout="constrained")
+            top, *bottom = fig.subplots(2 if residual else 1, 1, sharex=True, squeeze=False)[:, 0]
             drift = [
                 (
                     label,
@@ -180,16 +188,18 @@ class Comparison:
                 for label, tr in runs
             ]
             _draw(top, drift, legend=True, log=True)
-            _draw(
-                bottom,
-                [(label, tr.t, tr.constraint_residual + 1e-18) for label, tr in runs],
-                legend=False,
-                log=True,
-            )
-            top.set(
-                yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: invariants"
-            )
-            bottom.set(yscale="log", ylabel="constraint residual", xlabel="t")
+            top.set(yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: energy")
+            if residual:
+                curves = [
+                    (label, tr.t, None if label in exact else tr.constraint_residual + 1e-18)
+                    for label, tr in runs
+                ]
+                _draw(bottom[0], curves, legend=False, log=True)
+                bottom[0].set(yscale="log", ylabel="constraint residual", xlabel="t")
+                if exact:
+                    bottom[0].set_title(f"{', '.join(exact)}: 0 by construction (reduced)", fontsize="small")
+            else:
+                top.set_xlabel("t")
         return fig
 
     def save_figures(self, directory: str | Path, *, fmt: str = "svg") -> list[Path]:
@@ -230,27 +240,28 @@ def coincide(
 
 
 def _draw(
-    ax: Any, curves: list[tuple[str, np.ndarray, np.ndarray]], *, legend: bool, log: bool = False
+    ax: Any, curves: list[tuple[str, np.ndarray, np.ndarray | None]], *, legend: bool, log: bool = False
 ) -> None:
     """Draw one curve per model, each in its own style; a curve that coincides with an earlier
-    one is labelled ``"label (same as earlier)"``.  A legend when asked or when any coincides."""
+    one is labelled ``"label (same as earlier)"``.  A legend when asked or when any coincides.
+    A curve ``None`` is not drawn but keeps its model's style (and colour) for the next ones."""
 
     def scaled(y: np.ndarray) -> np.ndarray:  # coincidence as seen on a log axis
         y = np.asarray(y, dtype=float)
         return np.log10(np.where(y > 0, y, np.nan)) if log else y
 
+    drawn = [(i, label, x, y) for i, (label, x, y) in enumerate(curves) if y is not None]
     spans = (
-        _span([np.asarray(x, dtype=float) for _, x, _ in curves]),
-        _span([scaled(y) for _, _, y in curves]),
+        _span([np.asarray(x, dtype=float) for _, _, x, _ in drawn]),
+        _span([scaled(y) for _, _, _, y in drawn]),
     )
     any_same = False
     for i, (label, x, y) in enumerate(curves):
+        if y is None:
+            ax.plot([], [])  # the next model keeps its colour
+            continue
         same = next(
-            (
-                curves[j][0]
-                for j in range(i)
-                if coincide((curves[j][1], scaled(curves[j][2])), (x, scaled(y)), spans)
-            ),
+            (other for j, other, u, v in drawn if j < i and coincide((u, scaled(v)), (x, scaled(y)), spans)),
             None,
         )
         any_same |= same is not None
