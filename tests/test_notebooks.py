@@ -53,6 +53,11 @@ def test_notebook_runs(path: Path, tmp_path: Path) -> None:
         if out.output_type == "error"
     ]
     assert not errors
+    # every figure shows itself (no %matplotlib inline in the notebooks): a PNG, never only
+    # matplotlib's "<Figure size 700x860 with 5 Axes>"
+    shown = [out.get("data", {}) for cell in nb.cells if cell.cell_type == "code" for out in cell.outputs]
+    assert not any(d.get("text/plain", "").startswith("<Figure size") and "image/png" not in d for d in shown)
+    assert sum("image/png" in d for d in shown) >= 2
     if path.name == "own-system.ipynb":
         report = (work / "cart-report.html").read_text(encoding="utf-8")
         assert report.startswith("<!DOCTYPE html>") and "Cart with a fixed rear axle" in report

@@ -35,8 +35,8 @@ from chaplygin.models import registry
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
+    from chaplygin.numeric._figure import Figure
     from chaplygin.numeric.simulate import Trajectory
 
 __all__ = ["Mesh", "Scene", "body_section", "body_views", "scenes", "show_rolling", "surface"]
@@ -430,7 +430,7 @@ def _draw_scene(
 
 
 def _figure(system: RollingBody, mesh: Mesh, times: list[float], rows: list[list[Scene]]) -> Figure:
-    from matplotlib.figure import Figure
+    from chaplygin.numeric._figure import Figure
 
     ncol = len(rows[0])
     cell_w, cell_h, top_h = 4.2, 2.9, 3.0

@@ -147,7 +147,7 @@ class Comparison:
         ``"lindelof (same as chaplygin)"`` in the legend of its axes, so that no model hides
         behind another.
         """
-        from matplotlib.figure import Figure
+        from chaplygin.numeric._figure import Figure
 
         if kind not in FIGURES:
             raise ChaplyginError(f"figure kind {kind!r}: choose one of {', '.join(FIGURES)}.")
