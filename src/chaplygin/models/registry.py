@@ -149,7 +149,7 @@ MODELS: dict[str, Model] = {
         ),
         Model(
             "vakonomic",
-            {"classic": "Vakonomic model: equations with multipliers mu, eqs. (17)-(18)"},
+            {"classic": "Vakonomic model: equations with multipliers μ, eqs. (17)-(18)"},
             motion="vakonomic",
             reduced=False,
             builder="vakonomic",
