@@ -301,24 +301,11 @@ def _tolerance(value: float, option: str) -> float:
 
 
 # ====================================================================== printing in the file syntax
-def _file_printer() -> Any:
-    from sympy.physics.vector.printing import VectorStrPrinter
-
-    class FilePrinter(VectorStrPrinter):
-        """``x'``, ``x''`` for derivatives, ``**`` for powers, the file syntax's function names."""
-
-        def _print_Abs(self, e: Any) -> str:
-            return f"abs({self._print(e.args[0])})"
-
-        def _print_Exp1(self, e: Any) -> str:
-            return "exp(1)"
-
-    return FilePrinter()
-
-
 def file_syntax(expr: Any) -> str:
     """An expression as a string in the system-file syntax (``x'`` velocities, ``**`` powers)."""
-    return _file_printer().doprint(expr)
+    from chaplygin.core._symbols import file_syntax as printed
+
+    return printed(expr)
 
 
 def _names(items: Sequence[Any]) -> list[str]:

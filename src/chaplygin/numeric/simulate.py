@@ -290,8 +290,10 @@ def _lookup(system: System, key: Any) -> tuple[str, int]:
         return "v", system.coordinates.index(key.expr)
     elif key in system.coordinates:
         return "q", system.coordinates.index(key)
+    from chaplygin.core._symbols import describe
+
     raise ChaplyginError(
-        f"initial: {key!r} is neither a coordinate nor a velocity of {system.name}; use "
+        f"initial: {describe(key)} is neither a coordinate nor a velocity of {system.name}; use "
         f"{', '.join(names)} or their velocities ({names[0]}' …)."
     )
 
@@ -355,7 +357,9 @@ def _finite(value: Any, what: str, accepted: str) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise InputError(f"{what} = {value!r} is not a number; give {accepted}.") from None
+        from chaplygin.core._symbols import describe
+
+        raise InputError(f"{what} = {describe(value)} is not a number; give {accepted}.") from None
     if not math.isfinite(number):
         raise InputError(f"{what} = {number} is not finite; give {accepted}.")
     return number

@@ -1,0 +1,108 @@
+"""The command line's polish (issue 19, item 4): the models explained in --help and by
+`chaplygin models`; `derive --format pretty`; no `<bool>` after a flag; lists wrapped to the
+terminal; CSV numbers that read back exactly; integration progress as t / t_end; messages that
+name q, q', q'' as the files do, never SymPy's `Derivative(q(t), (t, 2))`."""
+
+from __future__ import annotations
+
+import re
+
+import click
+import pytest
+import sympy as sp
+import typer
+from sympy.physics.mechanics import dynamicsymbols
+from typer.testing import CliRunner
+
+import chaplygin
+from chaplygin import ChaplyginError, System
+from chaplygin.apps.cli import app
+from chaplygin.numeric._ckernel import Unavailable, compiler
+
+runner = CliRunner()
+T_ = dynamicsymbols._t
+
+try:
+    compiler()
+    LOOPS = ["numba", "c"]
+except Unavailable:  # pragma: no cover - every CI machine has a C compiler
+    LOOPS = ["numba"]
+
+
+def run(*args: str, **kwargs):
+    return runner.invoke(app, [str(a) for a in args], **kwargs)
+
+
+def words(text: str) -> str:
+    """``text`` with every run of white space (a wrapped line, a table's padding) one space."""
+    return " ".join(text.split())
+
+
+def every_command() -> list[list[str]]:
+    """The argument lists of every command and group, ``[]`` for ``chaplygin`` itself."""
+    found: list[list[str]] = []
+
+    def walk(command: click.Command, path: list[str]) -> None:
+        found.append(path)
+        for name, sub in getattr(command, "commands", {}).items():
+            walk(sub, [*path, name])
+
+    walk(typer.main.get_command(app), [])
+    return found
+
+
+# ---------------------------------------------------------------- no SymPy internals in messages
+SYMPY_INTERNALS = re.compile(r"Derivative\(|\(t\)|Dummy|Symbol\(|_dd\b|\b_[a-z]")
+
+
+def message(call) -> str:
+    with pytest.raises(ChaplyginError) as caught:
+        call()
+    text = str(caught.value)
+    assert not SYMPY_INTERNALS.search(text), text
+    return text
+
+
+@pytest.fixture
+def knife() -> tuple[System, tuple[sp.Expr, ...], tuple[sp.Symbol, ...]]:
+    x, y, phi = dynamicsymbols("x y phi")
+    m, J = sp.symbols("m J", positive=True)
+    system = System(
+        coordinates=[x, y, phi],
+        kinetic_energy=m / 2 * (x.diff(T_) ** 2 + y.diff(T_) ** 2) + J / 2 * phi.diff(T_) ** 2,
+        constraints={y.diff(T_): sp.tan(phi) * x.diff(T_)},
+    )
+    return system, (x, y, phi), (m, J)
+
+
+def test_do_not_determine_names_the_accelerations_as_files_do(knife) -> None:
+    system, (x, _, phi), (m, _) = knife
+    chap = system.equations("chaplygin")
+    text = message(lambda: chaplygin.equivalent(system, [m * x.diff(T_, 2)], chap))
+    assert "do not determine phi''" in text
+    text = message(lambda: chaplygin.classify(system, [m * x.diff(T_, 2)]))
+    assert "phi''" in text
+    same = [x.diff(T_, 2) + phi.diff(T_, 2)] * 2
+    text = message(lambda: chaplygin.equivalent(system, same, chap))
+    assert "do not determine all of x'', phi''" in text
+
+
+def test_other_messages_name_expressions_in_the_file_syntax(knife) -> None:
+    system, (x, _, phi), (m, J) = knife
+    chap = system.equations("chaplygin")
+    assert "x'''" in message(lambda: chaplygin.equivalent(system, [x.diff(T_, 3), phi.diff(T_, 2)], chap))
+    numbers = {"m": 1.0, "J": 1.0}
+    assert "x''" in message(
+        lambda: chaplygin.simulate(system, "chaplygin", 1.0, {x.diff(T_, 2): 1.0}, numbers)
+    )
+    free = {"coordinates": [x, phi], "constraints": {}}
+    T = m / 2 * x.diff(T_) ** 2
+    assert "x''" in message(lambda: System(**free, kinetic_energy=T + m * x.diff(T_, 2)))
+    f = dynamicsymbols("f")
+    assert "function f;" in message(lambda: System(**free, kinetic_energy=T + f))
+    assert "forces[phi]" in message(lambda: System(**free, kinetic_energy=T, forces={phi: "J"}))
+    assert "phi is not a parameter" in message(lambda: system.parameter(phi))
+    state = {x: "a", "y": 0.0, "phi": 0.0, "x'": 1.0, "phi'": 0.0}
+    assert "x = 'a' is not a number" in message(
+        lambda: chaplygin.simulate_ensemble(system, "chaplygin", 1.0, [state], numbers)
+    )
