@@ -15,7 +15,7 @@ from sympy.physics.mechanics import dynamicsymbols
 from typer.testing import CliRunner
 
 import chaplygin
-from chaplygin import ChaplyginError, System
+from chaplygin import ChaplyginError, System, examples
 from chaplygin.apps.cli import app
 from chaplygin.numeric._ckernel import Unavailable, compiler
 
@@ -49,6 +49,23 @@ def every_command() -> list[list[str]]:
 
     walk(typer.main.get_command(app), [])
     return found
+
+
+# ---------------------------------------------------------------- derive --format pretty
+def test_derive_pretty_prints_unicode_as_demo_does() -> None:
+    result = run("derive", "example:knife-edge", "--model", "chaplygin", "--format", "pretty")
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    assert out.startswith("Chaplygin's equations, eq. (15) - Knife edge\n")
+    assert "\N{GREEK SMALL LETTER PHI}\N{COMBINING DIAERESIS}" in out  # φ with two dots
+    assert "x\N{COMBINING DIAERESIS}" in out and "cos(\N{GREEK SMALL LETTER PHI})" in out
+    assert "phi''" not in out and "**" not in out and "Derivative" not in out
+    assert "\nSolved:\n" in out
+    # the equations exactly as `chaplygin demo` prints a system's equations (Equations.pretty)
+    demo_style = examples.get("knife-edge").constructor().equations("chaplygin").pretty()
+    assert out.split("\nSolved:\n")[0].rstrip() == demo_style.rstrip()
+    text = run("derive", "example:knife-edge", "--model", "chaplygin").stdout
+    assert "phi''" in text and "φ" not in text  # -f text stays the file syntax
 
 
 # ---------------------------------------------------------------- no SymPy internals in messages

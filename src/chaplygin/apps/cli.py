@@ -99,6 +99,7 @@ class Form(str, Enum):
 
 class DeriveFormat(str, Enum):
     text = "text"
+    pretty = "pretty"
     latex = "latex"
     json = "json"
 
@@ -404,6 +405,16 @@ class _Derivation:
                 rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
                 lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
             return "\n".join(lines)
+        if fmt is DeriveFormat.pretty:
+            import sympy as sp
+
+            from chaplygin.core._symbols import pretty
+
+            text = f"{head['title']} - {head['system']}\n\n{pretty(self.equations)}"
+            if acc is not None:
+                solved = (sp.Eq(k, v, evaluate=False) for k, v in acc.items())
+                text += f"\n\nSolved:\n\n{pretty(solved)}"
+            return text
         lines = [f"{head['title']} - {head['system']}"]
         lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
         if acc is not None:
@@ -420,7 +431,13 @@ def derive(
     form: Form = typer.Option(
         Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."
     ),
-    fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
+    fmt: DeriveFormat = typer.Option(
+        DeriveFormat.text,
+        "--format",
+        "-f",
+        help="Output format: text (the file syntax, x'' for accelerations), pretty (Unicode, as "
+        "`chaplygin demo` prints), latex or json.",
+    ),
     accelerations: bool = typer.Option(
         True, "--accelerations/--no-accelerations", help="Also solve for the accelerations (and multipliers)."
     ),

@@ -136,3 +136,18 @@ def describe(value: object) -> str:
     """``value`` for a message: SymPy objects in the file syntax (:func:`file_syntax`), anything
     else as its ``repr``."""
     return file_syntax(value) if isinstance(value, sp.Basic) else repr(value)
+
+
+def pretty(exprs: Iterable[sp.Basic]) -> str:
+    """A multi-line Unicode rendering of each expression (dots for time derivatives, Greek
+    letters), one after another with a blank line between: what ``chaplygin demo`` and
+    ``chaplygin derive --format pretty`` print."""
+    from sympy.physics.vector.printing import VectorPrettyPrinter
+    from sympy.printing.pretty.pretty_symbology import pretty_use_unicode
+
+    printer = VectorPrettyPrinter({"use_unicode": True, "wrap_line": False})
+    previous = pretty_use_unicode(True)  # Greek letters follow a global flag
+    try:
+        return "\n\n".join(printer.doprint(e) for e in exprs)
+    finally:
+        pretty_use_unicode(previous)
