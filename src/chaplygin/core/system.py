@@ -232,7 +232,7 @@ class System:
         if unknown:
             f = sorted(unknown, key=str)[0]
             raise SystemDefinitionError(
-                f"{what} contains the unknown function {describe(f)}; the coordinates are "
+                f"{what} contains the unknown function {f.func.__name__}(t); the coordinates are "
                 f"{', '.join(q.func.__name__ for q in self.coordinates)}. Add it to the "
                 "coordinates, or write it as a plain Symbol if it is a constant."
             )
