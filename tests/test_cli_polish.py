@@ -6,8 +6,10 @@ name q, q', q'' as the files do, never SymPy's `Derivative(q(t), (t, 2))`."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import click
+import numpy as np
 import pytest
 import sympy as sp
 import typer
@@ -66,6 +68,32 @@ def test_derive_pretty_prints_unicode_as_demo_does() -> None:
     assert out.split("\nSolved:\n")[0].rstrip() == demo_style.rstrip()
     text = run("derive", "example:knife-edge", "--model", "chaplygin").stdout
     assert "phi''" in text and "φ" not in text  # -f text stays the file syntax
+
+
+# ---------------------------------------------------------------- CSV numbers
+def test_csv_numbers_are_the_shortest_round_trip(tmp_path: Path) -> None:
+    entry = examples.get("knife-edge")
+    start = {**entry.initial, "x'": 0.3}
+    tr = chaplygin.simulate(entry.constructor(), "chaplygin", 1.0, start, entry.parameters, samples=11)
+    path = tr.to_csv(tmp_path / "knife.csv")
+    lines = path.read_text().splitlines()
+    assert lines[0] == ",".join(tr.columns)
+    back = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert np.array_equal(back, tr.table())  # every float bit for bit
+    first = dict(zip(lines[0].split(","), lines[1].split(",")))
+    assert first["x'"] == "0.3" and first["t"] == "0.0"
+    assert "0.29999999999999999" not in path.read_text()
+    for line in lines[1:]:
+        for field in line.split(","):
+            assert repr(float(field)) == field  # the shortest text of that float
+
+
+def test_simulate_command_writes_shortest_numbers(tmp_path: Path) -> None:
+    out = tmp_path / "run.csv"
+    args = ["simulate", "example:knife-edge", "-m", "chaplygin", "-t", "1", "-n", "11", "-o", out]
+    assert run(*args, "--initial", "x'=0.3").exit_code == 0
+    header, first = out.read_text().splitlines()[:2]
+    assert dict(zip(header.split(","), first.split(",")))["x'"] == "0.3"
 
 
 # ---------------------------------------------------------------- no SymPy internals in messages

@@ -158,11 +158,17 @@ class Trajectory:
         return float(np.max(np.abs(self.energy - e0)) / max(1.0, abs(e0)))
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the columns to a CSV file, atomically."""
+        """Write the columns to a CSV file, atomically.
+
+        Every number is written as the shortest text that reads back as the same float
+        (``0.3``, not ``0.29999999999999999``): Python's ``repr``.
+        """
         header = ",".join(self.columns)
 
         def write(fh: Any) -> None:
-            np.savetxt(fh, self.table(), delimiter=",", header=header, comments="", fmt="%.17g")
+            fh.write(header + "\n")
+            for row in self.table().tolist():
+                fh.write(",".join(map(repr, row)) + "\n")
 
         return _atomic_write(path, write, text=True)
 
