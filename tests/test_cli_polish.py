@@ -5,19 +5,24 @@ name q, q', q'' as the files do, never SymPy's `Derivative(q(t), (t, 2))`."""
 
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import click
 import numpy as np
 import pytest
 import sympy as sp
 import typer
+from rich.console import Console
 from sympy.physics.mechanics import dynamicsymbols
 from typer.testing import CliRunner
 
 import chaplygin
+import chaplygin.numeric.simulate as numeric_simulate
 from chaplygin import ChaplyginError, System, examples
+from chaplygin.apps import cli
 from chaplygin.apps.cli import app
 from chaplygin.numeric._ckernel import Unavailable, compiler
 
@@ -94,6 +99,110 @@ def test_simulate_command_writes_shortest_numbers(tmp_path: Path) -> None:
     assert run(*args, "--initial", "x'=0.3").exit_code == 0
     header, first = out.read_text().splitlines()[:2]
     assert dict(zip(header.split(","), first.split(",")))["x'"] == "0.3"
+
+
+# ---------------------------------------------------------------- progress: t / t_end
+@pytest.mark.parametrize("backend", ["numpy", *LOOPS])
+def test_progress_reports_increasing_times_ending_at_t_end(backend: str, monkeypatch) -> None:
+    entry = examples.get("rolling-disk")
+    system = entry.constructor()
+
+    def simulate(**extra):
+        return chaplygin.simulate(
+            system, "voronets", 12.0, entry.initial, entry.parameters, samples=301, backend=backend, **extra
+        )
+
+    quiet = simulate()
+    monkeypatch.setattr(numeric_simulate, "PROGRESS_EVERY", 0.0)  # report at every chance
+    seen: list[float] = []
+    told = simulate(progress=seen.append)
+    assert len(seen) > 2 and seen[-1] == 12.0
+    assert seen == sorted(seen) and seen[0] < 12.0
+    # the compiled loops run in stretches that go on exactly where they stopped: the same run
+    assert told.status == quiet.status == "success"
+    assert np.array_equal(told.table(), quiet.table())
+
+
+@pytest.mark.parametrize("backend", ["numpy", *LOOPS])
+def test_progress_through_a_failed_run(backend: str, monkeypatch) -> None:
+    """Through a pole (the knife edge turning across φ = π/2): the same run, reported to the end."""
+    entry = examples.get("knife-edge")
+    system = entry.constructor()
+    start = {**entry.initial, "phi'": 1.0}
+    quiet = chaplygin.simulate(
+        system, "chaplygin", 3.0, start, entry.parameters, samples=301, backend=backend
+    )
+    monkeypatch.setattr(numeric_simulate, "PROGRESS_EVERY", 0.0)
+    seen: list[float] = []
+    told = chaplygin.simulate(
+        system, "chaplygin", 3.0, start, entry.parameters, samples=301, backend=backend, progress=seen.append
+    )
+    assert quiet.status == told.status == "failed" and told.message == quiet.message
+    assert np.array_equal(told.table(), quiet.table())
+    assert seen and seen == sorted(seen)
+
+
+def test_the_clock_shows_t_of_t_end_and_the_time_left(monkeypatch) -> None:
+    now = [100.0]
+    monkeypatch.setattr(cli, "time", SimpleNamespace(monotonic=lambda: now[0]))
+    terminal = Console(file=io.StringIO(), force_terminal=True, width=120)
+    with cli._Steps(3, "simulating", terminal) as steps:
+        steps.step("deriving")
+        steps.step("integrating")
+        show = steps.clock("integrating chaplygin", 0.0, 20.0)
+        assert show is not None
+        task = steps._progress.tasks[0]
+        now[0] = 100.5
+        show(2.0)
+        assert task.description == "integrating chaplygin: t = 2 / 20"  # no guess in the first second
+        assert task.completed == pytest.approx(1.1)  # step 2 of 3, a tenth done
+        now[0] = 110.0
+        show(5.0)  # a quarter in 10 s: 30 s left
+        assert task.description == "integrating chaplygin: t = 5 / 20, about 30 s left"
+        now[0] = 400.0
+        show(15.0)
+        assert task.description.endswith("t = 15 / 20, about 1 min 40 s left")
+    piped = Console(file=io.StringIO())
+    with cli._Steps(3, "simulating", piped) as steps:
+        assert steps.clock("integrating", 0.0, 1.0) is None  # nothing to show, nothing to time
+
+
+@pytest.mark.parametrize("terminal", [True, False])
+def test_simulate_command_reports_t_on_a_terminal_only(terminal: bool, tmp_path: Path, monkeypatch) -> None:
+    console = Console(file=io.StringIO(), force_terminal=terminal, width=120)
+    monkeypatch.setattr(cli, "_stderr", lambda: console)
+    monkeypatch.setattr(numeric_simulate, "PROGRESS_EVERY", 0.0)
+    given: list[object] = []
+    descriptions: list[str] = []
+    real_simulate, real_clock = numeric_simulate.simulate, cli._Steps.clock
+
+    def simulate(*args, **kwargs):
+        given.append(kwargs.get("progress"))
+        return real_simulate(*args, **kwargs)
+
+    def clock(self, what, t0, t1):
+        show = real_clock(self, what, t0, t1)
+        if show is None:
+            return None
+
+        def recorded(t: float) -> None:
+            show(t)
+            descriptions.append(self._progress.tasks[0].description)
+
+        return recorded
+
+    monkeypatch.setattr(numeric_simulate, "simulate", simulate)
+    monkeypatch.setattr(cli._Steps, "clock", clock)
+    out = tmp_path / "disk.csv"
+    result = run("simulate", "example:rolling-disk", "-t", "4", "-b", "numpy", "-o", out)
+    assert result.exit_code == 0, result.output
+    assert len(given) == 1
+    if terminal:
+        assert callable(given[0])
+        assert len(descriptions) > 2 and descriptions[-1] == "integrating chaplygin: t = 4 / 4"
+        assert all(re.fullmatch(r"integrating chaplygin: t = [0-9.e-]+ / 4", d) for d in descriptions)
+    else:
+        assert given[0] is None and not descriptions
 
 
 # ---------------------------------------------------------------- no SymPy internals in messages

@@ -22,7 +22,7 @@ full path runs (and reports the error).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -134,8 +134,12 @@ def run(
     initial: Mapping[str, float],
     rtol: float = 1e-10,
     atol: float = 1e-12,
+    progress: Callable[[float], None] | None = None,
 ) -> Trajectory | None:
     """The run from a stored plan, or None where the full path must run.
+
+    ``progress`` is told the time the integration reaches, as by
+    :func:`chaplygin.numeric.simulate.simulate`.
 
     ``params`` and ``initial`` are the command line's overrides (by name).  The
     full path checks the start (a positive definite, well-conditioned mass
@@ -157,7 +161,7 @@ def run(
     if found is None:
         return None
     try:
-        return _run(found, t_end, samples, params, initial, rtol, atol)
+        return _run(found, t_end, samples, params, initial, rtol, atol, progress)
     except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
         return None
 
@@ -170,6 +174,7 @@ def _run(
     initial: Mapping[str, float],
     rtol: float,
     atol: float,
+    progress: Callable[[float], None] | None = None,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import CKernel, CompiledModel, Layout, Unavailable
     from chaplygin.numeric.simulate import integrate
@@ -225,4 +230,5 @@ def _run(
         samples=samples,
         max_step=np.inf,
         g=int(found["g"]),
+        progress=progress,
     )

@@ -17,8 +17,9 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
@@ -172,10 +173,43 @@ class _Steps:
         if self._progress is not None:
             self._progress.update(self._task, description=description, completed=min(self.done, self.total))
 
+    def clock(self, what: str, t0: float, t1: float) -> Callable[[float], None] | None:
+        """A ``progress(t)`` callback for an integration from ``t0`` to ``t1`` (see
+        :func:`chaplygin.numeric.simulate.simulate`): the current step reads ``what: t = … / t1``,
+        with the time left once the run has taken a second, and its share of the bar fills.
+        ``None`` when piped: the integration then neither times nor reports anything."""
+        if self._progress is None:
+            return None
+        started = time.monotonic()
+        span = t1 - t0
+
+        def show(t: float) -> None:
+            done = min(max((t - t0) / span, 0.0), 1.0) if span else 1.0
+            elapsed, eta = time.monotonic() - started, ""
+            if elapsed >= 1.0 and 0 < done < 1:  # the rest at the pace so far
+                eta = f", about {_duration(elapsed * (1.0 - done) / done)} left"
+            self._progress.update(
+                self._task,
+                description=f"{what}: t = {t:.4g} / {t1:g}{eta}",
+                completed=min(max(self.done, 0) + done, self.total),
+            )
+
+        return show
+
     def __exit__(self, *exc: Any) -> None:
         if self._progress is not None:
             self._progress.update(self._task, completed=self.total)
             self._progress.stop()
+
+
+def _duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``: a time left, to the second where it is short."""
+    s = round(seconds)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 @contextmanager
@@ -717,38 +751,39 @@ def simulate(
         from chaplygin.apps import _quick
 
         definition = _definition(file)
-        # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
         asked = model if model is not None else _quick.TRUE_MOTION
-        tr = _quick.run(
-            definition,
-            asked,
-            form.value,
-            t_end,
-            samples,
-            backend.value,
-            method,
-            c,
-            step,
-            _overrides(param, "--param"),
-            _overrides(initial, "--initial"),
-            rtol,
-            atol,
-        )
-        created = None
-        if tr is None:
-            loaded = _load(file)
-            params, start = _numbers(loaded, param, initial)
-            system = loaded.system
-            model = model or registry.true_motion(system)
-        else:
-            model = tr.model
-        label = model if form is Form.classic else f"{model}/{form.value}"
-        with _Steps(3, f"simulating {label}") as steps:
+
+        def named(name: str) -> str:
+            return name if form is Form.classic else f"{name}/{form.value}"
+
+        wanted = named(model or "the true motion")
+        with _Steps(3, f"simulating {wanted}") as steps:
+            steps.step(f"deriving {wanted}")
+            # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
+            tr = _quick.run(
+                definition,
+                asked,
+                form.value,
+                t_end,
+                samples,
+                backend.value,
+                method,
+                c,
+                step,
+                _overrides(param, "--param"),
+                _overrides(initial, "--initial"),
+                rtol,
+                atol,
+                progress=steps.clock(f"integrating {wanted}", 0.0, t_end),
+            )
             if tr is None:
-                steps.step(f"deriving {label}")
+                loaded = _load(file)
+                params, start = _numbers(loaded, param, initial)
+                system = loaded.system
+                model = model or registry.true_motion(system)
                 if not registry.get(model).constants:  # (the family is derived with its constants)
                     system.equations(model, form.value)
-                steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
+                steps.step(f"integrating {named(model)} to t = {t_end:g} [{backend.value}]")
                 options: dict[str, Any] = {
                     "form": form.value,
                     "samples": samples,
@@ -756,6 +791,7 @@ def simulate(
                     "method": method,
                     "rtol": rtol,
                     "atol": atol,
+                    "progress": steps.clock(f"integrating {named(model)}", 0.0, t_end),
                 }
                 if c is not None:
                     options["constants"] = c
@@ -765,9 +801,12 @@ def simulate(
 
                 tr = run(system, model, t_end, start, params, **options)
                 _quick.remember(definition, asked, form.value, loaded, tr)
+            else:
+                model = tr.model
             steps.step(f"writing {out}")
             created = _created(out)
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
+        label = named(model)
         _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
         if created is not None:
             _emit(f"created {created}: it did not exist")
