@@ -24,6 +24,7 @@ import chaplygin.numeric.simulate as numeric_simulate
 from chaplygin import ChaplyginError, System, examples
 from chaplygin.apps import cli
 from chaplygin.apps.cli import app
+from chaplygin.models import registry
 from chaplygin.numeric._ckernel import Unavailable, compiler
 
 runner = CliRunner()
@@ -58,6 +59,29 @@ def every_command() -> list[list[str]]:
     return found
 
 
+# ---------------------------------------------------------------- the models explained
+@pytest.mark.parametrize("command", ["derive", "simulate", "export", "compare", "sweep", "report"])
+def test_help_of_a_command_that_takes_a_model_has_the_glossary(command: str) -> None:
+    result = run(command, "--help")
+    assert result.exit_code == 0
+    text = words(result.output)
+    for model in registry.MODELS.values():
+        assert f"{model.name}: {words(model.glossary)}" in text
+
+
+def test_models_lists_every_model_with_its_titles_and_glossary() -> None:
+    result = run("models")
+    assert result.exit_code == 0, result.output
+    text = words(result.stdout)
+    for model in registry.MODELS.values():
+        assert text.count(f"{model.name} ") >= 1 and words(model.glossary) in text
+        for form, title in model.titles.items():
+            assert f"{form}: {words(title)}" in text
+    firsts = [line.split()[0] for line in result.stdout.splitlines() if line and not line[0].isspace()]
+    assert firsts == list(registry.names())  # one entry per model, in the registry's order
+    assert "models" in run("--help").output
+
+
 # ---------------------------------------------------------------- derive --format pretty
 def test_derive_pretty_prints_unicode_as_demo_does() -> None:
     result = run("derive", "example:knife-edge", "--model", "chaplygin", "--format", "pretty")
@@ -73,6 +97,37 @@ def test_derive_pretty_prints_unicode_as_demo_does() -> None:
     assert out.split("\nSolved:\n")[0].rstrip() == demo_style.rstrip()
     text = run("derive", "example:knife-edge", "--model", "chaplygin").stdout
     assert "phi''" in text and "φ" not in text  # -f text stays the file syntax
+
+
+# ---------------------------------------------------------------- no <bool>
+def test_no_bool_metavar_in_any_help() -> None:
+    commands = every_command()
+    assert ["simulate"] in commands and ["examples", "list"] in commands and len(commands) >= 12
+    for path in commands:
+        result = run(*path, "--help", env={"COLUMNS": "200"})
+        assert result.exit_code == 0, path
+        assert "<bool>" not in result.output, path
+        assert "--help" in result.output and "Show this message and exit." in result.output
+    simulate_help = run("simulate", "--help", env={"COLUMNS": "200"}).output
+    assert re.search(r"--force\s+Overwrite an existing output", simulate_help)  # the flag, no type
+    assert "<float>" in simulate_help  # options that take a value keep their type
+
+
+# ---------------------------------------------------------------- wrapped lists
+@pytest.mark.parametrize("args", [["examples", "list"], ["examples", "list", "--long"], ["models"]])
+@pytest.mark.parametrize("columns", [80, 60])
+def test_lists_wrap_to_the_terminal_width(args: list[str], columns: int) -> None:
+    result = run(*args, env={"COLUMNS": str(columns)})
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert max(len(line) for line in lines) <= columns
+    if args[:2] == ["examples", "list"]:
+        full = "--long" in args
+        text = words(result.stdout)
+        for name, entry in examples.catalogue().items():
+            description = entry.description if full else cli._first_sentence(entry.description)
+            assert f"{name} {words(description)}" in text  # nothing lost in the wrapping
+        assert full or len(lines) > len(examples.catalogue())  # (some first sentences are long)
 
 
 # ---------------------------------------------------------------- CSV numbers

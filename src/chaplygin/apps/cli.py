@@ -1,8 +1,9 @@
 """The ``chaplygin`` command line (typer + rich).
 
 Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo``,
-``export`` and ``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.io.files`) or
-``example:NAME`` for a built-in example.
+``export``, ``models`` and ``examples list|show``; the help of each command that takes a model
+ends with the models' glossary (:mod:`chaplygin.models.registry`).  ``FILE`` is a TOML system
+file (:mod:`chaplygin.io.files`) or ``example:NAME`` for a built-in example.
 
 Exit status: 0 on success; 1 on a bad file, a failed run or a refused overwrite (a message on
 stderr, never a traceback); 2 on wrong usage (typer's own: unknown option, missing or invalid
@@ -28,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.console import Console
+from typer.core import TyperCommand, TyperGroup
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
@@ -39,15 +41,39 @@ if TYPE_CHECKING:
 
 __all__ = ["app", "check_json", "derive_json", "file_syntax", "main"]
 
+
+class _FlagsWithoutType:
+    """Typer's help writes a type after every option, ``<bool>`` after a flag too, which takes
+    no value: a flag (``--force``, ``--help``) gets an empty metavar, so nothing is written."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        params: list[Any] = super().get_params(ctx)  # type: ignore[misc]
+        for param in params:
+            if getattr(param, "is_flag", False) and param.metavar is None:
+                param.metavar = ""
+        return params
+
+
+class _Command(_FlagsWithoutType, TyperCommand):
+    """Every command of the command line (``@app.command(cls=_Command)``)."""
+
+
+class _Group(_FlagsWithoutType, TyperGroup):
+    """``chaplygin`` and ``chaplygin examples``."""
+
+
 app = typer.Typer(
     name="chaplygin",
     help="Equations of motion of nonholonomic systems: derive, check, simulate, compare, report.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    cls=_Group,
 )
 examples_app = typer.Typer(
-    help="The built-in examples: list them, or print one as a system file.", no_args_is_help=True
+    help="The built-in examples: list them, or print one as a system file.",
+    no_args_is_help=True,
+    cls=_Group,
 )
 app.add_typer(examples_app, name="examples")
 
@@ -72,6 +98,15 @@ def _options(
 DEMO_GENERATOR = "chaplygin demo"
 DEMO_REPORT = Path("demo") / "report.html"
 FILE_HELP = "A TOML system file, or example:NAME for a built-in example (see `chaplygin examples list`)."
+
+
+def _glossary() -> str:
+    """The models, one paragraph each, from the registry: the epilog of every command that takes one."""
+    rows = [f"{m.name}: {m.glossary}" for m in registry.MODELS.values()]
+    return "\n".join(["Models (see `chaplygin models`):", *rows])
+
+
+GLOSSARY = _glossary()
 
 
 def _model_name(text: str) -> str:
@@ -458,7 +493,7 @@ class _Derivation:
 
 
 # ====================================================================== derive
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def derive(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     model: str | None = _model_option("derive"),
@@ -605,7 +640,7 @@ def check_json(system: System) -> dict[str, Any]:
     }
 
 
-@app.command()
+@app.command(cls=_Command)
 def check(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     fmt: CheckFormat = typer.Option(CheckFormat.text, "--format", "-f", help="Output format."),
@@ -691,7 +726,7 @@ def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
     )
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def simulate(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     model: str | None = _model_option("simulate"),
@@ -887,7 +922,7 @@ def _print_comparison(comparison: Comparison) -> None:
         _emit(comparison.summary())
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def compare(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
@@ -1026,7 +1061,7 @@ def _run_counter(description: str) -> Iterator[Any]:
         yield lambda done, total: bar.update(task, completed=done, total=total)
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def sweep(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     grid: list[str] = typer.Option(
@@ -1153,7 +1188,7 @@ def _report_progress(steps: _Steps) -> Any:
     return lambda stage: steps.step(f"report: {stage}")
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def report(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
@@ -1209,7 +1244,7 @@ def _is_demo_report(path: Path) -> bool:
     return f'<meta name="generator" content="{DEMO_GENERATOR}">' in head
 
 
-@app.command()
+@app.command(cls=_Command)
 def demo(
     out: Path = typer.Option(
         DEMO_REPORT, "--out", "-o", help="Where the report goes (a previous demo report there is replaced)."
@@ -1300,7 +1335,25 @@ def _first_sentence(text: str) -> str:
     return text if end < 0 else text[: end + 1]
 
 
-@examples_app.command("list")
+def _listing(rows: Sequence[tuple[str, Sequence[str]]]) -> str:
+    """A list of names and their paragraphs, each paragraph wrapped to the terminal's width
+    (``COLUMNS``; 80 where there is no terminal) and indented under the name's column."""
+    import shutil
+    import textwrap
+
+    first = max(len(name) for name, _ in rows) + 2
+    width = max(shutil.get_terminal_size().columns - first, 20)
+    lines = []
+    for name, paragraphs in rows:
+        head = name  # on the first line only
+        for text in paragraphs:
+            for line in textwrap.wrap(text, width, break_on_hyphens=False) or [""]:
+                lines.append(f"{head:<{first}}{line}".rstrip())
+                head = ""
+    return "\n".join(lines)
+
+
+@examples_app.command("list", cls=_Command)
 def examples_list(
     long: bool = typer.Option(False, "--long", "-l", help="Full descriptions."),
 ) -> None:
@@ -1308,16 +1361,14 @@ def examples_list(
     from chaplygin import examples
 
     with _failures():
-        table = examples.catalogue()
-        width = max(len(n) for n in table)
-        lines = [
-            f"{name:<{width}}  {entry.description if long else _first_sentence(entry.description)}"
-            for name, entry in table.items()
+        rows = [
+            (name, [entry.description if long else _first_sentence(entry.description)])
+            for name, entry in examples.catalogue().items()
         ]
-        _emit("\n".join(lines))
+        _emit(_listing(rows))
 
 
-@examples_app.command("show")
+@examples_app.command("show", cls=_Command)
 def examples_show(
     name: str = typer.Argument(
         ..., metavar="NAME", help="The example's name (see `chaplygin examples list`)."
@@ -1341,7 +1392,7 @@ class ExportTarget(str, Enum):
     python = "python"
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def export(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     to: ExportTarget = typer.Option(
@@ -1396,6 +1447,17 @@ def export(
         )
         if created is not None:
             _emit(f"created {created}: it did not exist")
+
+
+# ====================================================================== models
+@app.command(cls=_Command)
+def models() -> None:
+    """List the models (--model, --models): what each one is, and the title of each form."""
+    rows = []
+    for m in registry.MODELS.values():
+        titles = [f"{form}: {title}" for form, title in m.titles.items()]
+        rows.append((m.name, [m.glossary, *titles]))
+    _emit(_listing(rows))
 
 
 def main(argv: list[str] | None = None) -> int:
