@@ -337,11 +337,14 @@ def test_interrupted_write_leaves_the_previous_file(tmp_path: Path, monkeypatch)
     out = tmp_path / "run.csv"
     out.write_text("previous run\n")
 
-    def half_then_interrupt(fh, *args, **kwargs):
-        fh.write("t,x\n0,")
-        raise KeyboardInterrupt
+    class HalfThenInterrupt:  # the table: one row is written, then Ctrl-C
+        def tolist(self):
+            yield [0.0, 1.0]
+            raise KeyboardInterrupt
 
-    monkeypatch.setattr(np, "savetxt", half_then_interrupt)
+    from chaplygin.numeric.simulate import Trajectory
+
+    monkeypatch.setattr(Trajectory, "table", lambda self: HalfThenInterrupt())
     result = run(
         "simulate",
         "example:knife-edge",

@@ -19,7 +19,7 @@ from sympy.physics.vector.printing import vsstrrepr
 
 from chaplygin import _html
 from chaplygin.core._sampling import StateSampler, compile_function, parameter_values
-from chaplygin.core._symbols import TIME, functions_of_time, total_derivative
+from chaplygin.core._symbols import TIME, describe, file_syntax, functions_of_time, total_derivative
 from chaplygin.errors import ChaplyginError
 from chaplygin.models.equations import Equations
 
@@ -108,6 +108,7 @@ class _Linear:
             self.constants = list(eqs.constants)
             self.names = {u: eqs._user(u) for u in eqs._state}
             self.symbolic: Equations | None = eqs
+            self._back = dict(eqs._to_fun)
             return
         self.symbolic = None
         if isinstance(eqs, Mapping):
@@ -126,7 +127,7 @@ class _Linear:
             elif isinstance(row, sp.Expr):
                 exprs.append(row)
             else:
-                raise ChaplyginError(f"{label}[{k}]: {row!r} is not a SymPy equation or expression.")
+                raise ChaplyginError(f"{label}[{k}]: {describe(row)} is not a SymPy equation or expression.")
         to_sym = dict(system._to_sym)
         multipliers = []
         self.names = {}
@@ -140,10 +141,11 @@ class _Linear:
                 multipliers.append(to_sym[f.diff(TIME)])
             else:  # λ(t) alone: an unknown like the accelerations
                 multipliers.append(to_sym[f])
+        self._back = {v: k for k, v in to_sym.items()}
         converted = [e.xreplace(to_sym) for e in exprs]
         leftover = [d for e in converted for d in e.atoms(sp.Derivative)]
         if leftover:
-            raise ChaplyginError(f"{label}: cannot interpret {sp.sstr(leftover[0])}.")
+            raise ChaplyginError(f"{label}: cannot interpret {self._shown(leftover[0])}.")
         unknowns = [a for a in v.xdd if any(e.has(a) for e in converted)] + multipliers
         res = sp.Matrix(converted)
         self.unknowns = unknowns
@@ -164,6 +166,10 @@ class _Linear:
                 f"parameters are {', '.join(p.name for p in system.parameters) or 'none'}."
             )
 
+    def _shown(self, internal: sp.Expr) -> str:
+        """An internal symbol or expression as the user wrote it (``q''``, ``lambda_1``), for messages."""
+        return file_syntax(internal.xreplace(self._back))
+
     def compile(self, args: list[sp.Symbol]) -> None:
         s, v = self.system, self.system._vars
         M, F = self.M, self.F
@@ -182,7 +188,7 @@ class _Linear:
         if missing:
             raise ChaplyginError(
                 f"{self.label}: the equations do not determine "
-                + ", ".join(sp.sstr(s.to_user(a)) for a in missing)
+                + ", ".join(map(self._shown, missing))
                 + " (they do not contain them)."
             )
         self.args = args + self.extra_state + self.constants
@@ -202,7 +208,7 @@ class _Linear:
         if rank < M.shape[1]:
             raise ChaplyginError(
                 f"{self.label}: the equations do not determine all of "
-                + ", ".join(sp.sstr(self.system.to_user(u)) for u in self.unknowns)
+                + ", ".join(map(self._shown, self.unknowns))
                 + " at a random admissible state."
             )
         if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, float(np.linalg.norm(F))):
@@ -267,7 +273,8 @@ class _States:
             unknown = value.free_symbols - set(args)
             if unknown:
                 raise ChaplyginError(
-                    f"multipliers[{name}]: cannot evaluate {', '.join(sorted(map(str, unknown)))}; "
+                    f"multipliers[{name}]: cannot evaluate "
+                    f"{', '.join(sorted(file_syntax(self.system.to_user(u)) for u in unknown))}; "
                     "write μ in the coordinates, velocities and parameters of the system."
                 )
             out[name] = compile_function(value, args)

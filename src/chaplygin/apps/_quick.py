@@ -24,7 +24,7 @@ full path runs (and reports the error).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -141,8 +141,12 @@ def run(
     initial: Mapping[str, float],
     rtol: float = 1e-10,
     atol: float = 1e-12,
+    progress: Callable[[float], None] | None = None,
 ) -> Trajectory | None:
     """The run from a stored plan, or None where the full path must run.
+
+    ``progress`` is told the time the integration reaches, as by
+    :func:`chaplygin.numeric.simulate.simulate`.
 
     ``params`` and ``initial`` are the command line's overrides (by name).  The
     full path checks the start (a positive definite, well-conditioned mass
@@ -165,7 +169,7 @@ def run(
     if found is None:
         return None
     try:
-        return _run(found, chosen, t_end, samples, params, initial, rtol, atol)
+        return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress)
     except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
         return None
 
@@ -179,6 +183,7 @@ def _run(
     initial: Mapping[str, float],
     rtol: float,
     atol: float,
+    progress: Callable[[float], None] | None = None,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import Layout
     from chaplygin.numeric.simulate import integrate
@@ -225,6 +230,7 @@ def _run(
         samples=samples,
         max_step=np.inf,
         g=int(found["g"]),
+        progress=progress,
     )
 
 

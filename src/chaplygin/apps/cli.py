@@ -1,8 +1,9 @@
 """The ``chaplygin`` command line (typer + rich).
 
 Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo``,
-``export`` and ``examples list|show``.  ``FILE`` is a TOML system file (:mod:`chaplygin.io.files`) or
-``example:NAME`` for a built-in example.
+``export``, ``models`` and ``examples list|show``; the help of each command that takes a model
+ends with the models' glossary (:mod:`chaplygin.models.registry`).  ``FILE`` is a TOML system
+file (:mod:`chaplygin.io.files`) or ``example:NAME`` for a built-in example.
 
 Exit status: 0 on success; 1 on a bad file, a failed run or a refused overwrite (a message on
 stderr, never a traceback); 2 on wrong usage (typer's own: unknown option, missing or invalid
@@ -17,8 +18,9 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
@@ -27,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 from rich.console import Console
+from typer.core import TyperCommand, TyperGroup
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
@@ -38,15 +41,39 @@ if TYPE_CHECKING:
 
 __all__ = ["app", "check_json", "derive_json", "file_syntax", "main"]
 
+
+class _FlagsWithoutType:
+    """Typer's help writes a type after every option, ``<bool>`` after a flag too, which takes
+    no value: a flag (``--force``, ``--help``) gets an empty metavar, so nothing is written."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        params: list[Any] = super().get_params(ctx)  # type: ignore[misc]
+        for param in params:
+            if getattr(param, "is_flag", False) and param.metavar is None:
+                param.metavar = ""
+        return params
+
+
+class _Command(_FlagsWithoutType, TyperCommand):
+    """Every command of the command line (``@app.command(cls=_Command)``)."""
+
+
+class _Group(_FlagsWithoutType, TyperGroup):
+    """``chaplygin`` and ``chaplygin examples``."""
+
+
 app = typer.Typer(
     name="chaplygin",
     help="Equations of motion of nonholonomic systems: derive, check, simulate, compare, report.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    cls=_Group,
 )
 examples_app = typer.Typer(
-    help="The built-in examples: list them, or print one as a system file.", no_args_is_help=True
+    help="The built-in examples: list them, or print one as a system file.",
+    no_args_is_help=True,
+    cls=_Group,
 )
 app.add_typer(examples_app, name="examples")
 
@@ -71,6 +98,15 @@ def _options(
 DEMO_GENERATOR = "chaplygin demo"
 DEMO_REPORT = Path("demo") / "report.html"
 FILE_HELP = "A TOML system file, or example:NAME for a built-in example (see `chaplygin examples list`)."
+
+
+def _glossary() -> str:
+    """The models, one paragraph each, from the registry: the epilog of every command that takes one."""
+    rows = [f"{m.name}: {m.glossary}" for m in registry.MODELS.values()]
+    return "\n".join(["Models (see `chaplygin models`):", *rows])
+
+
+GLOSSARY = _glossary()
 
 
 def _model_name(text: str) -> str:
@@ -99,6 +135,7 @@ class Form(str, Enum):
 
 class DeriveFormat(str, Enum):
     text = "text"
+    pretty = "pretty"
     latex = "latex"
     json = "json"
 
@@ -171,10 +208,43 @@ class _Steps:
         if self._progress is not None:
             self._progress.update(self._task, description=description, completed=min(self.done, self.total))
 
+    def clock(self, what: str, t0: float, t1: float) -> Callable[[float], None] | None:
+        """A ``progress(t)`` callback for an integration from ``t0`` to ``t1`` (see
+        :func:`chaplygin.numeric.simulate.simulate`): the current step reads ``what: t = … / t1``,
+        with the time left once the run has taken a second, and its share of the bar fills.
+        ``None`` when piped: the integration then neither times nor reports anything."""
+        if self._progress is None:
+            return None
+        started = time.monotonic()
+        span = t1 - t0
+
+        def show(t: float) -> None:
+            done = min(max((t - t0) / span, 0.0), 1.0) if span else 1.0
+            elapsed, eta = time.monotonic() - started, ""
+            if elapsed >= 1.0 and 0 < done < 1:  # the rest at the pace so far
+                eta = f", about {_duration(elapsed * (1.0 - done) / done)} left"
+            self._progress.update(
+                self._task,
+                description=f"{what}: t = {t:.4g} / {t1:g}{eta}",
+                completed=min(max(self.done, 0) + done, self.total),
+            )
+
+        return show
+
     def __exit__(self, *exc: Any) -> None:
         if self._progress is not None:
             self._progress.update(self._task, completed=self.total)
             self._progress.stop()
+
+
+def _duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``: a time left, to the second where it is short."""
+    s = round(seconds)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 @contextmanager
@@ -301,24 +371,11 @@ def _tolerance(value: float, option: str) -> float:
 
 
 # ====================================================================== printing in the file syntax
-def _file_printer() -> Any:
-    from sympy.physics.vector.printing import VectorStrPrinter
-
-    class FilePrinter(VectorStrPrinter):
-        """``x'``, ``x''`` for derivatives, ``**`` for powers, the file syntax's function names."""
-
-        def _print_Abs(self, e: Any) -> str:
-            return f"abs({self._print(e.args[0])})"
-
-        def _print_Exp1(self, e: Any) -> str:
-            return "exp(1)"
-
-    return FilePrinter()
-
-
 def file_syntax(expr: Any) -> str:
     """An expression as a string in the system-file syntax (``x'`` velocities, ``**`` powers)."""
-    return _file_printer().doprint(expr)
+    from chaplygin.core._symbols import file_syntax as printed
+
+    return printed(expr)
 
 
 def _names(items: Sequence[Any]) -> list[str]:
@@ -417,6 +474,16 @@ class _Derivation:
                 rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
                 lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
             return "\n".join(lines)
+        if fmt is DeriveFormat.pretty:
+            import sympy as sp
+
+            from chaplygin.core._symbols import pretty
+
+            text = f"{head['title']} - {head['system']}\n\n{pretty(self.equations)}"
+            if acc is not None:
+                solved = (sp.Eq(k, v, evaluate=False) for k, v in acc.items())
+                text += f"\n\nSolved:\n\n{pretty(solved)}"
+            return text
         lines = [f"{head['title']} - {head['system']}"]
         lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
         if acc is not None:
@@ -426,14 +493,20 @@ class _Derivation:
 
 
 # ====================================================================== derive
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def derive(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     model: str | None = _model_option("derive"),
     form: Form = typer.Option(
         Form.classic, "--form", help="Form of a reduced model: classic, or the paper's new form (39)/(40)."
     ),
-    fmt: DeriveFormat = typer.Option(DeriveFormat.text, "--format", "-f", help="Output format."),
+    fmt: DeriveFormat = typer.Option(
+        DeriveFormat.text,
+        "--format",
+        "-f",
+        help="Output format: text (the file syntax, x'' for accelerations), pretty (Unicode, as "
+        "`chaplygin demo` prints), latex or json.",
+    ),
     accelerations: bool = typer.Option(
         True, "--accelerations/--no-accelerations", help="Also solve for the accelerations (and multipliers)."
     ),
@@ -567,7 +640,7 @@ def check_json(system: System) -> dict[str, Any]:
     }
 
 
-@app.command()
+@app.command(cls=_Command)
 def check(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     fmt: CheckFormat = typer.Option(CheckFormat.text, "--format", "-f", help="Output format."),
@@ -653,7 +726,7 @@ def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
     )
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def simulate(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     model: str | None = _model_option("simulate"),
@@ -713,38 +786,39 @@ def simulate(
         from chaplygin.apps import _quick
 
         definition = _definition(file)
-        # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
         asked = model if model is not None else _quick.TRUE_MOTION
-        tr = _quick.run(
-            definition,
-            asked,
-            form.value,
-            t_end,
-            samples,
-            backend.value,
-            method,
-            c,
-            step,
-            _overrides(param, "--param"),
-            _overrides(initial, "--initial"),
-            rtol,
-            atol,
-        )
-        created = None
-        if tr is None:
-            loaded = _load(file)
-            params, start = _numbers(loaded, param, initial)
-            system = loaded.system
-            model = model or registry.true_motion(system)
-        else:
-            model = tr.model
-        label = model if form is Form.classic else f"{model}/{form.value}"
-        with _Steps(3, f"simulating {label}") as steps:
+
+        def named(name: str) -> str:
+            return name if form is Form.classic else f"{name}/{form.value}"
+
+        wanted = named(model or "the true motion")
+        with _Steps(3, f"simulating {wanted}") as steps:
+            steps.step(f"deriving {wanted}")
+            # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
+            tr = _quick.run(
+                definition,
+                asked,
+                form.value,
+                t_end,
+                samples,
+                backend.value,
+                method,
+                c,
+                step,
+                _overrides(param, "--param"),
+                _overrides(initial, "--initial"),
+                rtol,
+                atol,
+                progress=steps.clock(f"integrating {wanted}", 0.0, t_end),
+            )
             if tr is None:
-                steps.step(f"deriving {label}")
+                loaded = _load(file)
+                params, start = _numbers(loaded, param, initial)
+                system = loaded.system
+                model = model or registry.true_motion(system)
                 if not registry.get(model).constants:  # (the family is derived with its constants)
                     system.equations(model, form.value)
-                steps.step(f"integrating {label} to t = {t_end:g} [{backend.value}]")
+                steps.step(f"integrating {named(model)} to t = {t_end:g} [{backend.value}]")
                 options: dict[str, Any] = {
                     "form": form.value,
                     "samples": samples,
@@ -752,6 +826,7 @@ def simulate(
                     "method": method,
                     "rtol": rtol,
                     "atol": atol,
+                    "progress": steps.clock(f"integrating {named(model)}", 0.0, t_end),
                 }
                 if c is not None:
                     options["constants"] = c
@@ -761,9 +836,12 @@ def simulate(
 
                 tr = run(system, model, t_end, start, params, **options)
                 _quick.remember(definition, asked, form.value, loaded, tr)
+            else:
+                model = tr.model
             steps.step(f"writing {out}")
             created = _created(out)
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
+        label = named(model)
         _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
         if created is not None:
             _emit(f"created {created}: it did not exist")
@@ -844,7 +922,7 @@ def _print_comparison(comparison: Comparison) -> None:
         _emit(comparison.summary())
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def compare(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
@@ -983,7 +1061,7 @@ def _run_counter(description: str) -> Iterator[Any]:
         yield lambda done, total: bar.update(task, completed=done, total=total)
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def sweep(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     grid: list[str] = typer.Option(
@@ -1110,7 +1188,7 @@ def _report_progress(steps: _Steps) -> Any:
     return lambda stage: steps.step(f"report: {stage}")
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def report(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
@@ -1166,7 +1244,7 @@ def _is_demo_report(path: Path) -> bool:
     return f'<meta name="generator" content="{DEMO_GENERATOR}">' in head
 
 
-@app.command()
+@app.command(cls=_Command)
 def demo(
     out: Path = typer.Option(
         DEMO_REPORT, "--out", "-o", help="Where the report goes (a previous demo report there is replaced)."
@@ -1257,7 +1335,25 @@ def _first_sentence(text: str) -> str:
     return text if end < 0 else text[: end + 1]
 
 
-@examples_app.command("list")
+def _listing(rows: Sequence[tuple[str, Sequence[str]]]) -> str:
+    """A list of names and their paragraphs, each paragraph wrapped to the terminal's width
+    (``COLUMNS``; 80 where there is no terminal) and indented under the name's column."""
+    import shutil
+    import textwrap
+
+    first = max(len(name) for name, _ in rows) + 2
+    width = max(shutil.get_terminal_size().columns - first, 20)
+    lines = []
+    for name, paragraphs in rows:
+        head = name  # on the first line only
+        for text in paragraphs:
+            for line in textwrap.wrap(text, width, break_on_hyphens=False) or [""]:
+                lines.append(f"{head:<{first}}{line}".rstrip())
+                head = ""
+    return "\n".join(lines)
+
+
+@examples_app.command("list", cls=_Command)
 def examples_list(
     long: bool = typer.Option(False, "--long", "-l", help="Full descriptions."),
 ) -> None:
@@ -1265,16 +1361,14 @@ def examples_list(
     from chaplygin import examples
 
     with _failures():
-        table = examples.catalogue()
-        width = max(len(n) for n in table)
-        lines = [
-            f"{name:<{width}}  {entry.description if long else _first_sentence(entry.description)}"
-            for name, entry in table.items()
+        rows = [
+            (name, [entry.description if long else _first_sentence(entry.description)])
+            for name, entry in examples.catalogue().items()
         ]
-        _emit("\n".join(lines))
+        _emit(_listing(rows))
 
 
-@examples_app.command("show")
+@examples_app.command("show", cls=_Command)
 def examples_show(
     name: str = typer.Argument(
         ..., metavar="NAME", help="The example's name (see `chaplygin examples list`)."
@@ -1298,7 +1392,7 @@ class ExportTarget(str, Enum):
     python = "python"
 
 
-@app.command()
+@app.command(cls=_Command, epilog=GLOSSARY)
 def export(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     to: ExportTarget = typer.Option(
@@ -1353,6 +1447,17 @@ def export(
         )
         if created is not None:
             _emit(f"created {created}: it did not exist")
+
+
+# ====================================================================== models
+@app.command(cls=_Command)
+def models() -> None:
+    """List the models (--model, --models): what each one is, and the title of each form."""
+    rows = []
+    for m in registry.MODELS.values():
+        titles = [f"{form}: {title}" for form, title in m.titles.items()]
+        rows.append((m.name, [m.glossary, *titles]))
+    _emit(_listing(rows))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -112,3 +112,42 @@ def simplify_small(expr: sp.Expr) -> sp.Expr:
     if squares and sp.count_ops(expr) <= _TRIGSIMP_MAX_OPS:
         expr = sp.trigsimp(expr)
     return sp.factor_terms(expr)
+
+
+def file_syntax(expr: sp.Basic) -> str:
+    """An expression as the system files write it: ``q``, ``q'``, ``q''`` for a coordinate and
+    its time derivatives (never ``Derivative(q(t), (t, 2))``), ``**`` for powers, ``abs(…)``.
+
+    The one printer of expressions for output and for messages (:func:`describe`).
+    """
+    from sympy.physics.vector.printing import VectorStrPrinter
+
+    class FilePrinter(VectorStrPrinter):
+        def _print_Abs(self, e: sp.Expr) -> str:
+            return f"abs({self._print(e.args[0])})"
+
+        def _print_Exp1(self, e: sp.Expr) -> str:
+            return "exp(1)"
+
+    return str(FilePrinter().doprint(expr))
+
+
+def describe(value: object) -> str:
+    """``value`` for a message: SymPy objects in the file syntax (:func:`file_syntax`), anything
+    else as its ``repr``."""
+    return file_syntax(value) if isinstance(value, sp.Basic) else repr(value)
+
+
+def pretty(exprs: Iterable[sp.Basic]) -> str:
+    """A multi-line Unicode rendering of each expression (dots for time derivatives, Greek
+    letters), one after another with a blank line between: what ``chaplygin demo`` and
+    ``chaplygin derive --format pretty`` print."""
+    from sympy.physics.vector.printing import VectorPrettyPrinter
+    from sympy.printing.pretty.pretty_symbology import pretty_use_unicode
+
+    printer = VectorPrettyPrinter({"use_unicode": True, "wrap_line": False})
+    previous = pretty_use_unicode(True)  # Greek letters follow a global flag
+    try:
+        return "\n\n".join(printer.doprint(e) for e in exprs)
+    finally:
+        pretty_use_unicode(previous)

@@ -35,6 +35,7 @@ from chaplygin.core._operations import operation
 from chaplygin.core._symbols import (
     TIME,
     Vars,
+    describe,
     functions_of_time,
     linear_coefficients,
     other_undefined,
@@ -50,10 +51,6 @@ if TYPE_CHECKING:
 __all__ = ["System"]
 
 _SAMPLES = 6  # random points used to decide that a matrix is singular everywhere
-
-
-def _describe(expr: Any) -> str:
-    return sp.sstr(expr) if isinstance(expr, sp.Basic) else repr(expr)
 
 
 def _as_expr(value: Any, what: str) -> sp.Expr:
@@ -171,8 +168,9 @@ class System:
         self._Qnp: list[sp.Expr] = [sp.S.Zero] * self.n
         for key, value in (forces or {}).items():
             i = self._coordinate_index(key, "forces")
-            self.forces[self.coordinates[i]] = _as_expr(value, f"forces[{key}]")
-            self._Qnp[i] = self._convert(self.forces[self.coordinates[i]], f"forces[{key}]")
+            what = f"forces[{self.coordinates[i].func.__name__}]"
+            self.forces[self.coordinates[i]] = _as_expr(value, what)
+            self._Qnp[i] = self._convert(self.forces[self.coordinates[i]], what)
 
         self._read_constraints(constraints, dependent)
         self.independent = tuple(self.coordinates[i] for i in self._ind)
@@ -206,7 +204,7 @@ class System:
                     else ""
                 )
                 raise SystemDefinitionError(
-                    f"coordinate {_describe(q)} is not a function of t made with "
+                    f"coordinate {describe(q)} is not a function of t made with "
                     f"sympy.physics.mechanics.dynamicsymbols.{hint}"
                 )
         names = [q.func.__name__ for q in coords]
@@ -221,7 +219,7 @@ class System:
             if key == q or key == q.func.__name__:
                 return i
         raise SystemDefinitionError(
-            f"{where}: {_describe(key)} is not one of the coordinates "
+            f"{where}: {describe(key)} is not one of the coordinates "
             f"{', '.join(q.func.__name__ for q in self.coordinates)}."
         )
 
@@ -234,7 +232,7 @@ class System:
         if unknown:
             f = sorted(unknown, key=str)[0]
             raise SystemDefinitionError(
-                f"{what} contains the unknown function {_describe(f)}; the coordinates are "
+                f"{what} contains the unknown function {f.func.__name__}(t); the coordinates are "
                 f"{', '.join(q.func.__name__ for q in self.coordinates)}. Add it to the "
                 "coordinates, or write it as a plain Symbol if it is a constant."
             )
@@ -242,13 +240,13 @@ class System:
         if odd:
             f = sorted(odd, key=str)[0]
             raise SystemDefinitionError(
-                f"{what} contains {_describe(f)}: only functions of time t (dynamicsymbols) are understood."
+                f"{what} contains {describe(f)}: only functions of time t (dynamicsymbols) are understood."
             )
         for d in expr.atoms(sp.Derivative):
             if d.expr not in coords or d.variables != (TIME,):
                 order = "a second or higher derivative" if d.expr in coords else "a derivative"
                 raise SystemDefinitionError(
-                    f"{what} contains {order} {_describe(d)}; only first time derivatives of "
+                    f"{what} contains {order} {describe(d)}; only first time derivatives of "
                     "the coordinates (velocities) may appear."
                 )
         if not replace:
@@ -271,12 +269,12 @@ class System:
             raise SystemDefinitionError(
                 "kinetic_energy is not quadratic in the velocities: T must be a polynomial of "
                 f"degree at most 2 in the velocities of {', '.join(q.func.__name__ for q in self.coordinates)}; "
-                f"got T = {_describe(self.kinetic_energy)}."
+                f"got T = {describe(self.kinetic_energy)}."
             )
         if not quadratic[1]:
             raise SystemDefinitionError(
                 "kinetic_energy has no term quadratic in the velocities; "
-                f"got T = {_describe(self.kinetic_energy)}."
+                f"got T = {describe(self.kinetic_energy)}."
             )
 
     def _read_constraints(self, constraints: Any, dependent: Sequence[sp.Expr] | None) -> None:
@@ -289,7 +287,7 @@ class System:
             rhs: list[sp.Expr] = []
             for key, value in constraints.items():
                 dep.append(self._dependent_velocity_index(key))
-                rhs.append(_as_expr(value, f"constraints[{_describe(key)}]"))
+                rhs.append(_as_expr(value, f"constraints[{describe(key)}]"))
             if len(set(dep)) != len(dep):
                 raise SystemDefinitionError("constraints: a dependent velocity appears twice.")
             if dependent is not None and sorted(given) != sorted(dep):
@@ -307,13 +305,13 @@ class System:
                 bad = [self.coordinates[j] for j in dep if e.has(v.xd[j])]
                 if bad:
                     raise SystemDefinitionError(
-                        f"{what} contains the dependent velocity {_describe(bad[0].diff(TIME))}; "
+                        f"{what} contains the dependent velocity {describe(bad[0].diff(TIME))}; "
                         "form B expresses dependent velocities through independent ones only."
                     )
                 split = linear_coefficients(e, ind_xd)
                 if split is None:
                     raise SystemDefinitionError(
-                        f"{what} is not linear in the velocities: {_describe(expr)}. "
+                        f"{what} is not linear in the velocities: {describe(expr)}. "
                         "chaplygin handles linear (and affine) velocity constraints."
                     )
                 rows.append(split[0])
@@ -361,12 +359,12 @@ class System:
             )
             if split is None:
                 raise SystemDefinitionError(
-                    f"constraints[{k}] is not linear in the velocities: {_describe(expr)}. "
+                    f"constraints[{k}] is not linear in the velocities: {describe(expr)}. "
                     "chaplygin handles linear (and affine) velocity constraints."
                 )
             if all(c == 0 for c in split[0]):
                 raise SystemDefinitionError(
-                    f"constraints[{k}] contains no velocity: {_describe(expr)}. A finite "
+                    f"constraints[{k}] contains no velocity: {describe(expr)}. A finite "
                     "(holonomic) relation must be differentiated, or used to eliminate a coordinate."
                 )
             rows.append(split[0])
@@ -438,11 +436,11 @@ class System:
             return self._coordinate_index(key[:-1], "constraints")
         if key in self.coordinates:
             raise SystemDefinitionError(
-                f"constraints: the key {_describe(key)} is a coordinate; form B keys are dependent "
-                f"velocities such as {_describe(key.diff(TIME))}."
+                f"constraints: the key {describe(key)} is a coordinate; form B keys are dependent "
+                f"velocities such as {describe(key.diff(TIME))}."
             )
         raise SystemDefinitionError(
-            f"constraints: the key {_describe(key)} is not the velocity of a coordinate; form B "
+            f"constraints: the key {describe(key)} is not the velocity of a coordinate; form B "
             "keys are dependent velocities q.diff(t) of coordinates."
         )
 
@@ -733,7 +731,7 @@ class System:
             if key == p or key == p.name:
                 return p
         raise SystemDefinitionError(
-            f"{_describe(key)} is not a parameter of {self.name}; the parameters are "
+            f"{describe(key)} is not a parameter of {self.name}; the parameters are "
             f"{', '.join(p.name for p in self.parameters) or 'none'}."
         )
 

@@ -64,7 +64,7 @@ from sympy.printing.str import StrPrinter
 
 from chaplygin.bodies import Disk, Ellipsoid, Paraboloid, Shape, Sphere, Torus, rolling_body
 from chaplygin.bodies.builder import ANGLES
-from chaplygin.core._symbols import TIME
+from chaplygin.core._symbols import TIME, file_syntax
 from chaplygin.core.system import System
 from chaplygin.errors import SystemDefinitionError
 from chaplygin.io.parser import (
@@ -958,7 +958,7 @@ class _Writer:
             if isinstance(node, sp.Derivative):
                 if node.expr in coords and node.variables == (TIME,):
                     continue
-                raise self.fail(f"{sp.sstr(node)} is not a velocity of a coordinate", what)
+                raise self.fail(f"{file_syntax(node)} is not a velocity of a coordinate", what)
             if isinstance(node, sp.Symbol):
                 if node.name in RESERVED or node.name in self.coordinates:
                     raise self.fail(
@@ -971,7 +971,7 @@ class _Writer:
                     raise self.fail(exc.reason, what) from None
                 continue
             raise self.fail(
-                f"{sp.sstr(node)} ({type(node).__name__}) has no equivalent in the file syntax", what
+                f"{file_syntax(node)} ({type(node).__name__}) has no equivalent in the file syntax", what
             )
 
     def expression(self, expr: Any, what: str, names: Names) -> str:

@@ -11,7 +11,7 @@ from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
 from chaplygin.core._fast import gradient
-from chaplygin.core._symbols import TIME
+from chaplygin.core._symbols import TIME, pretty
 from chaplygin.errors import ModelError
 from chaplygin.models._rational import normal_all, simplified
 from chaplygin.models.registry import MODELS
@@ -207,16 +207,7 @@ class Equations:
 
     def pretty(self) -> str:
         """A multi-line Unicode rendering, one equation after another."""
-        from sympy.physics.vector.printing import VectorPrettyPrinter
-        from sympy.printing.pretty.pretty_symbology import pretty_use_unicode
-
-        printer = VectorPrettyPrinter({"use_unicode": True, "wrap_line": False})
-        previous = pretty_use_unicode(True)  # Greek letters follow a global flag
-        try:
-            body = "\n\n".join(printer.doprint(e) for e in self.equations)
-        finally:
-            pretty_use_unicode(previous)
-        return f"{self._heading()}\n\n{body}"
+        return f"{self._heading()}\n\n{pretty(self.equations)}"
 
     def latex(self) -> str:
         """LaTeX of the equations, with dots for time derivatives."""

@@ -368,7 +368,8 @@ static void k_observe(work_t *w, double t, const double *y, const double *p, int
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
-/* info: filled, status, n_rhs, n_steps; dinfo: t, t_fail; y_last, y_fail: n each */
+/* info: filled, status, n_rhs, n_steps; dinfo: t, t_fail, the next step (0 after a failure);
+   y_last, y_fail: n each */
 int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t0, double t1,
                     const double *y0, const double *p, const double *t_out, long n_out, double rtol,
                     const double *atol, double max_step, double first_step, long max_steps, double *out,
@@ -495,6 +496,7 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
         t = t_new;
         for (int i = 0; i < n; ++i) { y[i] = y_new[i]; K[i] = K[12 * n + i]; }
     }
+    dinfo[2] = h_abs;  /* where max_steps stopped the loop: the step a resumed loop starts with */
     t_fail = t;
     memcpy(y_fail, y, sizeof(double) * n);
 done:
@@ -599,6 +601,7 @@ class LoopOutput(NamedTuple):
     n_steps: int
     t_fail: float
     y_fail: np.ndarray
+    h_next: float
 
 
 class CKernel:
@@ -667,7 +670,7 @@ class CKernel:
         n = y0.size
         out = np.empty((times.size, n))
         info = np.zeros(4, dtype=np.int64)
-        dinfo = np.zeros(2)
+        dinfo = np.zeros(3)
         y_last, y_fail = np.empty(n), np.empty(n)
         if (
             self._loop.dop853(
@@ -704,4 +707,5 @@ class CKernel:
             int(info[3]),
             float(dinfo[1]),
             y_fail,
+            float(dinfo[2]),
         )

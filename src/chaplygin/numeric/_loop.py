@@ -496,9 +496,12 @@ def _k_rms(v):  # pragma: no cover - compiled
 def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps, out):  # pragma: no cover
     """Integrate ``rhs`` from ``(t0, y0)`` to ``t1``; ``out[j] ← y(t_out[j])``.
 
-    Returns ``(filled, status, t, y, n_rhs, n_steps, t_fail, y_fail)``:
+    Returns ``(filled, status, t, y, n_rhs, n_steps, t_fail, y_fail, h_next)``:
     ``filled`` rows of ``out`` were written, ``(t, y)`` is the last accepted
-    point, ``(t_fail, y_fail)`` the point whose evaluation failed (status 2, 3).
+    point, ``(t_fail, y_fail)`` the point whose evaluation failed (status 2, 3),
+    ``h_next`` the step the loop would take next (0.0 after a failed evaluation): a
+    loop stopped by ``max_steps`` and started again from ``(t, y)`` with
+    ``first_step=h_next`` takes exactly the steps it would have taken.
     """
     B = _DOP_B
     C = _DOP_C
@@ -533,7 +536,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
     code = _k_eval(t, y, p, K[0], wM, wb, wV, wO)
     n_rhs += 1
     if code != 0:
-        return filled, code, t, y, n_rhs, n_steps, t, y.copy()
+        return filled, code, t, y, n_rhs, n_steps, t, y.copy(), 0.0
 
     # initial step: SciPy's select_initial_step (Hairer, Nørsett & Wanner, II.4)
     interval = abs(t1 - t0)
@@ -555,7 +558,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
         code = _k_eval(t + h0 * direction, y_stage, p, f_new, wM, wb, wV, wO)
         n_rhs += 1
         if code != 0:
-            return filled, code, t, y, n_rhs, n_steps, t + h0 * direction, y_stage.copy()
+            return filled, code, t, y, n_rhs, n_steps, t + h0 * direction, y_stage.copy(), 0.0
         for i in range(n):
             e5[i] = (f_new[i] - K[0, i]) / scale[i]
         d2 = _k_rms(e5) / h0
@@ -589,7 +592,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
             code, s = _k_stages(1, 12, t, h, y, p, K, y_stage, wM, wb, wV, wO)  # stages 1 … 11
             n_rhs += s
             if code != 0:
-                return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy()
+                return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy(), 0.0
             for i in range(n):
                 acc = 0.0
                 for j in range(12):
@@ -598,7 +601,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
             code = _k_eval(t + h, y_new, p, K[12], wM, wb, wV, wO)
             n_rhs += 1
             if code != 0:
-                return filled, code, t, y, n_rhs, n_steps, t + h, y_new.copy()
+                return filled, code, t, y, n_rhs, n_steps, t + h, y_new.copy(), 0.0
             # error norm (SciPy's DOP853._estimate_error_norm)
             for i in range(n):
                 scale[i] = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
@@ -638,7 +641,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
             code, s = _k_stages(13, 16, t, h, y, p, K, y_stage, wM, wb, wV, wO)
             n_rhs += s - 12
             if code != 0:
-                return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy()
+                return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy(), 0.0
             for i in range(n):
                 dy = y_new[i] - y[i]
                 F[0, i] = dy
@@ -662,7 +665,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
         for i in range(n):
             y[i] = y_new[i]
             K[0, i] = K[12, i]
-    return filled, status, t, y, n_rhs, n_steps, t, y.copy()
+    return filled, status, t, y, n_rhs, n_steps, t, y.copy(), h_abs
 
 
 def _k_batch(
@@ -691,7 +694,7 @@ def _k_batch(
     wV = np.empty(N)
     wO = np.empty(N_OBSERVED)
     for i in range(start, stop):
-        _filled, st, t, y, nr, _ns, _tf, _yf = _k_dop853(
+        _filled, st, t, y, nr, _ns, _tf, _yf, _h = _k_dop853(
             t0, t1, Y0[i], P[i], t_out, rtol, atol, max_step, 0.0, max_steps, out[i]
         )
         status[i] = st
@@ -773,6 +776,9 @@ class LoopResult(NamedTuple):
     t_last: float = math.nan
     y_last: np.ndarray | None = None
     t_fail: float = math.nan
+    #: the step the loop would take next: where ``max_steps`` stopped it, ``first_step=h_next``
+    #: from ``(t_last, y_last)`` goes on exactly as if it had not stopped
+    h_next: float = math.nan
 
 
 def _tolerances(rtol: float, atol: float | np.ndarray, n: int) -> tuple[float, np.ndarray]:
@@ -884,7 +890,7 @@ def integrate_dop853(
         res = model.module.integrate(
             t0, t1, y0, p, times, rtol, atol_v, float(max_step), float(first_step or 0.0), int(max_steps)
         )
-        out, filled, code, t, y, n_rhs, n_steps, t_fail, y_fail = (
+        out, filled, code, t, y, n_rhs, n_steps, t_fail, y_fail, h_next = (
             res.out,
             res.filled,
             res.code,
@@ -894,9 +900,10 @@ def integrate_dop853(
             res.n_steps,
             res.t_fail,
             res.y_fail,
+            res.h_next,
         )
     else:
-        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail = model.module._k_dop853(
+        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail, h_next = model.module._k_dop853(
             t0,
             t1,
             y0,
@@ -924,6 +931,7 @@ def integrate_dop853(
         float(t),
         np.array(y),
         float(t_fail) if code else math.nan,
+        float(h_next),
     )
 
 

@@ -263,7 +263,11 @@ def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, n
             try:
                 (Q if kind == "q" else QD)[k, i] = float(value)
             except (TypeError, ValueError):
-                raise ChaplyginError(f"initial_states[{k}]: {key!r} = {value!r} is not a number.") from None
+                from chaplygin.core._symbols import describe
+
+                raise ChaplyginError(
+                    f"initial_states[{k}]: {describe(key)} = {describe(value)} is not a number."
+                ) from None
     names = [c.func.__name__ for c in system.coordinates]
     needed = np.concatenate([np.isnan(Q), np.isnan(QD[:, list(system._ind)])], axis=1)
     if needed.any():

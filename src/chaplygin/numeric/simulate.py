@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -158,11 +159,17 @@ class Trajectory:
         return float(np.max(np.abs(self.energy - e0)) / max(1.0, abs(e0)))
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the columns to a CSV file, atomically."""
+        """Write the columns to a CSV file, atomically.
+
+        Every number is written as the shortest text that reads back as the same float
+        (``0.3``, not ``0.29999999999999999``): Python's ``repr``.
+        """
         header = ",".join(self.columns)
 
         def write(fh: Any) -> None:
-            np.savetxt(fh, self.table(), delimiter=",", header=header, comments="", fmt="%.17g")
+            fh.write(header + "\n")
+            for row in self.table().tolist():
+                fh.write(",".join(map(repr, row)) + "\n")
 
         return _atomic_write(path, write, text=True)
 
@@ -290,8 +297,10 @@ def _lookup(system: System, key: Any) -> tuple[str, int]:
         return "v", system.coordinates.index(key.expr)
     elif key in system.coordinates:
         return "q", system.coordinates.index(key)
+    from chaplygin.core._symbols import describe
+
     raise ChaplyginError(
-        f"initial: {key!r} is neither a coordinate nor a velocity of {system.name}; use "
+        f"initial: {describe(key)} is neither a coordinate nor a velocity of {system.name}; use "
         f"{', '.join(names)} or their velocities ({names[0]}' …)."
     )
 
@@ -355,7 +364,9 @@ def _finite(value: Any, what: str, accepted: str) -> float:
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise InputError(f"{what} = {value!r} is not a number; give {accepted}.") from None
+        from chaplygin.core._symbols import describe
+
+        raise InputError(f"{what} = {describe(value)} is not a number; give {accepted}.") from None
     if not math.isfinite(number):
         raise InputError(f"{what} = {number} is not finite; give {accepted}.")
     return number
@@ -527,6 +538,11 @@ class _Attempt(NamedTuple):
 
 #: a failure inside a step is pinned down to this fraction of max(1, |t|) before the run stops
 PIN = 1e-9
+#: the least wall time in seconds between two calls of a ``progress`` callback (see :func:`simulate`)
+PROGRESS_EVERY = 0.1
+
+#: ``progress(t)``: told the time an integration has reached (see :func:`simulate`)
+Progress = Callable[[float], None]
 
 
 def simulate(
@@ -547,8 +563,15 @@ def simulate(
     max_step: float = np.inf,
     step: float | None = None,
     reduction: str = "auto",
+    progress: Progress | None = None,
 ) -> Trajectory:
     """Simulate one model of ``system`` (the front door :func:`chaplygin.numeric.simulate`).
+
+    ``progress``, if given, is called with the time the integration has reached: at most
+    every :data:`PROGRESS_EVERY` seconds of wall time (SciPy's steppers after a step, the
+    compiled loops of the ``c`` and ``numba`` backends between runs of steps that continue
+    exactly where they stopped), and once at the end with the last time reached (``t_end``
+    for a run that succeeds).  Without it nothing is checked or timed.
 
     Inputs that cannot give a motion are refused with an :class:`InputError`
     before anything is derived or compiled: a start or end time that is not
@@ -585,6 +608,8 @@ def simulate(
             constants=constants,
             multipliers=multipliers,
         )
+        if progress is not None and len(tr.t):
+            progress(float(tr.t[-1]))
         return _watch(system, tr, params, reduced=True)
     if step is not None:
         raise ChaplyginError(
@@ -625,6 +650,7 @@ def simulate(
         samples=samples,
         max_step=max_step,
         g=system.g,
+        progress=progress,
     )
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
 
@@ -947,8 +973,9 @@ def integrate(
     samples: int,
     max_step: float,
     g: int,
+    progress: Progress | None = None,
 ) -> Trajectory:
-    """Integrate ``compiled.rhs`` from ``y0`` and sample it.
+    """Integrate ``compiled.rhs`` from ``y0`` and sample it (``progress``: see :func:`simulate`).
 
     ``c`` or ``numba`` backend with ``method="DOP853"``: the compiled loop of
     :mod:`chaplygin.numeric._ckernel` or :mod:`chaplygin.numeric._loop` (the whole integration in C or numba).  ``jax``
@@ -968,16 +995,20 @@ def integrate(
         from chaplygin.numeric.jaxbackend import solve
 
         res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
+        if progress is not None and len(res.t):
+            progress(float(res.t[-1]))
         return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
     if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
         if compiled.backend == "numba":
             from chaplygin.numeric._loop import loop_model
 
             compiled = loop_model(compiled)
-        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol)
+        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, progress)
     else:
-        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method)
+        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, progress)
     ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
+    if progress is not None:
+        progress(float(ts[-1]) if len(ts) else t_span[0])
     status = "failed" if message else "success"
     message = message or f"reached t = {t_span[1]:g}"
     return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
@@ -1009,29 +1040,65 @@ def _pinned(
 
 
 def _loop_attempt(
-    looped: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any
+    looped: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any, progress: Progress | None = None
 ) -> Callable[..., _Attempt]:
-    """An attempt of :func:`_pinned` with the compiled DOP853 loop."""
+    """An attempt of :func:`_pinned` with the compiled DOP853 loop.
+
+    With ``progress``, the loop runs in stretches of steps (``max_steps``), each started where
+    the last one stopped with the step it would have taken next, so the steps and the samples
+    are those of one run; the stretches grow until each takes about :data:`PROGRESS_EVERY`
+    seconds, and ``progress`` is told the time reached after each.
+    """
     from chaplygin.numeric._loop import integrate_dop853
+
+    stopped = 4  # the loop's status "too many steps" (chaplygin.numeric._loop.STATUS): max_steps reached
 
     def attempt(
         t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float, first: float | None
     ) -> _Attempt:
-        res = integrate_dop853(
-            looped, (t_start, t1), y_start, p, times, rtol=rtol, atol=atol, max_step=cap, first_step=first
-        )
+        t_parts, y_parts, n_rhs, stretch = [], [], 0, 64
+        while True:
+            started = time.monotonic()
+            res = integrate_dop853(
+                looped,
+                (t_start, t1),
+                y_start,
+                p,
+                times,
+                rtol=rtol,
+                atol=atol,
+                max_step=cap,
+                first_step=first,
+                max_steps=0 if progress is None else stretch,
+            )
+            t_parts.append(res.t)
+            y_parts.append(res.y)
+            n_rhs += res.n_rhs
+            if progress is None or res.code != stopped or res.y_last is None:
+                break
+            progress(res.t_last)
+            times = times[len(res.t) :]
+            t_start, y_start, first = res.t_last, res.y_last, res.h_next
+            if time.monotonic() - started < PROGRESS_EVERY / 2:
+                stretch = min(2 * stretch, 1 << 30)
         message = "" if res.code == 0 else res.message
-        return _Attempt(
-            res.t, res.y, message, res.code in (2, 3, 5, 9), res.t_last, res.y_last, res.t_fail, res.n_rhs
-        )
+        ts, ys = np.concatenate(t_parts), np.concatenate(y_parts)
+        return _Attempt(ts, ys, message, res.code in (2, 3, 5, 9), res.t_last, res.y_last, res.t_fail, n_rhs)
 
     return attempt
 
 
 def _scipy_attempt(
-    compiled: CompiledModel, t1: float, p: np.ndarray, rtol: float, atol: Any, method: str
+    compiled: CompiledModel,
+    t1: float,
+    p: np.ndarray,
+    rtol: float,
+    atol: Any,
+    method: str,
+    progress: Progress | None = None,
 ) -> Callable[..., _Attempt]:
-    """An attempt of :func:`_pinned` with SciPy's stepper, driven step by step."""
+    """An attempt of :func:`_pinned` with SciPy's stepper, driven step by step (``progress``
+    told the time reached after a step, at most every :data:`PROGRESS_EVERY` seconds)."""
     import scipy.integrate as si
 
     rhs = compiled.rhs
@@ -1071,11 +1138,15 @@ def _scipy_attempt(
             )
             if len(times) and times[0] == t_start:
                 out[0], k = y_start, 1
+            due = time.monotonic() + PROGRESS_EVERY
             while k < len(times):
                 msg = stepper.step()
                 if stepper.status == "failed":
                     message, t_fail = f"the integrator stopped at t = {stepper.t:.6g}: {msg}", stepper.t
                     break
+                if progress is not None and time.monotonic() >= due:
+                    progress(float(stepper.t))
+                    due = time.monotonic() + PROGRESS_EVERY
                 if times[k] > stepper.t and stepper.status != "finished":
                     continue  # no sample in this step: skip the dense output (extra evaluations)
                 dense = stepper.dense_output()
