@@ -133,6 +133,32 @@ def test_reduced_forms_match_the_multiplier_systems(torus) -> None:
     assert report, report
 
 
+@pytest.mark.parametrize("form", ["classic", "new"])
+def test_vakonomic_family_matches_the_vakonomic_multiplier_system(torus, form) -> None:
+    """Every member of the reduced family (nonzero constants too, both forms) is the vakonomic
+    multiplier system (17)-(18) with μ_β = c_β − ∂T/∂q̇_dep, at constraint-satisfying states."""
+    for c in ([0, 0], [sp.Rational(3, 10), -sp.Rational(1, 5)]):
+        model = "lindelof" if c == [0, 0] else "vakonomic_family"
+        reduced = torus.equations(model, form, constants=None if model == "lindelof" else c)
+        report = chaplygin.equivalent(
+            torus,
+            reduced,
+            torus.equations("vakonomic"),
+            multipliers=torus.integrated_multipliers(c),
+            samples=6,
+        )
+        assert report, (model, form, c, report)
+    # the test can fail: the family member with other constants is another motion
+    other = chaplygin.equivalent(
+        torus,
+        torus.equations("vakonomic_family", form, constants=[sp.Rational(3, 10), -sp.Rational(1, 5)]),
+        torus.equations("vakonomic"),
+        multipliers=torus.integrated_multipliers([0, 0]),
+        samples=6,
+    )
+    assert not other
+
+
 # ---------------------------------------------------------------- Routh's sphere
 def test_routh_sphere_keeps_energy_jellett_and_routh() -> None:
     """Sphere of radius r, centre of mass a below the centre on the axis, moments A, A, C.

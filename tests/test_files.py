@@ -470,6 +470,9 @@ def test_catalogue_names_and_lookup() -> None:
         "contact-oscillator",
         "differential-drive",
         "sleigh-chain",
+        "lindelof-problem",
+        "routh-sphere",
+        "rattleback",
     ]
     entry = examples.get("rolling-sphere")
     ctor, description, parameters, initial = entry  # a 4-tuple

@@ -58,6 +58,9 @@ GALLERY = [
     "contact-oscillator",
     "differential-drive",
     "sleigh-chain",
+    "lindelof-problem",
+    "routh-sphere",
+    "rattleback",
 ]
 
 
@@ -74,6 +77,10 @@ CHARTS = {  # (low, high, only the reduced forms: the multiplier forms use form 
     "turntable-ball": {"theta": (0.2, np.pi - 0.2, False)},  # z-x-z Euler angles
     "chaplygin-ball": {"theta": (0.3, np.pi - 0.3, False)},
     "sleigh-chain": {"theta0": (-0.5, 0.5, True)},
+    # the bodies' angles are singular where cos θ = 0 (docs/bodies.md), in every form
+    "lindelof-problem": {"theta": (-np.pi / 2 + 0.2, np.pi / 2 - 0.2, False)},
+    "routh-sphere": {"theta": (-np.pi / 2 + 0.2, np.pi / 2 - 0.2, False)},
+    "rattleback": {"theta": (-np.pi / 2 + 0.2, np.pi / 2 - 0.2, False)},
 }
 
 

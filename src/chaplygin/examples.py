@@ -7,7 +7,9 @@ replace with numbers by passing them as arguments.
 :func:`catalogue` lists them by name (``rolling-sphere``, ``knife-edge``,
 ``vertical-rolling-disk``, ``rolling-disk``, ``chaplygin-sleigh``,
 ``turntable-ball``, ``chaplygin-ball``, ``heisenberg``, ``contact-oscillator``,
-``differential-drive``, ``sleigh-chain``) with a description, default
+``differential-drive``, ``sleigh-chain``, and the rigid bodies built by
+:mod:`chaplygin.bodies`: ``lindelof-problem``, ``routh-sphere``, ``rattleback``)
+with a description, default
 parameter values and an initial state; :func:`get` looks one up.  Each has a
 page in the documentation's gallery (``docs/gallery/<name>.md``) with what is
 known about it and the sources.
@@ -16,12 +18,14 @@ known about it and the sources.
 from __future__ import annotations
 
 import difflib
+import math
 from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
+from chaplygin.bodies import Disk, Ellipsoid, RollingBody, Sphere, rolling_body
 from chaplygin.core._symbols import TIME
 from chaplygin.core.system import System
 from chaplygin.errors import ChaplyginError
@@ -36,8 +40,11 @@ __all__ = [
     "get",
     "heisenberg",
     "knife_edge",
+    "lindelof_problem",
+    "rattleback",
     "rolling_disk",
     "rolling_sphere",
+    "routh_sphere",
     "sleigh_chain",
     "turntable_ball",
     "vertical_rolling_disk",
@@ -513,6 +520,144 @@ def _sleigh_chain_2() -> System:
     return sleigh_chain(2)
 
 
+# ---------------------------------------------------------------- rigid bodies from their shape
+def lindelof_problem(
+    m: sp.Expr | float | None = None,
+    r: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None,
+    C: sp.Expr | float | None = None,
+    g: sp.Expr | float | None = None,
+) -> RollingBody:
+    """Lindelöf's body of revolution, built from its shape: ``rolling_body(Disk(r), mass=m, inertia=[A, A, C], g=g)``.
+
+    A thin disk (or hoop) of mass ``m`` and radius ``r``, central moments ``A`` about a diameter
+    and ``C`` about the axis, rolling without slipping on a horizontal plane under gravity.
+    The ``"edge"`` angles of :func:`chaplygin.bodies.rolling_body`: heading ``ψ``, lean ``θ``
+    (0 upright; singular where the disk lies flat), spin ``φ``; ``x, y`` are the centre of mass
+    (the centre). The same dynamics as :func:`rolling_disk`, whose ``x, y`` are the contact
+    point, and a :class:`~chaplygin.bodies.RollingBody`, so :func:`chaplygin.bodies.motion`
+    works on its runs. Lindelöf (1895) substituted the rolling constraints into T for this body;
+    Chaplygin (1897) showed that this gives a different motion. See
+    ``docs/gallery/lindelof-problem.md``.
+
+    Parameters
+    ----------
+    m, r, A, C, g : optional
+        Mass, radius, moments of inertia about a diameter and about the axis, gravity;
+        positive symbols of the same names by default.
+
+    References
+    ----------
+    E. Lindelöf, "Sur le mouvement d'un corps de révolution roulant sur un plan horizontal",
+    *Acta Societatis Scientiarum Fennicae* 20(10), 1895.  S. A. Chaplygin, "On a motion of a
+    heavy body of revolution on a horizontal plane", 1897 (English: *Regular and Chaotic
+    Dynamics* 7(2), 2002, 119–130).
+    """
+    m_, r_, A_, C_, g_ = (_param(v, n) for v, n in ((m, "m"), (r, "r"), (A, "A"), (C, "C"), (g, "g")))
+    return rolling_body(
+        Disk(r_), mass=m_, inertia=[A_, A_, C_], g=g_, name="Lindelöf's body of revolution (a disk)"
+    )
+
+
+def routh_sphere(
+    r: sp.Expr | float | None = None,
+    a: sp.Expr | float | None = None,
+    m: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None,
+    C: sp.Expr | float | None = None,
+    g: sp.Expr | float | None = None,
+) -> RollingBody:
+    """Routh's sphere: a ball whose centre of mass is ``a`` below its centre on an axis of symmetry.
+
+    ``rolling_body(Sphere(r), mass=m, inertia=[A, A, C], center_of_mass=(0, 0, −a), g=g)``:
+    radius ``r``, central moments ``A, A, C``, rolling without slipping on a horizontal plane
+    under gravity. Cardan angles ``ψ, θ, φ`` (rest ``R = 1`` is regular; singular where the
+    shape's y axis is vertical) and the centre of mass ``x, y``. Besides the energy, Jellett's
+    integral ``(I ω)·s`` and Routh's integral ``ω₃ √(A C + m A (s₁² + s₂²) + m C s₃²)`` are
+    constant (``s`` from the contact point to the centre of mass, body axes). See
+    ``docs/gallery/routh-sphere.md``.
+
+    Parameters
+    ----------
+    r, a, m, A, C, g : optional
+        Radius, offset of the centre of mass below the centre, mass, central moments about a
+        diameter and about the axis, gravity; positive symbols of the same names by default.
+
+    References
+    ----------
+    E. J. Routh, *The Advanced Part of a Treatise on the Dynamics of a System of Rigid
+    Bodies*, 6th ed., 1905.  C. G. Gray and B. G. Nickel, "Constants of the motion for
+    nonslipping tippe tops and other tops with round pegs", *Am. J. Phys.* 68(9), 2000,
+    821–828.  A. V. Borisov and I. S. Mamaev, "Rolling of a rigid body on plane and sphere.
+    Hierarchy of dynamics", *Regular and Chaotic Dynamics* 7(2), 2002, 177–200.
+    """
+    r_, a_, m_, A_, C_, g_ = (
+        _param(v, n) for v, n in ((r, "r"), (a, "a"), (m, "m"), (A, "A"), (C, "C"), (g, "g"))
+    )
+    return rolling_body(
+        Sphere(r_), mass=m_, inertia=[A_, A_, C_], center_of_mass=(0, 0, -a_), g=g_, name="Routh's sphere"
+    )
+
+
+def rattleback(
+    a: sp.Expr | float | None = None,
+    b: sp.Expr | float | None = None,
+    c: sp.Expr | float | None = None,
+    h: sp.Expr | float | None = None,
+    m: sp.Expr | float | None = None,
+    A: sp.Expr | float | None = None,
+    B: sp.Expr | float | None = None,
+    C: sp.Expr | float | None = None,
+    D: sp.Expr | float | None = None,
+    g: sp.Expr | float | None = None,
+) -> RollingBody:
+    """The rattleback (celt) of Kane & Levinson (1982), built from its shape.
+
+    An ellipsoid with semi-axes ``a, b, c`` along the body's x, y, z, the centre of mass ``h``
+    below its centre, central inertia ``m [[A, D, 0], [D, B, 0], [0, 0, C]]`` (``A, B, C, D``
+    per unit mass: the principal axes of inertia are turned from the shape's by the product
+    ``D``), rolling without slipping on a horizontal plane under gravity::
+
+        rolling_body(Ellipsoid(a, b, c), mass=m, center_of_mass=(0, 0, −h), g=g,
+                     inertia=[[m A, m D, 0], [m D, m B, 0], [0, 0, m C]])
+
+    Cardan angles ``ψ, θ, φ`` (rest ``R = 1`` is regular) and the centre of mass ``x, y``.
+    Kane & Levinson's numbers (catalogue defaults) are ``a = 0.2``, ``b = 0.03``,
+    ``c = 0.02``, ``h = 0.01`` m, ``m = 1`` kg, ``A = 2·10⁻⁴``, ``B = 1.6·10⁻³``,
+    ``C = 1.7·10⁻³``, ``D = −2·10⁻⁵`` m² in their axes with z down; a half turn about x brings
+    z up and flips the sign of ``D``, so the default here is ``D = +2·10⁻⁵``. Spun about the
+    vertical with ``n D > 0`` it rocks and reverses within a few seconds; with ``n D < 0`` it
+    keeps its sense much longer. See ``docs/gallery/rattleback.md``.
+
+    Parameters
+    ----------
+    a, b, c, h, m, A, B, C, g : optional
+        Semi-axes, offset of the centre of mass, mass, moments per unit mass, gravity;
+        positive symbols of the same names by default.
+    D : optional
+        Product of inertia per unit mass; a real symbol ``D`` by default.
+
+    References
+    ----------
+    T. R. Kane and D. A. Levinson, "Realistic mathematical modeling of the rattleback",
+    *Int. J. Non-Linear Mechanics* 17(3), 1982, 175–186.  A. Garcia and M. Hubbard, "Spin
+    reversal of the rattleback: theory and experiment", *Proc. R. Soc. A* 418, 1988, 165–197.
+    """
+    a_, b_, c_, h_, m_, A_, B_, C_, g_ = (
+        _param(v, n)
+        for v, n in ((a, "a"), (b, "b"), (c, "c"), (h, "h"), (m, "m"), (A, "A"), (B, "B"), (C, "C"), (g, "g"))
+    )
+    D_ = sp.Symbol("D", real=True) if D is None else _param(D, "D")
+    return rolling_body(
+        Ellipsoid(a_, b_, c_),
+        mass=m_,
+        inertia=[[m_ * A_, m_ * D_, 0], [m_ * D_, m_ * B_, 0], [0, 0, m_ * C_]],
+        center_of_mass=(0, 0, -h_),
+        g=g_,
+        name="Rattleback (Kane & Levinson 1982)",
+    )
+
+
 # ---------------------------------------------------------------------------- catalogue
 class ExampleEntry(NamedTuple):
     """One built-in example: how to build it, what it is, and numbers to simulate it with.
@@ -665,6 +810,76 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
         ),
         {"m": 1.0, "I": 0.5, "L": 1.0},
         {"x": 0.0, "y": 0.0, "theta0": 0.0, "theta1": 0.2, "theta2": 0.0, "x'": 1.0, "theta0'": 0.0},
+    ),
+    "lindelof-problem": (
+        lindelof_problem,
+        (
+            "Lindelöf's problem (1895): a body of revolution, here a thin disk (mass m, radius r, "
+            "central moments A, A, C), built by chaplygin.bodies.rolling_body(Disk(r), ...), rolling "
+            "without slipping on a horizontal plane under gravity; heading psi, lean theta (0 upright), "
+            "spin phi and the centre x, y. Lindelöf substituted the constraints into T; Chaplygin "
+            "(1897) showed that this gives another motion: from the default state (a coin leaning "
+            "by 0.3 rad, turning and spinning) the two lean angles part within a second."
+        ),
+        {"m": 1.0, "r": 1.0, "A": 0.25, "C": 0.5, "g": 9.81},
+        {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 1.0, "theta'": 0.0, "phi'": 3.0},
+    ),
+    "routh-sphere": (
+        routh_sphere,
+        (
+            "Routh's sphere (Routh 1905): a ball of radius r whose centre of mass lies a below its "
+            "centre on an axis of symmetry (central moments A, A, C), rolling without slipping on a "
+            "horizontal plane; Cardan angles psi, theta, phi and the centre of mass x, y. Energy, "
+            "Jellett's and Routh's integrals are conserved. The default ball starts tilted by 0.5 "
+            "rad about x with body angular velocity (1, -0.5, 4)."
+        ),
+        {"r": 1.0, "a": 0.3, "m": 1.0, "A": 0.4, "C": 0.6, "g": 9.81},
+        # R = R_x(0.5), ω = (1, −0.5, 4) in body axes: θ' = ω₁, ψ' = ω₃/cos θ, φ' = ω₂ − ψ' sin θ
+        {
+            "psi": 0.0,
+            "theta": 0.5,
+            "phi": 0.0,
+            "x": 0.0,
+            "y": 0.0,
+            "psi'": 4.0 / math.cos(0.5),
+            "theta'": 1.0,
+            "phi'": -0.5 - 4.0 * math.tan(0.5),
+        },
+    ),
+    "rattleback": (
+        rattleback,
+        (
+            "The rattleback of Kane & Levinson (1982): an ellipsoid (semi-axes a, b, c) with the "
+            "centre of mass h below its centre and the principal axes of inertia turned from the "
+            "shape's by the product D (inertia m*[[A, D, 0], [D, B, 0], [0, 0, C]], z up), rolling "
+            "without slipping; Cardan angles psi, theta, phi and the centre of mass x, y. The "
+            "default state, tilted by 0.01 rad about x and y and spun at 5 rad/s counter-clockwise "
+            "(n*D > 0), rocks and reverses its spin at t ≈ 2.8 s; spun the other way (psi' = -5, "
+            "theta' = -0.05, phi' = 0.05) it keeps its sense for much longer."
+        ),
+        {
+            "a": 0.2,
+            "b": 0.03,
+            "c": 0.02,
+            "h": 0.01,
+            "m": 1.0,
+            "A": 2e-4,
+            "B": 1.6e-3,
+            "C": 1.7e-3,
+            "D": 2e-5,
+            "g": 9.81,
+        },
+        # R = R_x(0.01) R_y(0.01), ω = (0, 0, 5) in body axes: ψ' = 5, θ' = 5 sin 0.01, φ' = −5 sin 0.01
+        {
+            "psi": 0.0,
+            "theta": 0.01,
+            "phi": 0.01,
+            "x": 0.0,
+            "y": 0.0,
+            "psi'": 5.0,
+            "theta'": 5.0 * math.sin(0.01),
+            "phi'": -5.0 * math.sin(0.01),
+        },
     ),
 }
 

@@ -62,7 +62,7 @@ import sympy as sp
 from sympy.core.function import AppliedUndef
 from sympy.printing.str import StrPrinter
 
-from chaplygin.bodies import Disk, Ellipsoid, Paraboloid, Shape, Sphere, Torus, rolling_body
+from chaplygin.bodies import Disk, Ellipsoid, Paraboloid, RollingBody, Shape, Sphere, Torus, rolling_body
 from chaplygin.bodies.builder import ANGLES
 from chaplygin.core._symbols import TIME, file_syntax
 from chaplygin.core.system import System
@@ -1022,12 +1022,91 @@ def _key_name(system: System, key: Any) -> str:
     return str(key)
 
 
+def _system_tables(w: _Writer, system: System, names: Names) -> list[str]:
+    """``[energy]``, ``[forces]`` and ``[constraints]`` of :func:`dumps`."""
+    out = [
+        "",
+        "[energy]",
+        f"T = {_toml_string(w.expression(system.kinetic_energy, 'the kinetic energy T', names))}",
+    ]
+    if system.potential_energy is not None:
+        out.append(
+            f"V = {_toml_string(w.expression(system.potential_energy, 'the potential energy V', names))}"
+        )
+    elif system.force_function != 0:
+        out.append(f"U = {_toml_string(w.expression(system.force_function, 'the force function U', names))}")
+
+    if system.forces:
+        out += ["", "[forces]"]
+        for q, value in system.forces.items():
+            qn = q.func.__name__
+            out.append(f"{_toml_key(qn)} = {_toml_string(w.expression(value, f'the forces ({qn})', names))}")
+
+    if system.g:
+        out += ["", "[constraints]"]
+        if system.constraint_form == "B":
+            for vel, value in system.constraints.items():
+                key = vel.expr.func.__name__ + "'"
+                out.append(
+                    f"{_toml_string(key)} = {_toml_string(w.expression(value, f'the constraint {key}', names))}"
+                )
+        else:
+            exprs = [w.expression(e, "the implicit constraints", names) for e in system.implicit_constraints]
+            out.append("implicit = [")
+            out += [f"    {_toml_string(e)}," for e in exprs]
+            out.append("]")
+            out.append(
+                "dependent = [" + ", ".join(_toml_string(q.func.__name__) for q in system.dependent) + "]"
+            )
+    return out
+
+
+def _body_table(w: _Writer, system: System, names: Names) -> dict[str, Any] | None:
+    """The ``[body]`` table of a system built by ``rolling_body`` from a shape of :data:`BODY_SHAPES`.
+
+    Every value is written as an expression, so that reading the file back builds the same body
+    with the same parameters; ``None`` for any other system (written by its energy and constraints).
+    """
+    if not isinstance(system, RollingBody):
+        return None
+    found = [(n, keys) for n, (cls, keys) in BODY_SHAPES.items() if type(system.shape) is cls]
+    if not found:  # Revolution, SupportFunction: no [body] shape
+        return None
+    shape, keys = found[0]
+
+    def text(value: Any, what: str) -> str | int:
+        if isinstance(value, sp.Integer):
+            return int(value)
+        return w.expression(value, f"the body's {what}", names)
+
+    tensor = system.inertia
+    diagonal = all(tensor[i, j] == 0 for i in range(3) for j in range(3) if i != j)
+    inertia = (
+        [text(tensor[k, k], "inertia") for k in range(3)]
+        if diagonal
+        else [[text(tensor[i, j], "inertia") for j in range(3)] for i in range(3)]
+    )
+    return {
+        "shape": shape,
+        **{k: text(getattr(system.shape, k), k) for k in keys},
+        "mass": text(system.mass, "mass"),
+        "inertia": inertia,
+        "center_of_mass": [text(c, "center_of_mass") for c in system.center_of_mass],
+        "angles": system.angles,
+        "g": text(system.gravity, "g"),
+    }
+
+
 def dumps(
     system: System,
     parameters: Mapping[Any, float] | None = None,
     initial: Mapping[Any, float] | None = None,
 ) -> str:
     """Write ``system`` as a system file, so that :func:`loads` gives an equivalent system.
+
+    A body built by :func:`chaplygin.bodies.rolling_body` from a shape of :data:`BODY_SHAPES`
+    is written as its ``[body]`` table (shape, mass, inertia, centre of mass, angles, g);
+    any other system by its coordinates, energy, forces and constraints.
 
     Parameters
     ----------
@@ -1075,8 +1154,12 @@ def dumps(
         values[k] = float(value)
 
     out = [f"# chaplygin system file: {name}", f"name = {_toml_string(name)}"]
-    out.append("coordinates = [" + ", ".join(_toml_string(q) for q in coords) + "]")
-    if pnames:
+    body = _body_table(w, system, names)
+    if body is None:
+        out.append("coordinates = [" + ", ".join(_toml_string(q) for q in coords) + "]")
+    else:  # built by rolling_body from a shape of BODY_SHAPES: its [body] table, read back by rolling_body
+        out += ["", "[body]", *(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in body.items())]
+    if pnames or body is not None:  # a [body] file always has [parameters] (SystemFile.dumps)
         out += ["", "[parameters]"]
         for p in pnames:
             if p in values:
@@ -1084,40 +1167,8 @@ def dumps(
             else:
                 out.append(f"{_toml_key(p)} = 1.0  # no value was given")
 
-    out += [
-        "",
-        "[energy]",
-        f"T = {_toml_string(w.expression(system.kinetic_energy, 'the kinetic energy T', names))}",
-    ]
-    if system.potential_energy is not None:
-        out.append(
-            f"V = {_toml_string(w.expression(system.potential_energy, 'the potential energy V', names))}"
-        )
-    elif system.force_function != 0:
-        out.append(f"U = {_toml_string(w.expression(system.force_function, 'the force function U', names))}")
-
-    if system.forces:
-        out += ["", "[forces]"]
-        for q, value in system.forces.items():
-            qn = q.func.__name__
-            out.append(f"{_toml_key(qn)} = {_toml_string(w.expression(value, f'the forces ({qn})', names))}")
-
-    if system.g:
-        out += ["", "[constraints]"]
-        if system.constraint_form == "B":
-            for vel, value in system.constraints.items():
-                key = vel.expr.func.__name__ + "'"
-                out.append(
-                    f"{_toml_string(key)} = {_toml_string(w.expression(value, f'the constraint {key}', names))}"
-                )
-        else:
-            exprs = [w.expression(e, "the implicit constraints", names) for e in system.implicit_constraints]
-            out.append("implicit = [")
-            out += [f"    {_toml_string(e)}," for e in exprs]
-            out.append("]")
-            out.append(
-                "dependent = [" + ", ".join(_toml_string(q.func.__name__) for q in system.dependent) + "]"
-            )
+    if body is None:
+        out += _system_tables(w, system, names)
 
     if initial is not None:
         independent = [q.func.__name__ + "'" for q in system.independent]
