@@ -713,6 +713,32 @@ FOUND_1E6: list[tuple[str, str, str | tuple[str, ...]]] = [
         "1.6 - theta'/atan ( tan ( .5e399 ) ) / E /cosh (sinh (1e+450 ) * x'*.5e-4000/pi )^ 0.5",
     ),
     ("constant", "limit", "acos ( sin ( .5E+400) ) /E - pi /E * E - E /pi* 7*006"),
+    # the one input of the second 10**6 run (session 7) over 1 s alone: (sin(...)^2)^Mass
+    (
+        "expression",
+        "limit",
+        (
+            "cosh((\r\n+ sin(\n((theta)-\tE)*\tatan( theta'\r\n)\n^\r\n100\n+log\r\n(\n1)\r\n)  **\n2)\r\n**\r\nMa"
+            "ss/\npi**12164803264\n/\t1\n-\t-sqrt\n(  sin\n(  (10) ^\t0.5\n/24748347340491191634758414"
+            "192879022647326108756872251750437650128181981998448509532605834978449996842960/ "
+            " q2  *\r\n.709)\r\n+ (x )/\r\nx'\t-\r\nk_1\t**a\r\n/9.99E-399/1E-399/10 -\tE*\tq2'\r\n/  E)* 79\n"
+            "+asin(\nq2'*3 *  -(m)/ sign(  (05555454234447907902906053607059379586719962170268"
+            "1982485.6515215987167671206  )*\r\nq2* .5E-3\n*q2- pi  -\tx +t  )  +\r\n-k_1\r\n+100 ** "
+            "98295455892322621536*+t -  a*atan\t(\r\nx')**\n2*\n(\r\n.5e-99\t)*k_1\r\n)) **\tcos(  ((  t"
+            "anh( pi )  -\ttheta'\t)\t*\tatan (\r\ntheta)  *\r\n(t)^0.5-atan2 (  q2',x)\n-x'/\tx'  )\r\n^"
+            "\n1000\t*007*.5e400 /(x-193124232583\t-8969464.5)  -\r\nq2'*18716e4000  **-1  *-\tm\n+t"
+            "heta/atan2\t(  k_1,\tt)\n/sign  (  0\t) )** 0.5/  acos(\ntan\t(  1e-399/\r\n2E+2^-1\n*abs"
+            "\r\n(sign  (.25\n)  /\n7-a\r\n)\t+ +abs  (x')/ x*+x'\r\n-+\r\natan  (  .5E-17\n)\n/k_1 -Mass\r"
+            "\n*k_1)\t/\t( (  +.5E+17\t*E\t/E\r\n-5.) -\n-  007\n*\t.329 -\ttanh (  675.6241494578455240"
+            "9)\n**\n7.74987507677734502474040097960211942857995818895108285008636175324653e400"
+            "0\t)+-(+\t2*q2'-\n10)/(7/  t/9075941320507813E+400000000 /t\r\n-1.5e-3)*\t10^\ttheta+  "
+            "( (-\r\nk_1\t*q2'*E)*\nsqrt\n(\t0165605E-17\n)^0.5\r\n-9.99E+401+q2 )^  1000\r\n)-\tx'/0.5*\n"
+            "3\r\n-9.99E+300/\n1E+4000\n*\t7/\ntheta\n+  1018356173164354313825730236294604781376454"
+            "35094695312291901548**\n(tan( (theta'  ) -\n2E+2\r\n) +\r\nsinh\t(644.\n))**- q2' /\ttan "
+            "(  theta/(\tt  /.5e300*  m*  a\r\n-94363\n)  ^\r\n1000/-\r\n+\nx'\t+theta' /1e-3\r\n/\n2\t*(  "
+            "t\n)\t)"
+        ),
+    ),
 ]
 
 #: One small input per cause of those hangs, and neighbours that stay accepted.
@@ -724,6 +750,8 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     ("expression", "limit", "log(sinh(exp(0.1234567)*q2'))"),  # E**(1/10**7) to the power 1234567
     ("expression", "limit", "x^999.999"),  # x**(1/1000) to the power 999999
     ("expression", "limit", "(q2'^300)^(1/(a + x))"),  # q2'^300 split into real and imaginary parts
+    ("expression", "limit", "(sin(atan(theta')^100)^2)^Mass"),  # (x^2)^y: SymPy takes re(x)
+    ("expression", "ok", "(sin(theta')^2)^Mass"),
     ("constant", "limit", "atan(tan(1.3e402))"),  # 1.3e402 modulo pi: never ended
     ("constant", "limit", "acos(sin(.5E+400))"),  # SymPy failed (cannot compare 5e399 mod 2pi with pi)
     ("constant", "limit", "atan(tan(1e150))"),

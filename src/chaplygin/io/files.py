@@ -1088,7 +1088,7 @@ def _body_table(w: _Writer, system: System, names: Names) -> dict[str, Any] | No
     )
     return {
         "shape": shape,
-        **{k: text(getattr(system.shape, k), k) for k in keys},
+        **{k: text(vars(system.shape)[k], k) for k in keys},
         "mass": text(system.mass, "mass"),
         "inertia": inertia,
         "center_of_mass": [text(c, "center_of_mass") for c in system.center_of_mass],

@@ -1018,15 +1018,19 @@ class _Parser:
         self.check_exponent_numerators(e, pos, "the exponent")
         if b == sp.E:
             self.check_exp(e, pos)
-        # SymPy splits b into real and imaginary parts when the exponent has a sum in a denominator
-        if (
-            not e.is_number
-            and any(p.base.is_Add and p.exp.is_negative for p in e.atoms(sp.Pow))
-            and _complex_terms(b, self.complex_atoms(), MAX_HYPERBOLIC_TERMS) > MAX_HYPERBOLIC_TERMS
-        ):
+        # SymPy splits b into real and imaginary parts when the exponent has a sum in a
+        # denominator, and takes re(x) to combine (x^a)^b (b not an integer)
+        split = (
+            "its exponent has a sum in a denominator"
+            if not e.is_number and any(p.base.is_Add and p.exp.is_negative for p in e.atoms(sp.Pow))
+            else "it is itself a power, raised to an exponent that is not an integer"
+            if isinstance(b, sp.Pow) and e.is_integer is not True
+            else ""
+        )
+        if split and _complex_terms(b, self.complex_atoms(), MAX_HYPERBOLIC_TERMS) > MAX_HYPERBOLIC_TERMS:
             raise self.error(
-                "the base of this power is too large for SymPy: its exponent has a sum in a "
-                "denominator, and SymPy splits such a base into real and imaginary parts, which would "
+                f"the base of this power is too large for SymPy: {split}, and SymPy splits such a "
+                "base into real and imaginary parts, which would "
                 f"expand to more than {MAX_HYPERBOLIC_TERMS} terms",
                 pos,
                 f"Limit: the base of a power like b^(1/(a + x)) may expand to at most {MAX_HYPERBOLIC_TERMS} "
