@@ -815,7 +815,7 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
         lindelof_problem,
         (
             "Lindelöf's problem (1895): a body of revolution, here a thin disk (mass m, radius r, "
-            "central moments A, A, C), built by chaplygin.bodies.rolling_body(Disk(r), ...), rolling "
+            "central moments A, A, C), built from its shape by rolling_body(Disk(r), ...), rolling "
             "without slipping on a horizontal plane under gravity; heading psi, lean theta (0 upright), "
             "spin phi and the centre x, y. Lindelöf substituted the constraints into T; Chaplygin "
             "(1897) showed that this gives another motion: from the default state (a coin leaning "
