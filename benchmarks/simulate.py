@@ -166,10 +166,10 @@ def part_rhs(disk, eqs, y0, p) -> None:
 
     from numba import njit
 
-    from chaplygin.numeric._loop import loop_model
+    from chaplygin.numeric._loop import loop_model, shared
 
     module = loop_model(numba_model).module
-    generated_rhs, k_eval = module.rhs, module._k_eval
+    generated_rhs, k_eval, m = module.rhs, shared()._k_eval, module.MODEL
 
     @njit
     def drive_rhs(y, p, calls):
@@ -180,11 +180,11 @@ def part_rhs(disk, eqs, y0, p) -> None:
         return s
 
     @njit
-    def drive_eval(y, p, calls, f, M, b, V, O):
+    def drive_eval(m, y, p, calls, f, M, b, V, O):
         s = 0.0
         for _i in range(calls):
             y[1] += 1e-12
-            k_eval(0.0, y, p, f, M, b, V, O)
+            k_eval(m, 0.0, y, p, f, M, b, V, O)
             s += f[6]
         return s
 
@@ -196,7 +196,7 @@ def part_rhs(disk, eqs, y0, p) -> None:
         np.empty(module.N_OBSERVED),
     )
     drive_rhs(y0.copy(), p, 10)
-    drive_eval(y0.copy(), p, 10, *work)
+    drive_eval(m, y0.copy(), p, 10, *work)
     calls = 1_000_000
     rows.append(
         ("numba backend rhs, inside numba", best_of(lambda: drive_rhs(y0.copy(), p, calls), 3) / calls * 1e6)
@@ -204,7 +204,7 @@ def part_rhs(disk, eqs, y0, p) -> None:
     rows.append(
         (
             "numba loop's allocation-free rhs (fill + elimination), inside numba",
-            best_of(lambda: drive_eval(y0.copy(), p, calls, *work), 3) / calls * 1e6,
+            best_of(lambda: drive_eval(m, y0.copy(), p, calls, *work), 3) / calls * 1e6,
         )
     )
     try:

@@ -16,7 +16,7 @@ from sympy.physics.mechanics import dynamicsymbols
 from chaplygin import ChaplyginError, System, examples
 from chaplygin.core._symbols import TIME
 from chaplygin.numeric._ckernel import Unavailable, compiler
-from chaplygin.numeric._loop import integrate_dop853, loop_model
+from chaplygin.numeric._loop import integrate_dop853, loop_model, shared
 from chaplygin.numeric.codegen import compile_equations, compile_model
 from chaplygin.numeric.ensemble import simulate_ensemble
 from chaplygin.numeric.simulate import _initial_multipliers, initial_state, simulate
@@ -106,7 +106,7 @@ def test_loop_derivative_equals_generated_rhs(disk):
             np.empty(module.N),
             np.empty(module.N_OBSERVED),
         )
-        assert module._k_eval(0.0, y0, p, first, M, b, V, O) == 0
+        assert shared()._k_eval(module.MODEL, 0.0, y0, p, first, M, b, V, O) == 0
         np.testing.assert_allclose(first, module.rhs(0.0, y0, p), rtol=1e-13, atol=1e-13)
     result = integrate_dop853(model, (0.0, 1.0), y0, p, times)
     _t, y, status, message, n_rhs = result[:5]

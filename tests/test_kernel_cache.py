@@ -203,3 +203,42 @@ print(json.dumps({"digest": hashlib.sha256(_source(eqs, "numba")[1].encode()).he
 
 def test_symmetric_methods_are_named_alike():
     assert SYMMETRIC_METHODS == tuple(METHODS)
+
+
+# a process that integrates one example's model with the numba loop, then reports what numba
+# compiled (cache misses) and loaded (cache hits) for the shared loop and for the model's fill
+LOOP = """
+import json, sys
+import numpy as np
+from numba.core.registry import CPUDispatcher
+from chaplygin import examples
+from chaplygin.numeric import _loop
+from chaplygin.numeric.codegen import compile_model
+system = getattr(examples, sys.argv[1])()
+model = _loop.loop_model(compile_model(system, "chaplygin", backend="numba"))
+y0 = np.full(len(model.layout.state), 0.1)
+p = np.ones(len(model.layout.parameters))
+run = _loop.integrate_dop853(model, (0.0, 0.1), y0, p, np.array([0.1]))
+kernels = [f for f in vars(_loop.shared()).values() if isinstance(f, CPUDispatcher)]
+print(json.dumps({
+    "status": run.status,
+    "loop_misses": sum(sum(f.stats.cache_misses.values()) for f in kernels),
+    "loop_hits": sum(sum(f.stats.cache_hits.values()) for f in kernels),
+    "fill_hits": model.module.fill_c.cache_hits,
+    "loop_file": _loop.shared().__file__,
+}))
+"""
+
+
+def test_the_numba_loop_is_compiled_once_for_every_model(tmp_path):
+    """A second model, in a fresh process, compiles only its own fill: the loop is loaded."""
+    numba_cache = {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # this test's own, cold
+    first = _python(LOOP, ["rolling_disk"], tmp_path / "cache", **numba_cache)
+    second = _python(LOOP, ["knife_edge"], tmp_path / "cache", **numba_cache)
+    assert first["status"] == second["status"] == "success"
+    assert first["loop_misses"] > 0 and first["fill_hits"] == 0  # cold: the loop was compiled
+    assert second["loop_file"] == first["loop_file"]
+    assert second["loop_misses"] == 0 and second["loop_hits"] > 0  # loaded, not compiled
+    assert second["fill_hits"] == 0  # a model never seen: its fill was compiled
+    again = _python(LOOP, ["knife_edge"], tmp_path / "cache", **numba_cache)
+    assert again["loop_misses"] == 0 and again["fill_hits"] == 1  # and then loaded too

@@ -2,10 +2,9 @@
 
 Why C and not numba for the everyday path
 ------------------------------------------
-numba compiles the DOP853 loop of :mod:`chaplygin.numeric._loop` anew inside every
-model's module (a loop that takes the model as an argument is recompiled in
-every process), 8–15 s on a 2-core machine, and ``import numba`` alone costs
-about half a second.  Here the loop is C, built once per installation (and
+numba compiles the DOP853 loop of :mod:`chaplygin.numeric._loop` once per
+installation (8–15 s on a 2-core machine) and each model's ``fill`` in a second
+or two, and ``import numba`` alone costs about half a second.  Here the loop is C, built once per installation (and
 compiler) into a shared library of the kernel cache, and each model adds one
 small library holding its generated ``fill`` (:mod:`chaplygin.numeric._cfill`), built
 by the C compiler in a fraction of a second.  The loop calls ``fill`` through a

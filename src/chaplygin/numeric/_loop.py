@@ -30,8 +30,8 @@ computed only for steps that contain an output time.
 
 The right-hand side inside the loop is the generated ``fill`` (the model's
 ``M``, ``F`` and velocities, common subexpressions eliminated) followed by an
-in-place Gaussian elimination with partial pivoting (``_k_solve``, defined in
-every generated module) into preallocated work arrays: the same arithmetic as
+in-place Gaussian elimination with partial pivoting (``_k_solve``, the
+generated modules' own) into preallocated work arrays: the same arithmetic as
 the generated ``rhs``, which allocates its arrays on every call.  The tests
 check that both agree.
 
@@ -44,22 +44,29 @@ evaluating the failing point once more from Python), or more steps than
 
 How it is compiled
 ------------------
-numba caches compiled functions per source file, and a function that receives
-another jitted function as an argument is recompiled in every process (its
-cache key names the argument's address).  So the kernels below are not called
-with the model's functions as arguments: their source is appended to the
-model's generated module (a new file in the code cache, keyed by a hash of its
-text) where ``fill`` and ``observe`` are globals, and numba caches the whole
-file.  The first run of a model compiles (a few seconds); later processes
-load it.
+Once per installation, not once per model.  numba caches compiled functions
+per source file, and a function that receives another jitted function as an
+argument is recompiled in every process (its cache key names the argument).
+So the kernels below take a model as a tuple of integers, ``m = (address, DIM,
+N, N_OBSERVED)``: ``address`` is that of a C-callable ``fill`` (a
+``numba.cfunc`` around the model's generated ``fill``, appended to its
+generated module by :func:`loop_model`), which the kernels call through a
+function pointer (:func:`chaplygin.numeric._fnptr.call_fill`).  Their source,
+which names no model, is written once to the code cache (:func:`shared`, the
+file named by the library version and the digest of its sources) and cached
+there by numba: the first run of the installation compiles the loop (some
+seconds), and a new model then compiles only its ``fill`` and that small
+wrapper, which numba caches in turn.
 """
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
 import os
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -390,30 +397,77 @@ def _matrix(rows: tuple[tuple[float, ...], ...], width: int) -> list[list[float]
 _DOP_A: Any = _matrix(_DOP_A_ROWS, 16)
 
 # ------------------------------------------------------------------ kernels
-# These are plain Python functions whose source is compiled by numba inside each
-# model's generated module (see ``_kernel_source``): ``rhs`` and ``observe``
-# are that module's globals.  They are never called from here.
-rhs: Any = None  # placeholders: the generated module defines them
-observe: Any = None
-fill: Any = None
-_k_solve: Any = None
-DIM = N = N_OBSERVED = 0
+# Plain Python functions whose source is compiled by numba in the shared loop
+# module (see ``_kernel_source``), where ``_k_call`` calls a model's ``fill``
+# through its address (``m``, the model tuple ``(address, DIM, N, N_OBSERVED)``;
+# :mod:`chaplygin.numeric._fnptr`).  The symmetric integrators append ``_k_call``,
+# ``_k_fill`` and ``_k_eval`` to a model's own module instead, where ``fill`` is
+# a global.  They are never called from here.
+fill: Any = None  # placeholder: a generated module defines it
 
 
-def _k_fill(t, y, p, M, b, V, O):  # pragma: no cover - compiled
-    """The generated ``fill`` into a zeroed ``M``; 0, or 3 if it raised."""
-    code = 0
-    for i in range(M.shape[0]):
-        for j in range(M.shape[1]):
-            M[i, j] = 0.0
+def _k_pivot(M, c):  # pragma: no cover - compiled
+    """The row ``r ≥ c`` of largest ``|M[r, c]|`` (partial pivoting), and that magnitude."""
+    piv = c
+    big = abs(M[c, c])
+    for r in range(c + 1, M.shape[0]):
+        if abs(M[r, c]) > big:
+            big = abs(M[r, c])
+            piv = r
+    return piv, big
+
+
+def _k_solve(M, b):  # pragma: no cover - compiled
+    """``b ← M⁻¹ b`` by Gaussian elimination with partial pivoting, in place; 5 if singular."""
+    n = M.shape[0]
+    for c in range(n):
+        piv, big = _k_pivot(M, c)
+        if big == 0.0:
+            return 5
+        if piv != c:
+            for j in range(c, n):
+                tmp = M[c, j]
+                M[c, j] = M[piv, j]
+                M[piv, j] = tmp
+            tmp = b[c]
+            b[c] = b[piv]
+            b[piv] = tmp
+        for r in range(c + 1, n):
+            factor = M[r, c] / M[c, c]
+            for j in range(c + 1, n):
+                M[r, j] -= factor * M[c, j]
+            b[r] -= factor * b[c]
+    for c in range(n - 1, -1, -1):
+        acc = b[c]
+        for j in range(c + 1, n):
+            acc -= M[c, j] * b[j]
+        b[c] = acc / M[c, c]
+    return 0
+
+
+def _k_call(m, t, y, p, M, b, V, O):  # pragma: no cover - compiled
+    """The module's own ``fill`` (``m`` unused); 0, or 3 if it raised.
+
+    Only where the kernels are appended to a model's module (the symmetric
+    integrators); the shared loop calls :func:`chaplygin.numeric._fnptr.call_fill`
+    under this name, whose ``fill`` (a ``numba.cfunc``) catches the same way.
+    """
     try:
         fill(t, y, p, M, b, V, O)
     except Exception:
-        code = 3
-    return code
+        return 3
+    return 0
 
 
-def _k_eval(t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
+def _k_fill(m, t, y, p, M, b, V, O):  # pragma: no cover - compiled
+    """The model's ``fill`` into a zeroed ``M``; 0, or 3 if it raised."""
+    for i in range(M.shape[0]):
+        for j in range(M.shape[1]):
+            M[i, j] = 0.0
+    return _k_call(m, t, y, p, M, b, V, O)
+
+
+def _k_eval(m, t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
     """``f ← rhs(t, y, p)`` without allocating; 0, or a failure code.
 
     The generated ``fill`` writes ``M``, ``F`` (here ``b``), the velocities
@@ -423,7 +477,7 @@ def _k_eval(t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
     3 ``fill`` raised (e.g. a division by zero), 5 a singular mass matrix,
     9 a non-finite velocity (a pole of the solved constraints).
     """
-    code = _k_fill(t, y, p, M, b, V, O)
+    code = _k_fill(m, t, y, p, M, b, V, O)
     if code != 0:
         return code
     for i in range(V.size):
@@ -442,7 +496,7 @@ def _k_eval(t, y, p, f, M, b, V, O):  # pragma: no cover - compiled
     return 0
 
 
-def _k_stages(first, last, t, h, y, p, K, y_stage, wM, wb, wV, wO):  # pragma: no cover - compiled
+def _k_stages(m, first, last, t, h, y, p, K, y_stage, wM, wb, wV, wO):  # pragma: no cover - compiled
     """DOP853 stages ``first … last − 1`` of a step of size ``h`` into ``K``.
 
     Returns ``(code, s)``: 0 or the failure code, and the last stage evaluated
@@ -455,15 +509,15 @@ def _k_stages(first, last, t, h, y, p, K, y_stage, wM, wb, wV, wO):  # pragma: n
             for j in range(s):
                 acc += K[j, i] * _DOP_A[s, j]
             y_stage[i] = y[i] + acc * h
-        code = _k_eval(t + _DOP_C[s] * h, y_stage, p, K[s], wM, wb, wV, wO)
+        code = _k_eval(m, t + _DOP_C[s] * h, y_stage, p, K[s], wM, wb, wV, wO)
         if code != 0:
             return code, s
     return 0, last - 1
 
 
-def _k_observe(t, y, p, n_react, row, M, b, V, O):  # pragma: no cover - compiled
+def _k_observe(m, t, y, p, n_react, row, M, b, V, O):  # pragma: no cover - compiled
     """``row ← observe(t, y, p)`` (the generated ``observe``'s numbers), NaN where it fails."""
-    if _k_fill(t, y, p, M, b, V, O) != 0:
+    if _k_fill(m, t, y, p, M, b, V, O) != 0:
         for j in range(row.size):
             row[j] = np.nan
         return
@@ -479,11 +533,23 @@ def _k_observe(t, y, p, n_react, row, M, b, V, O):  # pragma: no cover - compile
         row[row.size - n_v + j] = V[j]
 
 
-def _k_observe_new(t, y, p, n_react):  # pragma: no cover - compiled
+def _k_observe_new(m, t, y, p, n_react):  # pragma: no cover - compiled
     """``observe(t, y, p)`` as a new array (for samples taken from Python)."""
-    row = np.empty(N_OBSERVED)
-    _k_observe(t, y, p, n_react, row, np.empty((DIM, DIM)), np.empty(DIM), np.empty(N), np.empty(N_OBSERVED))
+    row = np.empty(m[3])
+    _k_observe(
+        m, t, y, p, n_react, row, np.empty((m[1], m[1])), np.empty(m[1]), np.empty(m[2]), np.empty(m[3])
+    )
     return row
+
+
+def _k_evaluate(m, t, y, p):  # pragma: no cover - compiled
+    """The generated ``evaluate``: ``(code, M, F, V, O)``, fresh zeroed arrays filled at ``(t, y, p)``."""
+    M = np.zeros((m[1], m[1]))
+    F = np.zeros(m[1])
+    V = np.zeros(m[2])
+    O = np.zeros(m[3])
+    code = _k_fill(m, t, y, p, M, F, V, O)
+    return code, M, F, V, O
 
 
 def _k_rms(v):  # pragma: no cover - compiled
@@ -493,8 +559,8 @@ def _k_rms(v):  # pragma: no cover - compiled
     return math.sqrt(s / v.size)
 
 
-def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps, out):  # pragma: no cover
-    """Integrate ``rhs`` from ``(t0, y0)`` to ``t1``; ``out[j] ← y(t_out[j])``.
+def _k_dop853(m, t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps, out):  # pragma: no cover
+    """Integrate the model ``m``'s ``rhs`` from ``(t0, y0)`` to ``t1``; ``out[j] ← y(t_out[j])``.
 
     Returns ``(filled, status, t, y, n_rhs, n_steps, t_fail, y_fail, h_next)``:
     ``filled`` rows of ``out`` were written, ``(t, y)`` is the last accepted
@@ -521,10 +587,10 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
     e3 = np.empty(n)
     F = np.empty((7, n))
     # work space of _k_eval: M, F, velocities, observables of the generated fill()
-    wM = np.empty((DIM, DIM))
-    wb = np.empty(DIM)
-    wV = np.empty(N)
-    wO = np.empty(N_OBSERVED)
+    wM = np.empty((m[1], m[1]))
+    wb = np.empty(m[1])
+    wV = np.empty(m[2])
+    wO = np.empty(m[3])
     n_rhs = 0
     n_steps = 0
     t = t0
@@ -533,7 +599,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
         out[filled, :] = y0
         filled += 1
 
-    code = _k_eval(t, y, p, K[0], wM, wb, wV, wO)
+    code = _k_eval(m, t, y, p, K[0], wM, wb, wV, wO)
     n_rhs += 1
     if code != 0:
         return filled, code, t, y, n_rhs, n_steps, t, y.copy(), 0.0
@@ -555,7 +621,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
         h0 = min(h0, interval)
         for i in range(n):
             y_stage[i] = y[i] + h0 * direction * K[0, i]
-        code = _k_eval(t + h0 * direction, y_stage, p, f_new, wM, wb, wV, wO)
+        code = _k_eval(m, t + h0 * direction, y_stage, p, f_new, wM, wb, wV, wO)
         n_rhs += 1
         if code != 0:
             return filled, code, t, y, n_rhs, n_steps, t + h0 * direction, y_stage.copy(), 0.0
@@ -589,7 +655,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
                 t_new = t1
             h = t_new - t
             h_abs = abs(h)
-            code, s = _k_stages(1, 12, t, h, y, p, K, y_stage, wM, wb, wV, wO)  # stages 1 … 11
+            code, s = _k_stages(m, 1, 12, t, h, y, p, K, y_stage, wM, wb, wV, wO)  # stages 1 … 11
             n_rhs += s
             if code != 0:
                 return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy(), 0.0
@@ -598,7 +664,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
                 for j in range(12):
                     acc += K[j, i] * B[j]
                 y_new[i] = y[i] + h * acc
-            code = _k_eval(t + h, y_new, p, K[12], wM, wb, wV, wO)
+            code = _k_eval(m, t + h, y_new, p, K[12], wM, wb, wV, wO)
             n_rhs += 1
             if code != 0:
                 return filled, code, t, y, n_rhs, n_steps, t + h, y_new.copy(), 0.0
@@ -638,7 +704,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
         n_steps += 1
         if filled < n_out and direction * (t_out[filled] - t_new) <= 0.0:
             # dense output: three more stages, then the 7th-order interpolant
-            code, s = _k_stages(13, 16, t, h, y, p, K, y_stage, wM, wb, wV, wO)
+            code, s = _k_stages(m, 13, 16, t, h, y, p, K, y_stage, wM, wb, wV, wO)
             n_rhs += s - 12
             if code != 0:
                 return filled, code, t, y, n_rhs, n_steps, t + C[s] * h, y_stage.copy(), 0.0
@@ -669,6 +735,7 @@ def _k_dop853(t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps,
 
 
 def _k_batch(
+    m,
     t0,
     t1,
     Y0,
@@ -689,22 +756,33 @@ def _k_batch(
     stop,
 ):  # pragma: no cover
     """``_k_dop853`` for rows ``start … stop-1`` of ``Y0`` (parameters ``P[i]``); releases the GIL."""
-    wM = np.empty((DIM, DIM))
-    wb = np.empty(DIM)
-    wV = np.empty(N)
-    wO = np.empty(N_OBSERVED)
+    wM = np.empty((m[1], m[1]))
+    wb = np.empty(m[1])
+    wV = np.empty(m[2])
+    wO = np.empty(m[3])
     for i in range(start, stop):
         _filled, st, t, y, nr, _ns, _tf, _yf, _h = _k_dop853(
-            t0, t1, Y0[i], P[i], t_out, rtol, atol, max_step, 0.0, max_steps, out[i]
+            m, t0, t1, Y0[i], P[i], t_out, rtol, atol, max_step, 0.0, max_steps, out[i]
         )
         status[i] = st
         t_last[i] = t
         n_rhs[i] = nr
         last[i, :] = y
-        _k_observe(t, y, P[i], n_react, obs[i], wM, wb, wV, wO)
+        _k_observe(m, t, y, P[i], n_react, obs[i], wM, wb, wV, wO)
 
 
-_SERIAL_KERNELS = (_k_fill, _k_eval, _k_stages, _k_observe, _k_observe_new, _k_rms, _k_dop853)
+_SERIAL_KERNELS = (
+    _k_pivot,
+    _k_solve,
+    _k_fill,
+    _k_eval,
+    _k_stages,
+    _k_observe,
+    _k_observe_new,
+    _k_evaluate,
+    _k_rms,
+    _k_dop853,
+)
 _NOGIL_KERNELS = (_k_batch,)
 
 
@@ -713,10 +791,26 @@ def _tuple_source(name: str, value: object) -> str:
 
 
 def _kernel_source() -> str:
-    """The kernels and the tableau as source to append to a generated module."""
+    """The shared loop module: the tableau and the kernels, calling ``fill`` by address.
+
+    Its first line names the library version and the digest of
+    :mod:`chaplygin.numeric`'s source files (which include
+    :mod:`chaplygin.numeric._fnptr`), so another installation or an edited
+    one writes another file, compiled anew.
+    """
+    from chaplygin.numeric.cache import _version
+
     parts = [
+        f'"""The DOP853 loop of chaplygin {_version()}, shared by every model (chaplygin.numeric._loop)."""',
         "",
-        "# " + "-" * 66 + " DOP853 (chaplygin.numeric._loop)",
+        "import math",
+        "",
+        "import numpy as np",
+        "from numba import njit",
+        "",
+        "from chaplygin.numeric._fnptr import call_fill as _k_call",
+        "",
+        "_jit = njit(cache=True, fastmath=False)",
         "_nogil_jit = njit(cache=True, nogil=True, fastmath=False)",
         _tuple_source("_DOP_A", _DOP_A),
         _tuple_source("_DOP_B", list(_DOP_B)),
@@ -731,34 +825,94 @@ def _kernel_source() -> str:
     return "\n".join(parts) + "\n"
 
 
+#: appended to (a copy of) a model's generated numba module: its ``fill`` as a C function for
+#: the shared loop, and the model tuple ``(address, DIM, N, N_OBSERVED)`` the loop's kernels take
+_FILL_C = '''
+
+# ------------------------------------------------------------------ for the shared DOP853 loop
+from numba import carray as _carray
+from numba import cfunc as _cfunc
+from numba import types as _types
+
+_DOUBLES = _types.CPointer(_types.float64)
+
+
+@_cfunc(_types.int32(_types.float64, *[_DOUBLES] * 6), cache=True)
+def fill_c(t, y, p, M, F, V, O):
+    """``fill`` on C pointers (chaplygin.numeric._loop); 0, or 3 if it raised."""
+    try:
+        fill(
+            t,
+            _carray(y, N + K),
+            _carray(p, {n_p}),
+            _carray(M, (DIM, DIM)),
+            _carray(F, DIM),
+            _carray(V, N),
+            _carray(O, N_OBSERVED),
+        )
+    except Exception:
+        return 3
+    return 0
+
+
+MODEL = (fill_c.address, DIM, N, N_OBSERVED)
+'''
+
+
 # ------------------------------------------------------------------ loading
-def _load(source: str) -> ModuleType:
-    """Write ``source`` to the code cache and import it (see :func:`chaplygin.numeric.cache.import_source`)."""
+@functools.cache
+def shared() -> ModuleType:
+    """The shared loop module: written to the code cache and compiled by numba once per installation."""
     from chaplygin.numeric.cache import import_source
 
-    return import_source(source, "dop853")
+    return import_source(_kernel_source(), "dop853")
 
 
 def loop_model(compiled: CompiledModel) -> CompiledModel:
-    """A :class:`CompiledModel` whose module also holds the compiled DOP853 loop.
+    """A :class:`CompiledModel` that the shared DOP853 loop (:func:`shared`) integrates.
 
-    ``compiled`` must come from the ``numba`` backend.  Its ``rhs`` is the
-    generated one (compiled in the new module); its ``observe`` gives the
-    generated ``observe``'s numbers through the loop's own kernels, which give
-    NaN multipliers at a singular mass matrix instead of raising.
+    ``compiled`` must come from the ``numba`` backend.  The new model's module
+    is a copy of the generated one with :data:`_FILL_C` appended: ``fill`` as
+    a C function (``fill_c``, a cached ``numba.cfunc``; compiling it and the
+    ``fill`` it calls is all a new model costs) and ``MODEL``, the tuple the
+    loop's kernels take.  (A copy, so that the file numba caches names no
+    other generated module.)  Its ``rhs`` is the generated one; its
+    ``observe`` gives the generated ``observe``'s numbers through the loop's
+    kernels, which give NaN multipliers at a singular mass matrix instead of
+    raising.
     """
     if compiled.backend != "numba":
         raise ChaplyginError(f"the compiled DOP853 loop needs the 'numba' backend, not {compiled.backend!r}.")
-    if hasattr(compiled.module, "_k_dop853"):
+    if hasattr(compiled.module, "MODEL"):
         return compiled
+    from chaplygin.numeric.cache import import_source
+
     source = Path(compiled.module.__file__).read_text(encoding="utf-8")
-    module = _load(source + _kernel_source())
+    module = import_source(source + _FILL_C.format(n_p=len(compiled.layout.parameters)), "fillc")
     model = type(compiled)(compiled.layout, module, "numba")
     # the generated observe's numbers, NaN (not an exception) where M is singular
     n_react = len(compiled.layout.reactions)
-    kernel = module._k_observe_new
-    model.observe = lambda t, y, p: kernel(float(t), y, p, n_react)
+    kernel, m = shared()._k_observe_new, module.MODEL
+    model.observe = lambda t, y, p: kernel(m, float(t), _floats(y), _floats(p), n_react)
     return model
+
+
+def evaluator(module: ModuleType) -> Callable[..., tuple[np.ndarray, ...]]:
+    """``evaluate(t, y, p)`` (fresh ``M, F, V, O``) of a :func:`loop_model`'s module, through the
+    shared loop's kernels: nothing to compile.  Where ``fill`` raises, the generated
+    ``evaluate`` raises the same error."""
+    kernel, m, generated = shared()._k_evaluate, module.MODEL, module.evaluate
+
+    def evaluate(t: float, y: Any, p: Any) -> tuple[np.ndarray, ...]:
+        code, *arrays = kernel(m, float(t), _floats(y), _floats(p))
+        return tuple(arrays) if code == 0 else generated(t, y, p)
+
+    return evaluate
+
+
+def _floats(a: Any) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array (what the loop's kernels take; no copy if it is one)."""
+    return np.ascontiguousarray(a, dtype=float)
 
 
 # ------------------------------------------------------------------ drivers
@@ -903,7 +1057,8 @@ def integrate_dop853(
             res.h_next,
         )
     else:
-        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail, h_next = model.module._k_dop853(
+        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail, h_next = shared()._k_dop853(
+            model.module.MODEL,
             t0,
             t1,
             y0,
@@ -988,11 +1143,12 @@ def ensemble_dop853(
     workers = max(1, int(threads) if threads is not None else default_threads())
     chunk = max(1, min(64, n_traj // (8 * workers)))
     bounds = [(i, min(i + chunk, n_traj)) for i in range(0, n_traj, chunk)]
-    kernel = model.module._k_batch
+    kernel, m = shared()._k_batch, model.module.MODEL
     n_react = len(model.layout.reactions)
 
     def run(bound: tuple[int, int]) -> None:
         kernel(
+            m,
             t0,
             t1,
             Y0,

@@ -44,6 +44,7 @@ from chaplygin.models import registry
 from chaplygin.numeric import _cfill
 from chaplygin.numeric._ckernel import CompiledModel, Layout
 from chaplygin.numeric._layout import state_symbols
+from chaplygin.numeric._loop import _k_pivot, _k_solve
 from chaplygin.numeric._printing import code
 from chaplygin.numeric.cache import cache_dir, import_source
 
@@ -317,47 +318,6 @@ def _numeric_reduction_parts(s: System, model: str) -> _Parts:
     M = [row[j] for row in rows for j in [*ind, *dep, *range(n, n + g)]]
     fill = _Fill(_main_block(s, M, F, list(xd), plain), solve=g, pre=pre)
     return _Parts(s, layout, fill, n + g, len(ind))
-
-
-# ``_k_pivot`` and ``_k_solve`` are compiled inside every generated module (and used by the
-# integrators appended to it: chaplygin.numeric._loop, chaplygin.numeric.symmetric); never called from here.
-def _k_pivot(M, c):  # pragma: no cover - compiled
-    """The row ``r ≥ c`` of largest ``|M[r, c]|`` (partial pivoting), and that magnitude."""
-    piv = c
-    big = abs(M[c, c])
-    for r in range(c + 1, M.shape[0]):
-        if abs(M[r, c]) > big:
-            big = abs(M[r, c])
-            piv = r
-    return piv, big
-
-
-def _k_solve(M, b):  # pragma: no cover - compiled
-    """``b ← M⁻¹ b`` by Gaussian elimination with partial pivoting, in place; 5 if singular."""
-    n = M.shape[0]
-    for c in range(n):
-        piv, big = _k_pivot(M, c)
-        if big == 0.0:
-            return 5
-        if piv != c:
-            for j in range(c, n):
-                tmp = M[c, j]
-                M[c, j] = M[piv, j]
-                M[piv, j] = tmp
-            tmp = b[c]
-            b[c] = b[piv]
-            b[piv] = tmp
-        for r in range(c + 1, n):
-            factor = M[r, c] / M[c, c]
-            for j in range(c + 1, n):
-                M[r, j] -= factor * M[c, j]
-            b[r] -= factor * b[c]
-    for c in range(n - 1, -1, -1):
-        acc = b[c]
-        for j in range(c + 1, n):
-            acc -= M[c, j] * b[j]
-        b[c] = acc / M[c, c]
-    return 0
 
 
 def _fill_source(fill: _Fill, backend: str) -> str:

@@ -631,6 +631,10 @@ def simulate(
         if not auto:
             raise
         compiled = compile_model(system, model, form, "numpy", constants=family_c, reduction=reduction)
+    if compiled.backend == "numba" and method == "DOP853":
+        from chaplygin.numeric._loop import loop_model
+
+        compiled = loop_model(compiled)  # the shared loop's model (see _lost_definiteness)
     layout = compiled.layout
 
     entry = registry.get(model)
@@ -866,6 +870,10 @@ def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, s
     for the models whose ``M`` is not a mass matrix)."""
     module = compiled.module
     evaluate = getattr(module, "evaluate", None)
+    if hasattr(module, "MODEL"):  # the shared numba loop's model: evaluate through it, compiling nothing
+        from chaplygin.numeric._loop import evaluator
+
+        evaluate = evaluator(module)
     if (
         evaluate is None
         or int(module.DIM) != int(module.K)

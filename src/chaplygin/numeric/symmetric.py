@@ -68,10 +68,13 @@ interpolations, and keep its order.
 How it runs
 -----------
 With ``backend="numba"`` the stepping loop is compiled inside the model's
-generated module (the pattern of :mod:`chaplygin.numeric._loop`): its source is appended
-to the module's text, where ``fill`` is a global, and the file — in the code
-cache, keyed by a hash of its text — is compiled and cached by numba; the first
-run of a model compiles for a few seconds, later processes load it.  With
+generated module: its source (with the right-hand-side kernels ``_k_call``,
+``_k_fill``, ``_k_eval`` of :mod:`chaplygin.numeric._loop`) is appended to the
+module's text, where ``fill`` is a global, and the file — in the code cache,
+keyed by a hash of its text — is compiled and cached by numba; the first run
+of a model compiles for a few seconds, later processes load it.  (Unlike the
+DOP853 loop, which is compiled once per installation and calls ``fill`` by
+address.)  With
 ``backend="numpy"`` the very same loop runs as plain Python over the generated
 plain-Python ``fill`` (milliseconds per step: for short runs).
 Failures — the Newton iteration not converging, a singular iteration or mass
@@ -90,7 +93,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
-from chaplygin.numeric._loop import EPS, _k_eval, _k_fill, _message
+from chaplygin.numeric._loop import EPS, _k_call, _k_eval, _k_fill, _message
 from chaplygin.numeric._loop import STATUS as _LOOP_STATUS
 from chaplygin.numeric.cache import import_source
 from chaplygin.numeric.codegen import CompiledModel
@@ -174,6 +177,7 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 fill: Any = None  # placeholders
 _k_pivot: Any = None  #: the generated module defines them
 DIM = N = N_OBSERVED = 0
+_MODEL = 0
 _GL_EPS = EPS
 
 
@@ -229,14 +233,14 @@ def _gl_newton_matrix(t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stat
     s = A.shape[0]
     for i in range(n):
         Ys[i] = y[i]
-    code = _k_eval(t, Ys, p, f0, wM, wb, wV, wO)
+    code = _k_eval(_MODEL, t, Ys, p, f0, wM, wb, wV, wO)
     stats[0] += 1
     if code != 0:
         return code
     for j in range(n):
         Ys[j] = y[j] + math.sqrt(_GL_EPS * max(1e-5, abs(y[j])))
         delta = Ys[j] - y[j]
-        code = _k_eval(t, Ys, p, f1, wM, wb, wV, wO)
+        code = _k_eval(_MODEL, t, Ys, p, f1, wM, wb, wV, wO)
         stats[0] += 1
         if code != 0:
             return code
@@ -271,7 +275,7 @@ def _gl_stages(t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, 
         for a in range(s):
             for i in range(n):
                 Ys[i] = y[i] + Z[a, i]
-            code = _k_eval(t + c[a] * h, Ys, p, F[a], wM, wb, wV, wO)
+            code = _k_eval(_MODEL, t + c[a] * h, Ys, p, F[a], wM, wb, wV, wO)
             stats[0] += 1
             if code != 0:
                 return code, iterations, t + c[a] * h
@@ -403,12 +407,13 @@ def extrapolation(c: np.ndarray) -> np.ndarray:
     return np.array([[basis(j + 1, 1.0 + c[i]) - basis(j + 1, 1.0) for j in range(s)] for i in range(s)])
 
 
-_KERNELS = (_k_fill, _k_eval, _gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
+_KERNELS = (_k_call, _k_fill, _k_eval, _gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
 
 
 def _kernel_source(jit: bool) -> str:
     """The kernels as source to append to a generated module (``@_jit`` for numba)."""
     parts = ["", "# " + "-" * 66 + " Gauss-Legendre (chaplygin.numeric.symmetric)", f"_GL_EPS = {EPS!r}"]
+    parts.append("_MODEL = 0  # the model argument of _k_eval, unused here: fill is this module's own")
     for fn in _KERNELS:
         parts += ["", "", *(["@_jit"] if jit else []), inspect.getsource(fn).rstrip()]
     return "\n".join(parts) + "\n"
