@@ -589,6 +589,11 @@ def _derive(
 # ====================================================================== check
 def check_json(system: System) -> dict[str, Any]:
     """The JSON document of ``chaplygin check --format json`` (schema ``chaplygin.check/1``)."""
+    return _checked(system)[0]
+
+
+def _checked(system: System) -> tuple[dict[str, Any], Any]:
+    """:func:`check_json`'s document, and the model comparison (None where there is none)."""
     from chaplygin.analysis.transitions import compare_models
     from chaplygin.apps.report import applicable_models
 
@@ -602,6 +607,7 @@ def check_json(system: System) -> dict[str, Any]:
         }
 
     models, reasons = applicable_models(system)
+    cmp = None
     try:
         cmp = compare_models(system)
         comparison: dict[str, Any] | None = {
@@ -637,7 +643,7 @@ def check_json(system: System) -> dict[str, Any]:
         "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
         "comparison": comparison,
         "comparison_unavailable": why_not,
-    }
+    }, cmp
 
 
 @app.command(cls=_Command)
@@ -649,7 +655,7 @@ def check(
     with _failures():
         loaded = _load(file)
         with _Steps(1, "checking"):
-            doc = check_json(loaded.system)
+            doc, comparison = _checked(loaded.system)
         if fmt is CheckFormat.json:
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
             return
@@ -683,10 +689,8 @@ def check(
             else "Chaplygin system: no - " + "; ".join(chap["obstructions"])
         )
         lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
-        if doc["comparison"] is not None:
-            from chaplygin.analysis.transitions import compare_models
-
-            lines.append(str(compare_models(system)))
+        if comparison is not None:
+            lines.append(str(comparison))
         else:
             lines.append(f"Chetaev vs Lindelöf: not compared - {doc['comparison_unavailable']}")
         _emit("\n".join(lines))
