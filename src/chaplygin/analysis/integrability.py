@@ -21,6 +21,7 @@ single constraint) and returns only relations it has verified.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from itertools import combinations
 from typing import TYPE_CHECKING
@@ -31,12 +32,31 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 from chaplygin import _html
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import TIME, simplify_small
+from chaplygin.models._rational import normal_all
 from chaplygin.models.reduced import Reduction
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
 __all__ = ["Condition", "IntegrabilityReport", "analyze"]
+
+#: expressions up to this many operations are shown after ``cancel`` and ``simplify_small``
+SHOWN_OPS = 200
+
+
+def shown(expr: sp.Expr, tidy: Callable[[sp.Expr], sp.Expr]) -> sp.Expr:
+    """``expr`` as printed in a verdict: ``tidy(expr)`` when small, else its normal form.
+
+    ``tidy`` (general cancellation, trigsimp) costs seconds on the expressions
+    of a rolling body; a large one is put in the fraction-free normal form of
+    :func:`~chaplygin.models._rational.normal_all`, or left as it is where that
+    normal form is too large to compute.
+    """
+    return tidy(expr) if sp.count_ops(expr) <= SHOWN_OPS else normal_all([expr])[0]
+
+
+def _tidy(expr: sp.Expr) -> sp.Expr:
+    return simplify_small(sp.cancel(expr))
 
 
 @dataclass
@@ -141,7 +161,7 @@ def analyze(system: System) -> IntegrabilityReport:
         e = sp.diff(s._B[b, c], v.x[ind[k]]) - sp.diff(s._B[b, k], v.x[ind[c]])
         if not vanishes(e):
             label = f"∂B[{_name(s, dep[b])}, {_name(s, ind[c])}]/∂{_name(s, ind[k])} − ∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂{_name(s, ind[c])}"
-            fail28.append((label, user(simplify_small(sp.cancel(e)))))
+            fail28.append((label, user(shown(e, _tidy))))
     if not s.is_chaplygin:
         note28 = "B depends on the dependent coordinates, so (28) does not decide integrability here."
     elif s.is_affine or any(e.has(TIME) for e in s._B):
@@ -158,7 +178,7 @@ def analyze(system: System) -> IntegrabilityReport:
                 label = (
                     f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
                 )
-                fail33.append((label, user(simplify_small(sp.cancel(e)))))
+                fail33.append((label, user(shown(e, _tidy))))
     c33 = Condition(
         "(33)",
         not fail33,
@@ -179,11 +199,11 @@ def analyze(system: System) -> IntegrabilityReport:
                     e = sp.diff(w, r.ind_xd[c])
                     if not vanishes(e):
                         label = f"[X_{_name(s, ind[k])}, X_{_name(s, ind[c])}] along ∂{_name(s, dep[b])}"
-                        fail_f.append((label, user(simplify_small(sp.cancel(e)))))
+                        fail_f.append((label, user(shown(e, _tidy))))
             e0 = w.xreplace({x: 0 for x in r.ind_xd})
             if not vanishes(e0):
                 label = f"[X_t, X_{_name(s, ind[k])}] along ∂{_name(s, dep[b])}"
-                fail_f.append((label, user(simplify_small(sp.cancel(-e0)))))
+                fail_f.append((label, user(shown(-e0, _tidy))))
     cf = Condition(
         "Frobenius",
         not fail_f,

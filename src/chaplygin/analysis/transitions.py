@@ -23,6 +23,7 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 
 from chaplygin import _html
 from chaplygin.analysis.equivalence import EquationsLike, _Linear, _States
+from chaplygin.analysis.integrability import shown as readable
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import simplify_small
 from chaplygin.errors import ChaplyginError, ModelError
@@ -73,7 +74,7 @@ class ModelComparison:
         }[self.verdict]
         lines = [f"{self.system_name}: {head}"]
         if self.verdict == "differ":
-            lines += [f"  {vsstrrepr(q)}: {vsstrrepr(d)}" for q, d in self.defect.items()]
+            lines += [f"  {vsstrrepr(q)}: {_printed(d)}" for q, d in self.defect.items()]
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -104,10 +105,25 @@ def compare_models(system: System) -> ModelComparison:
     defect = lindelof_defect(system, r)
     zero = [vanishes(d) for d in defect]
     shown = {
-        system.independent[k]: system.to_user(sp.S.Zero if z else simplify_small(sp.expand(d)))
+        system.independent[k]: system.to_user(sp.S.Zero if z else readable(d, _tidy))
         for k, (d, z) in enumerate(zip(defect, zero))
     }
     return ModelComparison(system.name, coincide, c28, shown, all(zero))
+
+
+def _tidy(expr: sp.Expr) -> sp.Expr:
+    return simplify_small(sp.expand(expr))
+
+
+#: a defect with more operations is not printed in full (a rolling body's runs to pages)
+PRINTED_OPS = 400
+
+
+def _printed(expr: sp.Expr) -> str:
+    ops = sp.count_ops(expr)
+    if ops <= PRINTED_OPS:
+        return vsstrrepr(expr)
+    return f"an expression of {ops} operations, not printed (the comparison's .defect holds it)"
 
 
 @dataclass

@@ -387,6 +387,22 @@ def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[st
     return _Derivation.of(eqs, accelerations).json_doc()
 
 
+#: a solved form is printed when it has at most this many times the nodes of ``M`` and ``F``
+SOLVED_FACTOR = 2
+#: ... or at most this many nodes (symbols and operations) in all, whatever ``M`` and ``F``
+SOLVED_NODES = 20_000
+_UNSOLVED = "Not solved in print (the solved form is too large to read): M*x = F with x = ({})"
+
+
+def _size(exprs: Sequence[Any], limit: float = float("inf")) -> int:
+    """The symbols and operations of ``exprs`` (their trees' nodes), counted up to just past ``limit``."""
+    count, stack = 0, list(exprs)
+    while stack and count <= limit:
+        count += 1
+        stack.extend(stack.pop().args)
+    return count
+
+
 @dataclass
 class _Derivation:
     """What ``derive`` derived, apart from how it is printed: the system's names as strings
@@ -395,9 +411,18 @@ class _Derivation:
     head: dict[str, Any]
     equations: list[Any]  # sympy.Eq(expression, 0) each
     accelerations: dict[Any, Any] | None
+    #: ``(M, F)`` of ``M·x = F`` where the solved form is too large to print (accelerations None)
+    linear: tuple[list[list[Any]], list[Any]] | None = None
 
     @classmethod
     def of(cls, eqs: Equations, accelerations: dict[Any, Any] | None) -> _Derivation:
+        """The derivation; a solved form much larger than ``M·x = F`` is kept as ``M`` and ``F``."""
+        linear = None
+        if accelerations is not None:
+            M, F = eqs.mass_matrix, eqs.forcing
+            budget = SOLVED_FACTOR * max(_size(list(M) + list(F)), SOLVED_NODES)
+            if _size(list(accelerations.values()), budget) > budget:
+                linear, accelerations = (M.tolist(), list(F)), None
         s = eqs.system
         head = {
             "system": s.name,
@@ -413,14 +438,16 @@ class _Derivation:
             "multipliers": _names(eqs.multipliers),
             "constants": [c.name for c in eqs.constants],
         }
-        return cls(head, list(eqs.equations), None if accelerations is None else dict(accelerations))
+        return cls(head, list(eqs.equations), None if accelerations is None else dict(accelerations), linear)
 
     def to_data(self) -> dict[str, Any] | None:
         """A JSON value for the derivation cache (None if the expressions cannot be stored)."""
         from chaplygin.numeric.cache import expressions_to_data
 
         pairs = list((self.accelerations or {}).items())
-        exprs = expressions_to_data([*self.equations, *(x for pair in pairs for x in pair)])
+        M, F = self.linear or ([], [])
+        matrix = [x for row in M for x in row]
+        exprs = expressions_to_data([*self.equations, *(x for pair in pairs for x in pair), *matrix, *F])
         if exprs is None:
             return None
         return {
@@ -428,6 +455,7 @@ class _Derivation:
             "expressions": exprs,
             "equations": len(self.equations),
             "accelerations": None if self.accelerations is None else len(pairs),
+            "linear": None if self.linear is None else len(F),
         }
 
     @classmethod
@@ -437,12 +465,16 @@ class _Derivation:
 
         try:
             exprs = expressions_from_data(data["expressions"])
-            n, k = data["equations"], data["accelerations"]
-            if not isinstance(data["head"], dict) or len(exprs) != n + 2 * (k or 0):
+            n, k, r = data["equations"], data["accelerations"], data["linear"]
+            if not isinstance(data["head"], dict) or len(exprs) != n + 2 * (k or 0) + (r or 0) * (
+                (r or 0) + 1
+            ):
                 return None
-            pairs = exprs[n:]
+            pairs = exprs[n : n + 2 * (k or 0)]
             acc = None if k is None else dict(zip(pairs[0::2], pairs[1::2]))
-            return cls(data["head"], exprs[:n], acc)
+            rest = exprs[n + 2 * (k or 0) :]
+            linear = None if r is None else ([rest[i * r : (i + 1) * r] for i in range(r)], rest[r * r :])
+            return cls(data["head"], exprs[:n], acc, linear)
         except (KeyError, TypeError, ValueError):
             return None
 
@@ -455,6 +487,12 @@ class _Derivation:
             "accelerations": None
             if acc is None
             else {file_syntax(k): file_syntax(v) for k, v in acc.items()},
+            "linear_system": None
+            if self.linear is None
+            else {
+                "mass_matrix": [[file_syntax(x) for x in row] for row in self.linear[0]],
+                "forcing": [file_syntax(x) for x in self.linear[1]],
+            },
         }
 
     def render(self, fmt: DeriveFormat) -> str:
@@ -473,6 +511,15 @@ class _Derivation:
             if acc is not None:
                 rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
                 lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+            if self.linear is not None:
+                import sympy as sp
+
+                M, F = self.linear
+                lines += [
+                    f"% {_UNSOLVED.format(', '.join(head['unknowns']))}",
+                    f"M = {vlatex(sp.Matrix(M))}",
+                    f"F = {vlatex(sp.Matrix(F))}",
+                ]
             return "\n".join(lines)
         if fmt is DeriveFormat.pretty:
             import sympy as sp
@@ -483,12 +530,24 @@ class _Derivation:
             if acc is not None:
                 solved = (sp.Eq(k, v, evaluate=False) for k, v in acc.items())
                 text += f"\n\nSolved:\n\n{pretty(solved)}"
+            if self.linear is not None:
+                M, F = self.linear
+                text += f"\n\n{_UNSOLVED.format(', '.join(head['unknowns']))}:\n\nM = {pretty(sp.Matrix(M))}\n\nF = {pretty(sp.Matrix(F))}"
             return text
         lines = [f"{head['title']} - {head['system']}"]
         lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
         if acc is not None:
             lines.append("Solved:")
             lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+        if self.linear is not None:
+            M, F = self.linear
+            lines.append(f"{_UNSOLVED.format(', '.join(head['unknowns']))}:")
+            lines += [
+                f"  M[{i + 1},{j + 1}] = {file_syntax(x)}"
+                for i, row in enumerate(M)
+                for j, x in enumerate(row)
+            ]
+            lines += [f"  F[{i + 1}] = {file_syntax(x)}" for i, x in enumerate(F)]
         return "\n".join(lines)
 
 
@@ -589,6 +648,11 @@ def _derive(
 # ====================================================================== check
 def check_json(system: System) -> dict[str, Any]:
     """The JSON document of ``chaplygin check --format json`` (schema ``chaplygin.check/1``)."""
+    return _checked(system)[0]
+
+
+def _checked(system: System) -> tuple[dict[str, Any], Any]:
+    """:func:`check_json`'s document, and the model comparison (None where there is none)."""
     from chaplygin.analysis.transitions import compare_models
     from chaplygin.apps.report import applicable_models
 
@@ -602,6 +666,7 @@ def check_json(system: System) -> dict[str, Any]:
         }
 
     models, reasons = applicable_models(system)
+    cmp = None
     try:
         cmp = compare_models(system)
         comparison: dict[str, Any] | None = {
@@ -637,7 +702,7 @@ def check_json(system: System) -> dict[str, Any]:
         "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
         "comparison": comparison,
         "comparison_unavailable": why_not,
-    }
+    }, cmp
 
 
 @app.command(cls=_Command)
@@ -649,7 +714,7 @@ def check(
     with _failures():
         loaded = _load(file)
         with _Steps(1, "checking"):
-            doc = check_json(loaded.system)
+            doc, comparison = _checked(loaded.system)
         if fmt is CheckFormat.json:
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
             return
@@ -683,10 +748,8 @@ def check(
             else "Chaplygin system: no - " + "; ".join(chap["obstructions"])
         )
         lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
-        if doc["comparison"] is not None:
-            from chaplygin.analysis.transitions import compare_models
-
-            lines.append(str(compare_models(system)))
+        if comparison is not None:
+            lines.append(str(comparison))
         else:
             lines.append(f"Chetaev vs Lindelöf: not compared - {doc['comparison_unavailable']}")
         _emit("\n".join(lines))

@@ -312,8 +312,40 @@ def mathml_pieces(expr: Any) -> list[str]:
 
 
 def _block(expr: Any) -> str:
-    """A displayed formula: its pieces wrap between terms when wider than the page."""
+    """A displayed formula: its pieces wrap between terms when wider than the page.
+
+    A formula of more than :data:`TYPESET_NODES` symbols and operations (a rolling body's
+    equations run to tens of thousands) is replaced by a note: typesetting it would
+    take minutes and give pages that no one reads.
+    """
+    expr = _as_basic(expr, "_block")
+    if _too_long(expr):
+        return f'<div class="eq">{_untypeset(expr)}</div>'
     return f'<div class="eq">{"<wbr>".join(mathml_pieces(expr))}</div>'
+
+
+#: the largest formula (in symbols and operations) that :func:`_block` typesets
+TYPESET_NODES = 4000
+
+
+def _too_long(expr: sp.Basic) -> bool:
+    """``expr`` has more than :data:`TYPESET_NODES` symbols and operations (its tree's nodes)."""
+    count, stack = 0, [expr]
+    while stack:
+        count += 1
+        if count > TYPESET_NODES:
+            return True
+        stack.extend(stack.pop().args)
+    return False
+
+
+def _untypeset(expr: sp.Basic) -> str:
+    """An equation's small sides typeset, its large ones named by their size."""
+    if isinstance(expr, sp.Equality):
+        return " = ".join(_untypeset(side) for side in expr.args)
+    if not _too_long(expr):
+        return mathml(expr)
+    return f'<span class="note">[a formula of more than {TYPESET_NODES} symbols and operations, not typeset]</span>'
 
 
 def _cell(expr: Any) -> str:

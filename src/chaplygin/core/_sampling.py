@@ -71,12 +71,24 @@ class StateSampler:
 def vanishes(expr: sp.Expr, *, samples: int = 8, seed: int = 28) -> bool:
     """Decide whether ``expr`` is identically zero.
 
-    Cheap symbolic normalisation first; then evaluation at random points of
-    every free symbol (a single clearly non-zero value settles it).  When all
-    finite samples vanish the expression is taken as zero — a non-zero
-    analytic expression vanishes at random points with probability nil.  Only
-    when no sample is finite does a full ``simplify`` decide.
+    Numbers first: ``expr`` is evaluated at random points of every free symbol
+    in interval arithmetic (:func:`_interval_signs`), so a value whose interval
+    excludes zero proves the expression non-zero — certainly, whatever the
+    round-off — in milliseconds, however large the expression.  When every
+    sample is zero to within a tiny fraction of the magnitudes met on the way,
+    the expression is taken as zero: a non-zero analytic expression vanishes at
+    random points with probability nil, and these samples are far finer than
+    the floating-point test below.  When the numbers decide nothing (a
+    function without an interval version, a complex or undefined value), the
+    exact path decides: cheap symbolic normalisation, then floating-point
+    samples (a single clearly non-zero value settles it), and only when no
+    sample is finite a full ``simplify``.
     """
+    if expr == 0:
+        return True
+    verdict = _interval_signs(expr, samples, seed)
+    if verdict is not None:
+        return verdict
     expr = sp.cancel(sp.expand(expr))
     if expr == 0:
         return True
@@ -92,3 +104,117 @@ def vanishes(expr: sp.Expr, *, samples: int = 8, seed: int = 28) -> bool:
                 return False
             finite += 1
     return finite > 0 or sp.simplify(expr) == 0
+
+
+#: bits of the interval arithmetic in :func:`_interval_signs` (quadruple precision)
+_PRECISION = 113
+#: values proved non-zero but this small are left to the floating-point test (its zero)
+_SMALL = 1e-9
+#: a sample counts as zero when its interval lies within this fraction of the largest magnitude met
+_ZERO = 1e-12
+
+
+class _Undecided(Exception):
+    """An interval evaluation that says nothing (a complex value, an unknown function)."""
+
+
+def _interval_signs(expr: sp.Expr, samples: int, seed: int) -> bool | None:
+    """``False`` when a sample proves ``expr`` non-zero, ``True`` when every sample is zero, else None.
+
+    Each sample evaluates ``expr`` at a random point (the floats drawn are exact
+    binary numbers) in outward-rounded interval arithmetic at
+    :data:`_PRECISION` bits: an interval that excludes zero is a proof.  Only
+    values beyond :data:`_SMALL` count, the threshold of the floating-point
+    test, which decides the others as it always has (a Float left over from
+    cancelled Floats, ``5.6e-17·x``, is zero there).  A
+    sample is zero when its interval contains zero and is narrower than
+    :data:`_ZERO` times the largest magnitude of any subexpression — the
+    round-off of an exact zero, and for a non-zero expression a value at a
+    random point some 10⁻¹² below its own terms, which the samples do not all
+    hit.  A Float is an interval of two units in its last place: a difference
+    made only of rounding is never taken for a proof.
+    """
+    import mpmath
+
+    ctx = type(mpmath.iv)()  # a private context: its precision is no one else's
+    ctx.prec = _PRECISION
+    nodes = _postorder(expr)
+    symbols = sorted(expr.free_symbols, key=str)
+    rng = np.random.default_rng(seed)
+    zeros = 0
+    for _ in range(samples):
+        point = rng.uniform(*COORDINATE_RANGE, size=len(symbols))
+        values: dict[sp.Basic, Any] = {x: ctx.mpf(float(p)) for x, p in zip(symbols, point)}
+        try:
+            scale = 1.0
+            for node in nodes:
+                if node not in values:
+                    value = _interval(ctx, node, values)
+                    values[node] = value
+                    scale = max(scale, abs(float(value.a)), abs(float(value.b)))
+            value = values[expr]
+        except (_Undecided, ZeroDivisionError, ValueError, ArithmeticError):
+            return None
+        low, high = float(value.a), float(value.b)
+        if low > _SMALL or high < -_SMALL:
+            return False
+        if low > 0 or high < 0:  # non-zero, but no larger than the floating-point test's zeros
+            return None
+        if not (np.isfinite(scale) and max(-low, high) <= _ZERO * scale):
+            return None
+        zeros += 1
+    return zeros > 0
+
+
+def _postorder(expr: sp.Basic) -> list[sp.Basic]:
+    """The distinct subexpressions of ``expr``, each after its arguments (shared ones once)."""
+    order: list[sp.Basic] = []
+    seen: set[sp.Basic] = set()
+    stack: list[tuple[sp.Basic, bool]] = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if ready:
+            order.append(node)
+        elif node not in seen:
+            seen.add(node)
+            stack.append((node, True))
+            stack.extend((a, False) for a in node.args)
+    return order
+
+
+def _interval(ctx: Any, node: sp.Basic, values: dict[sp.Basic, Any]) -> Any:
+    """The interval of ``node`` from the intervals of its arguments (already in ``values``)."""
+    import mpmath
+
+    if node.is_Rational:
+        return ctx.mpf(int(node.p)) / int(node.q)
+    if node.is_Float:  # a rounded number: give it two units in its last place either way
+        value = ctx.mpf(mpmath.mpf(node._mpf_))
+        return value + abs(value) * ctx.mpf([-1, 1]) * ctx.mpf(2) ** (2 - node._prec)
+    if node is sp.pi:
+        return ctx.pi
+    if node is sp.E:
+        return ctx.e
+    args = [values[a] for a in node.args] if node.args else []
+    if node.is_Add:
+        out = args[0]
+        for a in args[1:]:
+            out = out + a
+        return out
+    if node.is_Mul:
+        out = args[0]
+        for a in args[1:]:
+            out = out * a
+        return out
+    if node.is_Pow and node.exp.is_Integer:
+        return args[0] ** int(node.exp)
+    if node.is_Pow and node.exp.is_Rational and args[0].a > 0:
+        if node.exp == sp.S.Half:
+            return ctx.sqrt(args[0])
+        return ctx.exp(ctx.log(args[0]) * args[1])
+    functions = {sp.sin: ctx.sin, sp.cos: ctx.cos, sp.exp: ctx.exp}
+    if type(node) in functions:
+        return functions[type(node)](args[0])
+    if isinstance(node, sp.Abs):
+        return abs(args[0])
+    raise _Undecided(node)
