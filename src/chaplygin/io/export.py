@@ -27,6 +27,7 @@ import re
 from typing import TYPE_CHECKING
 
 from chaplygin.errors import ChaplyginError
+from chaplygin.models import registry
 from chaplygin.numeric import _cfill
 
 if TYPE_CHECKING:
@@ -194,7 +195,7 @@ def _header(
         for j, name in enumerate(layout.parameters)
     ]
     dependent = [q.func.__name__ for q in s.dependent]
-    if layout.model in ("chetaev", "vakonomic"):
+    if not registry.get(layout.model).reduced:  # the multiplier models integrate every velocity
         lines += [
             "",
             "y holds every velocity; the constraints hold along a motion only if the initial",
