@@ -169,6 +169,10 @@ class OutputExists(ChaplyginError):
     """An output exists and ``--force`` was not given."""
 
 
+#: the longest failing component ``check`` prints as text (characters)
+MAX_SHOWN = 300
+
+
 # ====================================================================== consoles, progress, errors
 def _stdout() -> Console:
     return Console(file=sys.stdout, soft_wrap=True, highlight=False, emoji=False)
@@ -733,9 +737,10 @@ def check(
             if c["failures"]:
                 first = c["failures"][0]
                 more = len(c["failures"]) - 1
-                line += f" - {first['component']} = {first['value']}" + (
-                    f" (and {more} more)" if more else ""
-                )
+                value = first["value"]
+                if len(value) > MAX_SHOWN:  # a page of algebra helps nobody on a terminal
+                    value = f"an expression of {len(value)} characters, not printed (--format json has it)"
+                line += f" - {first['component']} = {value}" + (f" (and {more} more)" if more else "")
             lines.append(f"{line}. {c['note']}")
         if integ["integrable"]:
             lines.append(
