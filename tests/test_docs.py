@@ -285,3 +285,12 @@ def test_broken_links_are_reported(tmp_path: Path) -> None:
     assert lines == list(range(first_bad, first_bad + len(bad))), "\n".join(problems)
     assert "points outside the repository" in problems[0]
     assert "file: URL" in problems[1] and "missing file docs/missing.md" in problems[4]
+
+
+def test_every_public_name_is_in_the_api_reference() -> None:
+    """Each name of ``chaplygin.__all__`` is listed in docs/api/index.md (so the site documents it)."""
+    import chaplygin
+
+    listed = (ROOT / "docs" / "api" / "index.md").read_text(encoding="utf-8")
+    missing = [n for n in chaplygin.__all__ if n != "__version__" and f"`{n}`" not in listed]
+    assert not missing, f"add {missing} to docs/api/index.md and its page"
