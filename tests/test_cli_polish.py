@@ -314,3 +314,27 @@ def test_other_messages_name_expressions_in_the_file_syntax(knife) -> None:
     assert "x = 'a' is not a number" in message(
         lambda: chaplygin.simulate_ensemble(system, "chaplygin", 1.0, [state], numbers)
     )
+
+
+# ---------------------------------------------------------------- energy: drift or change
+CART = Path(__file__).resolve().parent.parent / "docs" / "notebooks" / "cart.toml"
+
+
+def test_energy_is_called_a_change_where_it_is_not_an_invariant(tmp_path: Path, monkeypatch) -> None:
+    """A damped system's energy changes by physics, so no summary calls that change a 'drift'
+    (the numerical error's name); a conservative one keeps 'energy drift'. The second CLI run
+    comes from the run plan and says the same."""
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path / "cache"))
+    cart = chaplygin.load(CART)
+    assert not cart.system.conserves_energy and examples.rolling_disk().conserves_energy
+    tr = chaplygin.simulate(cart.system, "chaplygin", 2.0, cart.initial, cart.parameters, samples=21)
+    assert not tr.energy_conserved and tr.energy_label == "energy change"
+    assert "max energy change" in tr._repr_html_() and "energy drift" not in tr._repr_html_()
+    both = chaplygin.compare(cart.system, ["chaplygin", "lindelof"], 2.0, cart.initial, cart.parameters)
+    assert "energy change" in both.summary() and "energy drift" not in both.summary()
+    for k in range(2):  # the full path, then the run plan
+        result = run("simulate", str(CART), "-t", "2", "-o", tmp_path / f"cart{k}.npz")
+        assert result.exit_code == 0, result.output
+        assert "; energy change " in result.stdout and "energy drift" not in result.stdout
+    disk = run("simulate", "example:rolling-disk", "-t", "1", "-o", tmp_path / "disk.npz")
+    assert "; energy drift " in disk.stdout

@@ -45,7 +45,7 @@ PLANNED = ("c", "numpy", "numba")
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's shape changes
-FORMAT = 3
+FORMAT = 4
 
 
 def key(definition: bytes, model: str, form: str, backend: str) -> str:
@@ -98,6 +98,7 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         | {"model": layout.model, "form": layout.form},
         **code,
         "g": system.g,
+        "energy_conserved": system.conserves_energy,
         "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
         "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
         "defaulted": list(getattr(loaded, "defaulted", ())),
@@ -218,7 +219,7 @@ def _run(
         ):
             return None  # a dependent velocity that violates the constraints: the full path's error
     warn_defaulted(found["defaulted"], initial)  # as the full path does (chaplygin.apps.cli._numbers)
-    return integrate(
+    tr = integrate(
         compiled,
         (0.0, float(t_end)),
         y0,
@@ -232,6 +233,8 @@ def _run(
         g=int(found["g"]),
         progress=progress,
     )
+    tr.energy_conserved = bool(found["energy_conserved"])
+    return tr
 
 
 def _compiled(found: dict[str, Any], layout: Any, backend: str) -> Any:

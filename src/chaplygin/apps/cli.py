@@ -789,7 +789,7 @@ def _constants(text: str | None) -> Any:
 def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
     return (
         f"{label} [{'auto: ' if auto else ''}{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
-        f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; energy drift {tr.energy_drift():.3g}, "
+        f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; {tr.energy_label} {tr.energy_drift():.3g}, "
         f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}"
     )
 
@@ -970,7 +970,14 @@ def _print_comparison(comparison: Comparison) -> None:
     table = Table(
         title=f"{comparison.system_name}: compared with {comparison.reference} from the same initial state"
     )
-    for col in ("model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"):
+    for col in (
+        "model",
+        f"max distance of {what}",
+        "at t",
+        comparison.energy_label,
+        "max residual",
+        "status",
+    ):
         table.add_column(col, justify="left" if col in ("model", "status") else "right")
     for label, row in doc["models"].items():
         table.add_row(

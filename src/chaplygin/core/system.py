@@ -697,6 +697,13 @@ class System:
         """True when neither T, U, the forces nor the constraints depend explicitly on time."""
         return not any(e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._B, self._B0))
 
+    @property
+    def conserves_energy(self) -> bool:
+        """True when ``E = T − U`` is an invariant of the motion (of either model): no
+        non-potential forces, homogeneous constraints, nothing that depends on time.  Where
+        it is, a change of E measures the integration error; elsewhere it is physics."""
+        return self.is_scleronomic and not self.is_affine and all(f == 0 for f in self._Qnp)
+
     @cached_property
     def chaplygin_obstructions(self) -> list[str]:
         """Why this is not a Chaplygin system (empty list when it is one).

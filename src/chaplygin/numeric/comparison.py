@@ -93,12 +93,17 @@ class Comparison:
         k = int(np.argmax(d))
         return float(d[k]), float(self.trajectories[label].t[k])
 
+    @property
+    def energy_label(self) -> str:
+        """The energy column's heading: ``"energy drift"`` or ``"energy change"`` (:attr:`Trajectory.energy_label`)."""
+        return next(iter(self.trajectories.values())).energy_label if self.trajectories else "energy drift"
+
     def summary(self) -> str:
         """A table: largest distance from the reference (and when), energy drift, residual."""
         what = f"path ({', '.join(self.path)})" if self.path else "coordinates"
         lines = [
             f"{self.system_name}: models compared with {self.reference} from the same initial state",
-            f"  {'model':<22} {'max distance of ' + what:>30} {'at t':>9} {'energy drift':>13} {'max residual':>13}  status",
+            f"  {'model':<22} {'max distance of ' + what:>30} {'at t':>9} {self.energy_label:>13} {'max residual':>13}  status",
         ]
         for label, tr in self.trajectories.items():
             peak, when = self._peak(label)
@@ -128,7 +133,7 @@ class Comparison:
                 tr.status,
             )
             rows.append([_html.escape(c) for c in cells])
-        header = ["model", f"max distance of {what}", "at t", "energy drift", "max residual", "status"]
+        header = ["model", f"max distance of {what}", "at t", self.energy_label, "max residual", "status"]
         text = _html.heading(f"{self.system_name}: models compared with {self.reference}")
         text += _html.table(rows, header) + "".join(f"<p>note: {_html.escape(n)}</p>" for n in self.notes)
         return text + (_html.png(self.figure("paths"), alt="paths") if self.path else "")

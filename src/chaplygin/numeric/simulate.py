@@ -129,6 +129,13 @@ class Trajectory:
     parameters: dict[str, float] = field(default_factory=dict)
     rhs_evaluations: int = 0
     failure: str = ""
+    #: whether E is an invariant of the system (:attr:`chaplygin.System.conserves_energy`)
+    energy_conserved: bool = True
+
+    @property
+    def energy_label(self) -> str:
+        """``"energy drift"`` where E is an invariant (an integration error), else ``"energy change"``."""
+        return "energy drift" if self.energy_conserved else "energy change"
 
     @property
     def success(self) -> bool:
@@ -201,7 +208,7 @@ class Trajectory:
             ("status", f"{self.status} {self.message}".strip()),
             ("t", span),
             ("samples", str(len(self.t))),
-            ("max energy drift", f"{self.energy_drift():.3g}"),
+            (f"max {self.energy_label}", f"{self.energy_drift():.3g}"),
             ("max constraint residual", f"{residual:.3g}"),
         ]
         text = _html.fields((label, _html.escape(value)) for label, value in rows)
@@ -746,6 +753,7 @@ def _watch(
     its determinant between two (a pole of ``q̇_dep = B q̇_σ + B_0`` crossed); where the
     generated ``M`` is the reduced mass matrix, it stays positive definite.
     """
+    tr.energy_conserved = system.conserves_energy  # (how the energy column reads)
     k_bad, why, kind = len(tr.t), "", ""
     names = list(tr.coordinates)
     vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
