@@ -261,6 +261,31 @@ def test_simulate_command_reports_t_on_a_terminal_only(terminal: bool, tmp_path:
         assert given[0] is None and not descriptions
 
 
+def test_compare_command_reports_t_of_each_model_on_a_terminal(tmp_path: Path, monkeypatch) -> None:
+    console = Console(file=io.StringIO(), force_terminal=True, width=120)
+    monkeypatch.setattr(cli, "_stderr", lambda: console)
+    monkeypatch.setattr(numeric_simulate, "PROGRESS_EVERY", 0.0)
+    descriptions: list[str] = []
+    real_clock = cli._Steps.clock
+
+    def clock(self, what, t0, t1):
+        show = real_clock(self, what, t0, t1)
+
+        def recorded(t: float) -> None:
+            show(t)
+            descriptions.append(self._progress.tasks[0].description)
+
+        return recorded
+
+    monkeypatch.setattr(cli._Steps, "clock", clock)
+    args = ["-m", "chaplygin,lindelof", "-t", "3", "-b", "numpy", "-o", tmp_path / "cmp"]
+    result = run("compare", "example:rolling-sphere", *args)
+    assert result.exit_code == 0, result.output
+    for label in ("chaplygin", "lindelof"):
+        mine = [d for d in descriptions if d.startswith(f"simulating {label}: ")]
+        assert len(mine) > 2 and mine[-1] == f"simulating {label}: t = 3 / 3", descriptions[-3:]
+
+
 # ---------------------------------------------------------------- no SymPy internals in messages
 SYMPY_INTERNALS = re.compile(r"Derivative\(|\(t\)|Dummy|Symbol\(|_dd\b|\b_[a-z]")
 

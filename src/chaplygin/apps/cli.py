@@ -1005,6 +1005,7 @@ def compare(
     models: str | None = typer.Option(
         None,
         "--models",
+        "-m",
         help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's.",
     ),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
@@ -1058,6 +1059,7 @@ def compare(
                     backend=backend.value,
                     rtol=rtol,
                     atol=atol,
+                    progress=steps.clock(f"simulating {label}", 0.0, t_end),
                 )
                 runs.update(part.trajectories)
                 notes += part.notes
@@ -1268,7 +1270,7 @@ def report(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     out: Path = typer.Option(..., "--out", "-o", help="The HTML file to write."),
     models: str | None = typer.Option(
-        None, "--models", help="Models to simulate and compare (comma-separated), the reference first."
+        None, "--models", "-m", help="Models to simulate and compare (comma-separated), the reference first."
     ),
     t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),

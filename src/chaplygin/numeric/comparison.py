@@ -18,7 +18,7 @@ the same label; :attr:`Comparison.notes` says so.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -312,6 +312,7 @@ def compare(
     max_step: float = np.inf,
     step: float | None = None,
     reduction: str = "auto",
+    progress: Callable[[float], None] | None = None,
 ) -> Comparison:
     """Simulate ``models`` from one initial state and compare them with the first.
 
@@ -331,8 +332,9 @@ def compare(
     path : (str, str), optional
         The coordinates whose paths are compared and drawn; by default ``x, y``
         when the system has them, else its first two dependent coordinates.
-    rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction
-        Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them).
+    rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction, progress
+        Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them);
+        ``progress(t)`` hears each model's integration in turn.
     """
     options: dict[str, Any] = {
         "rtol": rtol,
@@ -345,6 +347,7 @@ def compare(
         "max_step": max_step,
         "step": step,
         "reduction": reduction,
+        "progress": progress,
     }
     if not models:
         raise ChaplyginError("models: name at least one model.")
