@@ -809,10 +809,10 @@ def simulate(
         None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
     ),
     param: list[str] | None = typer.Option(
-        None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."
+        None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
     ),
     initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
+        None, "--initial", "-i", metavar="NAME=NUMBER", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
     ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
     method: str = typer.Option(
@@ -1014,10 +1014,10 @@ def compare(
         FigureFormat.svg, "--figure-format", help="Format of the figures."
     ),
     param: list[str] | None = typer.Option(
-        None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."
+        None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
     ),
     initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", help="Override an initial value (repeatable)."
+        None, "--initial", "-i", metavar="NAME=NUMBER", help="Override an initial value (repeatable)."
     ),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
@@ -1169,10 +1169,10 @@ def sweep(
         None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
     ),
     param: list[str] | None = typer.Option(
-        None, "--param", "-p", help="Fix a parameter: NAME=NUMBER (repeatable)."
+        None, "--param", "-p", metavar="NAME=NUMBER", help="Fix a parameter: NAME=NUMBER (repeatable)."
     ),
     initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
+        None, "--initial", "-i", metavar="NAME=NUMBER", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
     ),
     scheduler: str | None = typer.Option(
         None,
@@ -1276,10 +1276,10 @@ def report(
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
     backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
     param: list[str] | None = typer.Option(
-        None, "--param", "-p", help="Override a parameter: NAME=NUMBER (repeatable)."
+        None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
     ),
     initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", help="Override an initial value (repeatable)."
+        None, "--initial", "-i", metavar="NAME=NUMBER", help="Override an initial value (repeatable)."
     ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
 ) -> None:
