@@ -713,6 +713,17 @@ FOUND_1E6: list[tuple[str, str, str | tuple[str, ...]]] = [
         "1.6 - theta'/atan ( tan ( .5e399 ) ) / E /cosh (sinh (1e+450 ) * x'*.5e-4000/pi )^ 0.5",
     ),
     ("constant", "limit", "acos ( sin ( .5E+400) ) /E - pi /E * E - E /pi* 7*006"),
+    # the third 10**6 run (seed 1): tanh of q2'^(1/4)*q2'^1000 = q2'^(4001/4), 7.9 s
+    (
+        "expression",
+        "limit",
+        (
+            "-t /\r\nsin(-\r\nx\n*(sqrt  (1\r\n*t *Mass\n+x'+m+\t10)/ +  q2\t*theta'+\n8802787271.595092"
+            "0077\r\n*34888466898429101601.28342859774/  theta'/\na)\n*E\r\n/tanh\t(\r\nq2'** .25* q2'"
+            "**1000\t+q2'^\n0.5/\nx'*\nx'*\r\n952102943241341E99  )^m\r\n)*0.5* 504999092063570679279"
+            "6321007751338051094803980917415007568163189680338375829811508148488-\n863.97145*3"
+        ),
+    ),
     # the one input of the second 10**6 run (session 7) over 1 s alone: (sin(...)^2)^Mass
     (
         "expression",
@@ -752,6 +763,9 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     ("expression", "limit", "(q2'^300)^(1/(a + x))"),  # q2'^300 split into real and imaginary parts
     ("expression", "limit", "(sin(atan(theta')^100)^2)^Mass"),  # (x^2)^y: SymPy takes re(x)
     ("expression", "ok", "(sin(theta')^2)^Mass"),
+    ("expression", "limit", "sin(x/tanh(q2'^0.25*q2'^1000 + q2'^0.5))"),  # q2'^(4001/4) split
+    ("expression", "limit", "tanh(x^31.5)"),  # z^(p/q) splits like z^⌈p/q⌉: 33 terms
+    ("expression", "ok", "tanh(x^31) + sinh(q2'^2.5) + cosh(q2'^(1/3))"),
     ("constant", "limit", "atan(tan(1.3e402))"),  # 1.3e402 modulo pi: never ended
     ("constant", "limit", "acos(sin(.5E+400))"),  # SymPy failed (cannot compare 5e399 mod 2pi with pi)
     ("constant", "limit", "atan(tan(1e150))"),

@@ -1071,6 +1071,8 @@ def _complex_terms(expr: sp.Expr, complex_atoms: frozenset[sp.Expr], cap: int) -
         return out
     if isinstance(expr, sp.Pow) and expr.exp.is_Integer:
         return _multinomial(parts[0], min(abs(int(expr.exp)), cap + 1), cap)
+    if isinstance(expr, sp.Pow) and expr.exp.is_Rational:  # z^(p/q) splits like z^⌈|p/q|⌉ (and worse)
+        return _multinomial(parts[0], min(math.ceil(abs(expr.exp)), cap + 1), cap)
     return min(sum(parts) + 2, cap + 1)
 
 
