@@ -713,6 +713,17 @@ FOUND_1E6: list[tuple[str, str, str | tuple[str, ...]]] = [
         "1.6 - theta'/atan ( tan ( .5e399 ) ) / E /cosh (sinh (1e+450 ) * x'*.5e-4000/pi )^ 0.5",
     ),
     ("constant", "limit", "acos ( sin ( .5E+400) ) /E - pi /E * E - E /pi* 7*006"),
+    # the third 10**6 run (seed 1): tan of cosh(N/cosh(N/cosh(…))), 7.6 s before its syntax error
+    (
+        "expression",
+        "limit",
+        (
+            "-\r\ntan\r\n(cosh  (q2'\r\n-9.\n/\ttheta\n/\na-\tq2+(E)*\nq2')^2  /cosh(02103070783366133982"
+            "43  /cosh(021030707833661398243  /cosh(0210307078336613398243  /cosh(02103070783"
+            "36613398243197353350650753786806524974019025+\nm  )/\ttanh  ((\tm)  -\ntheta+  a)\r\n-"
+            ".36\n** E)  -\ntheta+  a)\r\n-.36\n** E)  -\ntheta+  a)\r\n-.36\n** E )\t^-\n(\tx' )"
+        ),
+    ),
     # the third 10**6 run (seed 1): tanh of q2'^(1/4)*q2'^1000 = q2'^(4001/4), 7.9 s
     (
         "expression",
@@ -766,6 +777,9 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     ("expression", "limit", "sin(x/tanh(q2'^0.25*q2'^1000 + q2'^0.5))"),  # q2'^(4001/4) split
     ("expression", "limit", "tanh(x^31.5)"),  # z^(p/q) splits like z^⌈p/q⌉: 33 terms
     ("expression", "ok", "tanh(x^31) + sinh(q2'^2.5) + cosh(q2'^(1/3))"),
+    # nested 1/cosh: the split doubles per level (2.7 s at depth 4, minutes at depth 5)
+    ("expression", "limit", "tan(1/cosh(1/cosh(1/cosh(1/cosh(theta)))))"),
+    ("expression", "ok", "tan(1/cosh(1/cosh(theta))) + sinh(sin(theta)) + sinh(1/(x + t))"),
     ("constant", "limit", "atan(tan(1.3e402))"),  # 1.3e402 modulo pi: never ended
     ("constant", "limit", "acos(sin(.5E+400))"),  # SymPy failed (cannot compare 5e399 mod 2pi with pi)
     ("constant", "limit", "atan(tan(1e150))"),

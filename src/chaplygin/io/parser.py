@@ -1046,9 +1046,11 @@ class _Parser:
 def _complex_terms(expr: sp.Expr, complex_atoms: frozenset[sp.Expr], cap: int) -> int:
     """Terms of ``expr`` expanded with each of ``complex_atoms`` as ``re + i·im`` (capped above ``cap``).
 
-    A function counts two terms plus the terms of its arguments (SymPy splits those too); a
-    function of real arguments that SymPy does not know to be real (``acos(k)``, real only for
-    ``|k| ≤ 1``) counts two.
+    A function counts two terms plus twice the terms of its arguments (SymPy splits those
+    too, and ``f(re u + i im u)`` uses each part twice: ``cosh(re u) cos(im u)``, …), so the
+    count doubles with each level of nesting, as SymPy's work does; ``1/z`` counts like
+    ``z²`` (``re z / |z|²``) and ``z^(p/q)`` like ``z^⌈|p/q|⌉``; a function of real arguments
+    that SymPy does not know to be real (``acos(k)``, real only for ``|k| ≤ 1``) counts two.
     """
     if expr in complex_atoms:
         return 2
@@ -1069,11 +1071,13 @@ def _complex_terms(expr: sp.Expr, complex_atoms: frozenset[sp.Expr], cap: int) -
         for k in parts:
             out = min(out * k, cap + 1)
         return out
-    if isinstance(expr, sp.Pow) and expr.exp.is_Integer:
-        return _multinomial(parts[0], min(abs(int(expr.exp)), cap + 1), cap)
-    if isinstance(expr, sp.Pow) and expr.exp.is_Rational:  # z^(p/q) splits like z^⌈|p/q|⌉ (and worse)
-        return _multinomial(parts[0], min(math.ceil(abs(expr.exp)), cap + 1), cap)
-    return min(sum(parts) + 2, cap + 1)
+    if isinstance(expr, sp.Pow) and expr.exp.is_Rational:
+        # z^n splits like the expanded power; 1/z into re z / |z|², |z|² = (re z)² + (im z)²;
+        # z^(p/q) like z^⌈|p/q|⌉ (and worse)
+        n = math.ceil(abs(expr.exp))
+        return _multinomial(parts[0], min(n + (1 if expr.exp < 0 else 0), cap + 1), cap)
+    # f(u) = f(re u + i im u): re u and im u each appear twice (cosh(re u) cos(im u), ...)
+    return min(2 * sum(parts) + 2, cap + 1)
 
 
 def _multinomial(terms: int, power: int, cap: int = MAX_EXPANDED_TERMS) -> int:
