@@ -812,7 +812,11 @@ def simulate(
         None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
     ),
     initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", metavar="NAME=NUMBER", help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
+        None,
+        "--initial",
+        "-i",
+        metavar="NAME=NUMBER",
+        help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable).",
     ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
     method: str = typer.Option(
@@ -1172,7 +1176,11 @@ def sweep(
         None, "--param", "-p", metavar="NAME=NUMBER", help="Fix a parameter: NAME=NUMBER (repeatable)."
     ),
     initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", metavar="NAME=NUMBER", help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable)."
+        None,
+        "--initial",
+        "-i",
+        metavar="NAME=NUMBER",
+        help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable).",
     ),
     scheduler: str | None = typer.Option(
         None,
