@@ -702,7 +702,9 @@ class System:
         """True when ``E = T − U`` is an invariant of the motion (of either model): no
         non-potential forces, homogeneous constraints, nothing that depends on time.  Where
         it is, a change of E measures the integration error; elsewhere it is physics."""
-        return self.is_scleronomic and not self.is_affine and all(f == 0 for f in self._Qnp)
+        # (A and A_0, not B: the solved constraints B are not needed to know this)
+        stationary = not any(e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._A, self._A0))
+        return stationary and not self.is_affine and all(f == 0 for f in self._Qnp)
 
     @cached_property
     def chaplygin_obstructions(self) -> list[str]:
