@@ -189,3 +189,30 @@ def test_comparison() -> None:
     assert "models compared with chaplygin" in text and "lindelof" in text
     assert "max distance of path (x, y)" in text
     assert png_bytes(markup).startswith(PNG_MAGIC)
+
+
+def test_ensemble(knife: System) -> None:
+    from chaplygin import simulate_ensemble
+
+    starts = [{**KNIFE_START, "x'": v} for v in (0.5, 1.0, 1.5)]
+    ens = simulate_ensemble(knife, "chaplygin", 1.0, starts, KNIFE_PARAMETERS, backend="numba")
+    text = text_of(ens._repr_html_())
+    assert "Ensemble" in text and "chaplygin/classic" in text and "members3" in text.replace(" ", "")
+    assert "failed0" in text.replace(" ", "") and "(median)" in text and "(max)" in text
+
+
+def test_system_file_keeps_symbolic_values(tmp_path) -> None:
+    from chaplygin import load
+
+    path = tmp_path / "pendulum.toml"
+    path.write_text(
+        'name = "Knife <b>"\ncoordinates = ["x", "y", "phi"]\n[parameters]\nm = 1.0\nJ = "pi/6"\n'
+        "[energy]\nT = \"m/2*(x'^2 + y'^2) + J/2*phi'^2\"\n"
+        '[constraints]\n"y\'" = "tan(phi)*x\'"\n[initial]\nphi = 0.25\n"x\'" = 1.0\n',
+        encoding="utf-8",
+    )
+    markup = load(path)._repr_html_()
+    text = text_of(markup)  # well-formed, the name escaped
+    assert "Knife <b>" in text and "<b>" not in markup.replace("&lt;b&gt;", "")
+    assert r"\frac{\pi}{6}" in text and "0.523" not in text  # J as written, not as a float
+    assert "parameters" in text and "initial state" in text and "0.25" in text

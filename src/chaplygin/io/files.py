@@ -168,6 +168,29 @@ class SystemFile:
     body: dict[str, Any] | None = None
     exact: dict[str, sp.Expr] = field(default_factory=dict)
 
+    def _repr_html_(self) -> str:
+        """The system (as :class:`System` shows itself), then the file's parameters and initial
+        state, symbolic values as written (``pi/6``)."""
+        from chaplygin import _html
+
+        def values(table: dict[str, float]) -> str:
+            rows = [
+                (
+                    _html.escape(k),
+                    _html.math(sp.latex(self.exact[k])) if k in self.exact else _html.escape(f"{v:g}"),
+                )
+                for k, v in table.items()
+            ]
+            return _html.table(rows, ["name", "value"]) if rows else "<p>none</p>"
+
+        return (
+            self.system._repr_html_()
+            + _html.heading("parameters")
+            + values(self.parameters)
+            + _html.heading("initial state")
+            + values(self.initial)
+        )
+
     def dumps(self) -> str:
         """This file written back as TOML: its ``[body]`` table if it has one, else as :func:`dumps`."""
         if self.body is None:

@@ -129,6 +129,28 @@ class Ensemble:
             f"{failed} failed, {self.wall_time:.3g} s>"
         )
 
+    def _repr_html_(self) -> str:
+        """A summary table for notebooks: members, failures, the spread of energy drift and residual."""
+        from chaplygin import _html
+
+        drift, residual = self.energy_drift(), np.asarray(self.constraint_residual, dtype=float)
+
+        def spread(a: np.ndarray) -> str:
+            finite = a[np.isfinite(a)]
+            return f"{np.median(finite):.3g} (median), {np.max(finite):.3g} (max)" if finite.size else "–"
+
+        rows = [
+            ("model", f"{self.model}/{self.form}"),
+            ("backend", self.backend),
+            ("members", str(len(self))),
+            ("failed", str(int(np.count_nonzero(self.code)))),
+            ("t reached", f"{np.min(self.t):g} … {np.max(self.t):g}" if len(self) else "–"),
+            ("energy drift", spread(drift)),
+            ("final constraint residual", spread(residual)),
+            ("wall time", f"{self.wall_time:.3g} s"),
+        ]
+        return _html.heading("Ensemble") + _html.fields((k, _html.escape(v)) for k, v in rows)
+
     def to_pandas(self) -> Any:
         """One row per member as a ``pandas.DataFrame`` indexed by ``run`` (0 … N−1).
 
