@@ -713,6 +713,50 @@ FOUND_1E6: list[tuple[str, str, str | tuple[str, ...]]] = [
         "1.6 - theta'/atan ( tan ( .5e399 ) ) / E /cosh (sinh (1e+450 ) * x'*.5e-4000/pi )^ 0.5",
     ),
     ("constant", "limit", "acos ( sin ( .5E+400) ) /E - pi /E * E - E /pi* 7*006"),
+    # the fourth 10**6 run (seed 2): four inputs over 30 s (abs of 3^(-q2^1000); pi/(…)^0.3)
+    (
+        "expression",
+        "limit",
+        (
+            "theta* abs(.25  **atan2( theta,\r\nMass\t)  ^1000  )**\r\nx'^\t2  +\n-\n(\tcos(-\r\nx'\t/a\t/"
+            " 100 -\r\n7+  1.5e-3)\r\n/k_1\n/+\tx+\npi-\t+  m*  m*\r\n3)*-\t007  **\n0.5* -q2+exp (\t.5e99"
+            "\t^ pi-\nsinh\t(\r\nacos"
+        ),
+    ),
+    (
+        "expression",
+        "limit",
+        ("abs(\t3^-q2\t^1000*\t3\t)\n*+0.5"),
+    ),
+    (
+        "expression",
+        "limit",
+        (
+            "abs\n(abs (  -\r\n-\r\nabs( 7) -k_1*x' **0.5)  /2** theta'^  1000/pi/-m) * (\tcosh(sin"
+            "h(  Mass/theta'*\r\ntheta+k_1\r\n-pi\n+Mass)*theta'\n+\ntan(\r\n1)/q2' /\t5./q2'\r\n-\t(  2\t)"
+            "\r\n+\r\nt\n/  19e-300)-(  theta'  ^\tE\r\n/100\n+ 007\t+theta'+a)\r\n**3*\r\n( 1.5e-3)*\r\nabs\t"
+            "(1.5e-3 )/\nt\r\n)\r\n^1000\n*(\n297808753.\n* -\r\n-a  -tanh\r\n(\nk_1\n*\r\n924399017848080995"
+            "5128707198012941490759\n+\r\ntheta\t)\n**  5923179175+ sinh\t(  9.99E399\t/\r\nE )\n**\n0.5"
+            "/ (theta\t)\t/log\r\n(t))\r\n*  atan(tan(  (\r\nacos\r\n(\tE\r\n)  /m\r\n* 0.5-m\r\n+\r\n10+\t1.6219"
+            "3961653806304327326e-1)\n*pi\t* 3+\r\n(  k_1)\n*1.5e-3* q2'\t)  *(  cos(9.99e-1)**0.5 "
+            ")+\t1488.84110392**k_1+\t(\tpi\t*\tpi\t+  100\t+\ntheta  +.5e300\n)  )\r\n-  90263338914483"
+            "5200030756826379984768796101.6907443554974518335+acos(-+( theta')*\nsin(7\t/\r\nMass"
+            "* x\r\n+\n178\t)  /80161870601709004161111149365613754132843610224.37775994003138157"
+            "223311823\t*  (5.-\n2313284.852+328 +  m) + 2+atan(  t*  10  *  604731830031837450"
+            "3881651237292623717146495076722122587692765984516757085298359630106373034021\t/ x"
+            "'-k_1+ 007  +a)  /(\tMass))*\r\npi"
+        ),
+    ),
+    (
+        "expression",
+        "limit",
+        (
+            "(pi\n/\t(\texp(\n(\r\n26822617655911781888504867347294536552.24402833\n*q2' -3+k_1- Mas"
+            "s)/k_1\r\n-\r\n- a\r\n* q2'\r\n/theta)/\nabs(43944109345658272130537404279445252389394208"
+            "518162854576870773185795763816.447633\n-\t0.5\r\n+k_1)\t/m**0.5  +007/\tcosh  (\tq2  )\t"
+            "*\t0/\r\nk_1+theta\t**\r\n1000 )\t* 100)^.3"
+        ),
+    ),
     # the third 10**6 run (seed 1): tan of cosh(N/cosh(N/cosh(…))), 7.6 s before its syntax error
     (
         "expression",
@@ -780,6 +824,9 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     # nested 1/cosh: the split doubles per level (2.7 s at depth 4, minutes at depth 5)
     ("expression", "limit", "tan(1/cosh(1/cosh(1/cosh(1/cosh(theta)))))"),
     ("expression", "ok", "tan(1/cosh(1/cosh(theta))) + sinh(sin(theta)) + sinh(1/(x + t))"),
+    ("expression", "limit", "abs(3^(-q2^1000))"),  # Abs splits its argument like sinh does
+    ("expression", "limit", "(pi/(exp(q2') + theta^1000))^0.3"),  # a factor 1/(…) of the base
+    ("expression", "ok", "abs(x') + abs(sin(theta)) + abs(x - t) + (2*x^2)^a + (pi/(x + t))^0.5"),
     ("constant", "limit", "atan(tan(1.3e402))"),  # 1.3e402 modulo pi: never ended
     ("constant", "limit", "acos(sin(.5E+400))"),  # SymPy failed (cannot compare 5e399 mod 2pi with pi)
     ("constant", "limit", "atan(tan(1e150))"),

@@ -853,7 +853,7 @@ class _Parser:
         if name == "sqrt":
             value = self.power_of(args[0], _Value(sp.S.Half, 1, tok.pos), tok.pos)
             return _Value(value.expr, value.terms, tok.pos)
-        if name in _HYPERBOLIC:
+        if name in _HYPERBOLIC or name == "abs":  # Abs splits its argument the same way
             self.check_hyperbolic(name, args[0].expr, tok.pos)
         elif name == "exp":
             self.check_exp(args[0].expr, tok.pos)
@@ -876,7 +876,7 @@ class _Parser:
                 f"the argument of {name} is too large for SymPy: split into real and imaginary parts it "
                 f"would expand to more than {MAX_HYPERBOLIC_TERMS} terms",
                 pos,
-                f"Limit: the argument of sinh, cosh or tanh may expand to at most {MAX_HYPERBOLIC_TERMS} "
+                f"Limit: the argument of sinh, cosh, tanh or abs may expand to at most {MAX_HYPERBOLIC_TERMS} "
                 "terms, counting each coordinate, velocity and t as two (its real and imaginary parts).",
                 "limit",
             )
@@ -1023,8 +1023,9 @@ class _Parser:
         split = (
             "its exponent has a sum in a denominator"
             if not e.is_number and any(p.base.is_Add and p.exp.is_negative for p in e.atoms(sp.Pow))
-            else "it is itself a power, raised to an exponent that is not an integer"
-            if isinstance(b, sp.Pow) and e.is_integer is not True
+            else "it is (or has a factor that is) a power, raised to an exponent that is not an integer"
+            if e.is_integer is not True
+            and any(isinstance(f, sp.Pow) for f in (b.args if isinstance(b, sp.Mul) else (b,)))
             else ""
         )
         if split and _complex_terms(b, self.complex_atoms(), MAX_HYPERBOLIC_TERMS) > MAX_HYPERBOLIC_TERMS:
