@@ -134,7 +134,10 @@ def surface(
     Mesh
     """
     n1, n2, n3 = sp.symbols("_n1:4", real=True)
-    exprs = [sp.sympify(e).xreplace(dict(values or {})) for e in shape.contact(sp.Matrix([n1, n2, n3]))]
+    exprs = [
+        sp.sympify(e, strict=True).xreplace(dict(values or {}))
+        for e in shape.contact(sp.Matrix([n1, n2, n3]))
+    ]
     loose = set().union(*(e.free_symbols for e in exprs)) - {n1, n2, n3}
     if loose:
         raise InputError(f"shape: no value for {', '.join(sorted(map(str, loose)))}, needed to draw it.")
