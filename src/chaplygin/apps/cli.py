@@ -128,6 +128,24 @@ def _model_option(verb: str) -> Any:
     )
 
 
+def _param_option(verb: str = "Override") -> Any:
+    """``--param NAME=NUMBER`` (repeatable; read by :func:`_overrides`)."""
+    return typer.Option(
+        None, "--param", "-p", metavar="NAME=NUMBER", help=f"{verb} a parameter: NAME=NUMBER (repeatable)."
+    )
+
+
+def _initial_option(verb: str = "Override") -> Any:
+    """``--initial NAME=NUMBER`` or ``NAME'=NUMBER`` (repeatable; read by :func:`_overrides`)."""
+    return typer.Option(
+        None,
+        "--initial",
+        "-i",
+        metavar="NAME=NUMBER",
+        help=f"{verb} an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable).",
+    )
+
+
 class Form(str, Enum):
     classic = "classic"
     new = "new"
@@ -808,16 +826,8 @@ def simulate(
     constants: str | None = typer.Option(
         None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
     ),
-    param: list[str] | None = typer.Option(
-        None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
-    ),
-    initial: list[str] | None = typer.Option(
-        None,
-        "--initial",
-        "-i",
-        metavar="NAME=NUMBER",
-        help="Override an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable).",
-    ),
+    param: list[str] | None = _param_option(),
+    initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
     method: str = typer.Option(
         "DOP853",
@@ -1017,12 +1027,8 @@ def compare(
     figure_format: FigureFormat = typer.Option(
         FigureFormat.svg, "--figure-format", help="Format of the figures."
     ),
-    param: list[str] | None = typer.Option(
-        None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
-    ),
-    initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", metavar="NAME=NUMBER", help="Override an initial value (repeatable)."
-    ),
+    param: list[str] | None = _param_option(),
+    initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
@@ -1172,16 +1178,8 @@ def sweep(
     constants: str | None = typer.Option(
         None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
     ),
-    param: list[str] | None = typer.Option(
-        None, "--param", "-p", metavar="NAME=NUMBER", help="Fix a parameter: NAME=NUMBER (repeatable)."
-    ),
-    initial: list[str] | None = typer.Option(
-        None,
-        "--initial",
-        "-i",
-        metavar="NAME=NUMBER",
-        help="Fix an initial value: NAME=NUMBER or NAME'=NUMBER (repeatable).",
-    ),
+    param: list[str] | None = _param_option("Fix"),
+    initial: list[str] | None = _initial_option("Fix"),
     scheduler: str | None = typer.Option(
         None,
         "--scheduler",
@@ -1283,12 +1281,8 @@ def report(
     t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
     backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
-    param: list[str] | None = typer.Option(
-        None, "--param", "-p", metavar="NAME=NUMBER", help="Override a parameter: NAME=NUMBER (repeatable)."
-    ),
-    initial: list[str] | None = typer.Option(
-        None, "--initial", "-i", metavar="NAME=NUMBER", help="Override an initial value (repeatable)."
-    ),
+    param: list[str] | None = _param_option(),
+    initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
 ) -> None:
     """Write one self-contained HTML report: system, integrability, equations, simulations."""
