@@ -834,6 +834,11 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     ("expression", "ok", "log(sinh(exp(q2' - 1e4)))"),
     ("expression", "ok", "exp(x*log(2)/1e30)"),
     ("constant", "ok", "asin(sin(1e49))"),
+    # a divisor SymPy evaluates to exactly 0 (cancellation) and then divides by: ZeroDivisionError
+    ("expression", "limit", "x/log(tanh(9.38e400))"),  # about -2*exp(-1.9e401): 0 at any precision
+    ("expression", "limit", "x/log(.5E-400/007 + 1)"),
+    ("constant", "limit", "log(tanh(9.99E399)^2)^-1"),
+    ("expression", "ok", "x/log(cosh(1e-17))"),  # 0 at 15 digits, 5e-35 at 100
 ]
 
 
@@ -873,3 +878,8 @@ def test_found_hangs_end_cleanly(family: str, outcome: str, text: str | tuple[st
 )
 def test_constants_near_the_new_limits_keep_their_value(text: str, expected: sp.Expr) -> None:
     assert parse_expression(text, fg.NAMES) == expected
+
+
+def test_a_divisor_that_cancels_at_15_digits_is_evaluated_with_more() -> None:
+    # log(cosh(x)) = x²/2 - x⁴/12 + …, so 1/log(cosh(1e-17)) = 2e34 to 34 digits
+    assert math.isclose(parse_constant("1/log(cosh(1e-17))"), 2e34, rel_tol=1e-12)

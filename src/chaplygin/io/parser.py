@@ -549,7 +549,7 @@ class _Parser:
         Complex constants (``sqrt(-1)``, ``acos(2)``) have no place in a mechanical system, and
         SymPy's sign tests on functions of them can refine their precision without end.
         """
-        value = constant.evalf(15)
+        value = self.evaluated(constant, pos)
         size = max((mpmath.mag(mpmath.mpf(f)) for f in value.atoms(sp.Float) if f != 0), default=0)
         real, imag = value.as_real_imag()
         if (
@@ -577,6 +577,29 @@ class _Parser:
                 _NUMBER_LIMITS,
                 "limit",
             )
+
+    def evaluated(self, constant: sp.Expr, pos: int) -> sp.Expr:
+        """``constant`` to 15 digits, or to 100 where SymPy found a divisor 0 at 15.
+
+        SymPy evaluates ``1/log(cosh(1e-17))`` by evaluating ``log(cosh(1e-17))``, which cancels
+        to exactly 0 at its working precision, and then divides by it (``ZeroDivisionError``).
+        More digits tell such a divisor from zero; one that is still 0 at 100 digits
+        (``log(tanh(1e400))``, about ``-2*exp(-2e400)``) is refused.
+        """
+        try:
+            return constant.evalf(15)
+        except ZeroDivisionError:
+            pass
+        try:
+            return constant.evalf(100)
+        except ZeroDivisionError:
+            raise self.error(
+                "this constant divides by a number that cannot be told from zero at 100 digits",
+                pos,
+                "Divisors must differ from zero within 100 significant digits: write a tiny "
+                "quantity itself (1e-40) rather than a difference that cancels (log(cosh(1e-60))).",
+                "limit",
+            ) from None
 
     def check_terms(self, terms: int, pos: int) -> int:
         if terms > MAX_EXPANDED_TERMS:
