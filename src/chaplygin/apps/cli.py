@@ -1255,7 +1255,7 @@ def sweep(
                 markup=False,
             )
             raise typer.Exit(130) from None
-        _emit(f"{label}: {result.summary()}")
+        _emit(f"{label}, t = 0 … {t_end:g}: {result.summary()}")
         if result.failed:
             table = read_results(out, ["status", "message"]).to_pylist()
             first = [r for r in table if r["status"] != "success"][:3]
@@ -1308,7 +1308,7 @@ def report(
                 initial=start,
                 progress=_report_progress(steps),
             )
-        _emit(f"wrote {out}")
+        _emit(f"wrote {out}: the simulations run to t = {t_end:g} ({samples} samples)")
         if created is not None:
             _emit(f"created {created}: it did not exist")
 
