@@ -35,7 +35,7 @@ def test_check_finds_the_rolling_constraints_nonholonomic_and_the_models_differe
     text = runner.invoke(app, ["check", "example:rattleback"])
     assert text.exit_code == 0, text.stderr
     assert "not integrable (nonholonomic)" in text.stdout and "the models differ" in text.stdout
-    assert "operations, not printed" in text.stdout  # the defect runs to thousands of operations
+    assert "characters, not printed (the comparison's .defect holds it)" in text.stdout  # pages of defect
     # nor are the thousands of characters of the failing components (the JSON has them whole)
     assert max(map(len, text.stdout.splitlines())) < 500
     assert "characters, not printed (--format json has it)" in text.stdout

@@ -30,6 +30,7 @@ import sympy as sp
 from sympy.physics.vector.printing import vlatex, vsstrrepr
 
 from chaplygin import _html
+from chaplygin.core._brief import brief
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import TIME, simplify_small
 from chaplygin.models._rational import normal_all
@@ -86,7 +87,7 @@ class Condition:
         if self.failures:
             label, expr = self.failures[0]
             more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
-            text += f" — {label} = {vsstrrepr(expr)}{more}"
+            text += f" — {label} = {brief(expr, '.failures holds it')}{more}"
         return text + (f". {self.note}" if self.note else "")
 
     def _html_row(self) -> list[str]:

@@ -24,6 +24,7 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 from chaplygin import _html
 from chaplygin.analysis.equivalence import EquationsLike, _Linear, _States
 from chaplygin.analysis.integrability import shown as readable
+from chaplygin.core._brief import brief
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import simplify_small
 from chaplygin.errors import ChaplyginError, ModelError
@@ -74,7 +75,8 @@ class ModelComparison:
         }[self.verdict]
         lines = [f"{self.system_name}: {head}"]
         if self.verdict == "differ":
-            lines += [f"  {vsstrrepr(q)}: {_printed(d)}" for q, d in self.defect.items()]
+            kept = "the comparison's .defect holds it"
+            lines += [f"  {vsstrrepr(q)}: {brief(d, kept)}" for q, d in self.defect.items()]
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -113,17 +115,6 @@ def compare_models(system: System) -> ModelComparison:
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
     return simplify_small(sp.expand(expr))
-
-
-#: a defect with more operations is not printed in full (a rolling body's runs to pages)
-PRINTED_OPS = 400
-
-
-def _printed(expr: sp.Expr) -> str:
-    ops = sp.count_ops(expr)
-    if ops <= PRINTED_OPS:
-        return vsstrrepr(expr)
-    return f"an expression of {ops} operations, not printed (the comparison's .defect holds it)"
 
 
 @dataclass

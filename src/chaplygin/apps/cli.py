@@ -187,10 +187,6 @@ class OutputExists(ChaplyginError):
     """An output exists and ``--force`` was not given."""
 
 
-#: the longest failing component ``check`` prints as text (characters)
-MAX_SHOWN = 300
-
-
 # ====================================================================== consoles, progress, errors
 def _stdout() -> Console:
     return Console(file=sys.stdout, soft_wrap=True, highlight=False, emoji=False)
@@ -740,6 +736,8 @@ def check(
         if fmt is CheckFormat.json:
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
             return
+        from chaplygin.core._brief import brief
+
         system = loaded.system
         integ = doc["integrability"]
         lines = [
@@ -755,9 +753,7 @@ def check(
             if c["failures"]:
                 first = c["failures"][0]
                 more = len(c["failures"]) - 1
-                value = first["value"]
-                if len(value) > MAX_SHOWN:  # a page of algebra helps nobody on a terminal
-                    value = f"an expression of {len(value)} characters, not printed (--format json has it)"
+                value = brief(first["value"], "--format json has it")  # a page helps nobody
                 line += f" - {first['component']} = {value}" + (f" (and {more} more)" if more else "")
             lines.append(f"{line}. {c['note']}")
         if integ["integrable"]:
