@@ -839,6 +839,10 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     ("expression", "limit", "x/log(.5E-400/007 + 1)"),
     ("constant", "limit", "log(tanh(9.99E399)^2)^-1"),
     ("expression", "ok", "x/log(cosh(1e-17))"),  # 0 at 15 digits, 5e-35 at 100
+    # seed 3: E*exp(1e-300) is exp(1 + 1e-300), a numerator of 301 digits; atan(1/cosh(…)) took 34 s
+    ("expression", "limit", "atan(1/cosh(exp(1e-300)*E*x'))"),
+    ("expression", "limit", "x*exp(1e-300)*E"),
+    ("expression", "ok", "atan(1/cosh(exp(0.5)*E*x')) + exp(x)*exp(0.25)"),
 ]
 
 

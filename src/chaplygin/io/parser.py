@@ -529,6 +529,9 @@ class _Parser:
                 None,
                 "value",
             )
+        for factor in sp.Mul.make_args(value):  # exp(1e-300)*E is exp(1 + 1e-300): bound it again
+            if isinstance(factor, sp.exp):
+                self.check_exponent_numerators(factor.exp, pos, "the argument of exp")
         if value.is_Rational:
             if _bits(value) > MAX_NUMBER_BITS:
                 raise self.error(
