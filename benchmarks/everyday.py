@@ -211,6 +211,16 @@ def part_processes(repeat: int, work: Path) -> None:
                 f"   {'chaplygin simulate -t 100 -b ' + backend + ', ' + label + ' cache':58s} {t:7.3f} s"
                 f"  {t / peer_t:5.2f}x the peer"
             )
+    # the floor under the numba backend: a process that only imports numba and calls one function
+    # from numba's on-disk cache (numba's import, LLVM and its typing registries; nothing of ours)
+    floor = work / "numba_floor.py"
+    floor.write_text("import numba\n\n@numba.njit(cache=True)\ndef f(x):\n    return x + 1.0\n\nf(1.0)\n")
+    run([PYTHON, str(floor)])  # fills numba's cache next to the script
+    t = statistics.median(run([PYTHON, str(floor)]) for _ in range(repeat))
+    RESULTS["numba floor"] = t
+    say(
+        f"   {'floor: a script importing numba, one cached njit call':58s} {t:7.3f} s  {t / peer_t:5.2f}x the peer"
+    )
     a, b = np.load(peer_out), np.load(ours)
     diff = max(abs(a[k][-1] - b[k][-1]) for k in ("psi", "theta", "phi", "x", "y"))
     say(f"   (final states of the peer and chaplygin differ by at most {diff:.1e})")
