@@ -272,7 +272,7 @@ def part_trajectory(disk, eqs, y0, p, t_end: float) -> None:
         diff = float(np.max(np.abs(table - ref.y.T)))
         rows.append((label, best, codegen, tr.rhs_evaluations, diff))
 
-    runs("numpy", "simulate(backend='numpy'): SciPy DOP853 stepper", 1)
+    runs("numpy", "simulate(backend='numpy'): DOP853 on Python lists", 1)
     runs("numba", "simulate(backend='numba'): compiled DOP853 loop", 3)
     runs("c", "simulate(backend='c'): the loop in C (the default)", 3)
     from chaplygin.numeric._loop import integrate_dop853, loop_model

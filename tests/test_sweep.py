@@ -464,7 +464,12 @@ def test_command_line(client, tmp_path: Path) -> None:
         ],
     )
     assert failing.exit_code == 0 and "1 failed" in failing.stdout
-    assert "run 1: the integrator stopped" in failing.stderr
+    # run 1 meets the pole of y' = tan(phi) x' between t = 5 and 6: whether its steps then end in
+    # an underflow after the sample at t = 6 or pass it is round-off (the DOP853 ports differ)
+    assert any(
+        f"run 1: {why}" in failing.stderr
+        for why in ("the integrator stopped", "a pole of the solved constraints between t = 5 and 6")
+    ), failing.stderr
     for result in (done, refused, bad, unknown, nowhere, failing):
         assert "Traceback" not in result.output
 

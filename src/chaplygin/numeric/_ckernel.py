@@ -241,17 +241,17 @@ def _array(name: str, values: Any) -> str:
 
 
 def loop_source() -> str:
-    """The C source of the DOP853 loop library (tableau from :mod:`chaplygin.numeric._loop`)."""
-    from chaplygin.numeric import _loop as tab
+    """The C source of the DOP853 loop library (tableau from :mod:`chaplygin.numeric._dop853`)."""
+    from chaplygin.numeric import _dop853 as tab
 
     tables = "\n".join(
         [
-            _array("DOP_A", tab._DOP_A),
-            _array("DOP_B", tab._DOP_B),
-            _array("DOP_C", tab._DOP_C),
-            _array("DOP_E3", tab._DOP_E3),
-            _array("DOP_E5", tab._DOP_E5),
-            _array("DOP_D", tab._DOP_D),
+            _array("DOP_A", tab.A),
+            _array("DOP_B", tab.B),
+            _array("DOP_C", tab.C),
+            _array("DOP_E3", tab.E3),
+            _array("DOP_E5", tab.E5),
+            _array("DOP_D", tab.D),
         ]
     )
     return _LOOP_C.replace("@TABLES@", tables)

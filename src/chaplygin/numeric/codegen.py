@@ -64,7 +64,7 @@ __all__ = [
 
 BACKENDS = ("numpy", "numba", "jax", "c")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
-CODE_FORMAT = 6
+CODE_FORMAT = 7
 
 
 def _docstring_safe(text: str) -> str:
@@ -343,15 +343,11 @@ def _fill_source(fill: _Fill, backend: str) -> str:
 #: list solver and its ``rhs``: no array is indexed from Python in a right-hand side
 _LIST_FILL = '''def fill(t, y, p, M, F, V, O):
     m, f, v, o = _lists()
-    _fill_floats(t, y, p, m, f, v, o)
+    _fill_floats(t, _floats(y), _floats(p), m, f, v, o)
     M[:, :] = m
     F[:] = f
     V[:] = v
     O[:] = o
-
-
-def _lists():
-    return [[0.0] * DIM for _ in range(DIM)], [0.0] * DIM, [0.0] * N, [0.0] * N_OBSERVED
 
 
 def _floats(a):
@@ -388,18 +384,24 @@ def _lsolve(M, b):
     return b
 
 
-def _rhs(t, y, p):
-    """The numpy backend's ``rhs``: lists all the way, one array at the end."""
+def rhs_list(t, y, p):
+    """dy/dt for ``y`` and ``p`` given as lists of floats, as a new list: what the numpy
+    backend's DOP853 stepper (chaplygin.numeric._pyloop) calls, with no array in a step."""
     m, f, v, o = _lists()
     _fill_floats(t, y, p, m, f, v, o)
-    return np.array(v + _lsolve(m, f)[:K])
+    return v + _msolve(m, f)[:K]
+
+
+def _rhs(t, y, p):
+    """The numpy backend's ``rhs``: lists all the way, one array at the end."""
+    return np.array(rhs_list(t, _floats(y), _floats(p)))
 
 
 def _fill_floats(t, y, p, m, f, v, o):
-    """``_fill`` on Python floats; where one overflows (``**``, ``exp``), again on NumPy's
-    scalars, which give ``inf`` as the arrays of the other backends do."""
+    """``_fill`` on lists of Python floats; where one overflows (``**``, ``exp``), again on
+    NumPy's scalars, which give ``inf`` as the arrays of the other backends do."""
     try:
-        _fill(t, _floats(y), _floats(p), m, f, v, o)
+        _fill(t, y, p, m, f, v, o)
     except OverflowError:
         _fill(t, list(np.asarray(y, dtype=float)), list(np.asarray(p, dtype=float)), m, f, v, o)
 
@@ -430,10 +432,57 @@ def _solve(M, F):
     return source
 
 
-def _rhs_source(jit: bool) -> str:
-    """``rhs``: numba's on arrays; the numpy backend's is ``_rhs`` (on lists, see :data:`_LIST_FILL`)."""
+#: the largest ``DIM`` whose ``M⁻¹F`` the numpy backend writes out (:func:`_unrolled_solve`)
+UNROLL_SOLVE = 8
+
+
+def _unrolled_solve(n: int) -> str:
+    """``_msolve(M, b)``: the list solver ``_lsolve`` written out for an ``n × n`` ``M`` on local
+    variables (the same pivots and the same arithmetic, in a fifth of the time for n = 3)."""
+    a = [[f"a{i}_{j}" for j in range(n)] for i in range(n)]
+    b = [f"b{i}" for i in range(n)]
+    comma = "," if n == 1 else ""
+    lines = [
+        "def _msolve(M, b):",
+        '    """``M⁻¹b`` for this module\'s DIM × DIM ``M`` (lists, left as they are): ``_lsolve`` written out."""',
+        *(f"    {', '.join(a[i])}{comma} = M[{i}]" for i in range(n)),
+        f"    {', '.join(b)}{comma} = b",
+    ]
+    for c in range(n):
+        lines.append(f"    big, piv = abs({a[c][c]}), {c}")
+        for r in range(c + 1, n):
+            lines += [f"    if abs({a[r][c]}) > big:", f"        big, piv = abs({a[r][c]}), {r}"]
+        lines += ["    if big == 0.0:", '        raise np.linalg.LinAlgError("Matrix is singular.")']
+        for r in range(c + 1, n):
+            pivot_row, other = [*a[c][c:], b[c]], [*a[r][c:], b[r]]
+            lines.append(f"    {'if' if r == c + 1 else 'elif'} piv == {r}:")
+            lines.append(f"        {', '.join(pivot_row + other)} = {', '.join(other + pivot_row)}")
+        for r in range(c + 1, n):
+            lines += [f"    factor = {a[r][c]} / {a[c][c]}", "    if factor:"]
+            lines += [f"        {a[r][j]} -= factor * {a[c][j]}" for j in range(c + 1, n)]
+            lines.append(f"        {b[r]} -= factor * {b[c]}")
+    for c in range(n - 1, -1, -1):
+        terms = "".join(f" - {a[c][j]} * {b[j]}" for j in range(c + 1, n))
+        lines.append(f"    {b[c]} = ({b[c]}{terms}) / {a[c][c]}")
+    lines.append(f"    return [{', '.join(b)}]")
+    return "\n".join(lines) + "\n"
+
+
+def _rhs_source(jit: bool, dim: int) -> str:
+    """``rhs``: numba's on arrays; the numpy backend's is ``_rhs`` (on lists, see :data:`_LIST_FILL`),
+    with its helpers written out for ``dim``: ``_lists`` (fresh zeroed lists) and ``_msolve``."""
     if not jit:
-        return "rhs = _rhs  # dy/dt = [velocities of q, solve(M, F)[:K]]\n"
+        small = dim <= UNROLL_SOLVE  # M's rows written out as literals: half the time of [0.0] * DIM
+        row = f"[{', '.join(['0.0'] * dim)}]" if small else "[0.0] * DIM"
+        zeros = f"[{', '.join([row] * dim)}]" if small else "[[0.0] * DIM for _ in range(DIM)]"
+        solver = _unrolled_solve(dim) if 1 <= dim <= UNROLL_SOLVE else "_msolve = _lsolve\n"
+        return (
+            "def _lists():\n"
+            '    """Zeroed M, F, V, O as lists."""\n'
+            f"    return {zeros}, {row}, [0.0] * N, [0.0] * N_OBSERVED\n\n\n"
+            f"{solver}\n\n"
+            "rhs = _rhs  # dy/dt = [velocities of q, solve(M, F)[:K]]\n"
+        )
     return '''@_jit
 def rhs(t, y, p):
     """dy/dt = [velocities of q, solve(M, F)[:K]]."""
@@ -502,7 +551,7 @@ N_OBSERVED = {n_observed}
     return M, F, V, O
 
 
-{_rhs_source(jit)}
+{_rhs_source(jit, dim)}
 
 
 {deco}def observe(t, y, p):

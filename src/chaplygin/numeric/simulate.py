@@ -9,12 +9,14 @@ drift.  Integration: with ``backend="c"`` (what ``"auto"``, the default, picks
 for DOP853 where a C compiler is found; see :func:`choose_backend`) or
 ``backend="numba"`` and DOP853, a compiled port of SciPy's DOP853 that runs
 entirely in C (:mod:`chaplygin.numeric._ckernel`) or inside numba (:mod:`chaplygin.numeric._loop`); with
-``backend="jax"``, diffrax; otherwise SciPy's stepper classes (``DOP853`` by
-default) driven step by step.  Every path ends a failed run (step-size
-underflow, a singular mass matrix, a blow-up) with a status, a message and the
-trajectory so far; after a failure inside a step, the compiled loop and the SciPy
-path integrate again from the last accepted step with smaller steps, so the
-samples reach the failure whatever steps the integrator chose.
+``backend="numpy"`` and DOP853, the same port in plain Python on lists
+(:mod:`chaplygin.numeric._pyloop`, no SciPy import); with ``backend="jax"``,
+diffrax; otherwise (the other methods) SciPy's stepper classes driven step by
+step.  Every path ends a failed run (step-size underflow, a singular mass
+matrix, a blow-up) with a status, a message and the trajectory so far; after a
+failure inside a step, the compiled loops and the Python steppers integrate
+again from the last accepted step with smaller steps, so the samples reach the
+failure whatever steps the integrator chose.
 
 Before integrating, :func:`simulate` refuses (:class:`~chaplygin.errors.InputError`)
 what cannot be a motion: non-finite parameters or initial values, a time span
@@ -39,6 +41,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
+from chaplygin.numeric._dop853 import StepFailure as _StepFailure
 
 if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
     # warm run of the command line (chaplygin.apps._quick) needs none of them
@@ -61,7 +64,7 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     :mod:`chaplygin.numeric._ckernel`) for ``DOP853`` where a C compiler is found: it
     costs a fraction of a second to build once per model, nothing later (the
     kernel cache), and integrates at compiled speed, so it pays for itself on
-    any run.  Otherwise ``"numpy"`` (no build step; SciPy's steppers).  numba is
+    any run.  Otherwise ``"numpy"`` (no build step; plain Python).  numba is
     never chosen: its first compile of a model takes seconds, and importing it
     half a second more; ``backend="numba"`` still asks for it.
     """
@@ -522,14 +525,6 @@ def _vakonomic_setup(
 
 
 # ------------------------------------------------------------------ integration
-class _StepFailure(Exception):
-    """A right-hand side that failed inside a step (at time ``t``): the step is not taken."""
-
-    def __init__(self, message: str, t: float) -> None:
-        super().__init__(message)
-        self.t = t
-
-
 class _Attempt(NamedTuple):
     """One integration from ``(t_start, y_start)``: the samples it reached and how it ended."""
 
@@ -575,7 +570,7 @@ def simulate(
     """Simulate one model of ``system`` (the front door :func:`chaplygin.numeric.simulate`).
 
     ``progress``, if given, is called with the time the integration has reached: at most
-    every :data:`PROGRESS_EVERY` seconds of wall time (SciPy's steppers after a step, the
+    every :data:`PROGRESS_EVERY` seconds of wall time (the Python steppers after a step, the
     compiled loops of the ``c`` and ``numba`` backends between runs of steps that continue
     exactly where they stopped), and once at the end with the last time reached (``t_end``
     for a run that succeeds).  Without it nothing is checked or timed.
@@ -996,12 +991,14 @@ def integrate(
     ``c`` or ``numba`` backend with ``method="DOP853"``: the compiled loop of
     :mod:`chaplygin.numeric._ckernel` or :mod:`chaplygin.numeric._loop` (the whole integration in C or numba).  ``jax``
     backend with ``"DOP853"``, ``"RK45"`` or ``"RK23"``: diffrax
-    (:mod:`chaplygin.numeric.jaxbackend`).  Otherwise: SciPy's stepper class driven
-    step by step, with dense output where a sample falls.
+    (:mod:`chaplygin.numeric.jaxbackend`).  ``numpy`` backend with ``"DOP853"``: the
+    generated ``rhs_list`` stepped by :mod:`chaplygin.numeric._pyloop` (SciPy's DOP853 on
+    lists of floats).  Otherwise: SciPy's stepper class driven step by step, with dense
+    output where a sample falls.
 
     When the right-hand side fails inside a step (a singular mass matrix, a
-    non-finite value), the step is not taken; the compiled loop and the SciPy
-    path then integrate again from the last accepted step with steps of at most
+    non-finite value), the step is not taken; the compiled loop and the Python
+    steppers then integrate again from the last accepted step with steps of at most
     half the distance to the failure, until it is pinned down to :data:`PIN`.
     So a failed run keeps every sample before the failure, whatever steps the
     integrator chose (a first step that jumps past all the samples included).
@@ -1020,7 +1017,10 @@ def integrate(
 
             compiled = loop_model(compiled)
         attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, progress)
-    else:
+    elif method == "DOP853" and hasattr(compiled.module, "rhs_list"):
+        # the numpy backend's generated code on lists, stepped in plain Python: no SciPy at all
+        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, progress)
+    else:  # the other methods, and a model without a list right-hand side (code of other origin)
         attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, progress)
     ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
     if progress is not None:
@@ -1104,6 +1104,86 @@ def _loop_attempt(
     return attempt
 
 
+def _list_attempt(
+    compiled: CompiledModel,
+    t1: float,
+    p: np.ndarray,
+    rtol: float,
+    atol: Any,
+    progress: Progress | None = None,
+) -> Callable[..., _Attempt]:
+    """An attempt of :func:`_pinned` with the plain-Python DOP853 of :mod:`chaplygin.numeric._pyloop`
+    on the generated ``rhs_list`` (lists of floats): SciPy's steps, statuses and messages, but
+    no array in a step and no SciPy import."""
+    from chaplygin.numeric._dop853 import tolerances
+    from chaplygin.numeric._pyloop import dop853
+
+    rhs = compiled.module.rhs_list
+    names = compiled.layout.coordinates
+    n_state = len(compiled.layout.state)
+    values = [float(x) for x in p]
+    rtol, atol_v = tolerances(rtol, atol, n_state)
+    atol_list = atol_v.tolist()
+    count = [0]
+
+    def fun(t: float, y: list[float]) -> list[float]:
+        count[0] += 1
+        try:
+            dy = rhs(t, y, values)
+        except (np.linalg.LinAlgError, ZeroDivisionError, ValueError, ArithmeticError) as exc:
+            raise _StepFailure(f"the right-hand side failed at t = {t:.6g}: {exc}", t) from None
+        if not math.isfinite(sum(dy)) and not all(map(math.isfinite, dy)):  # (a sum may overflow)
+            raise _non_finite(names, dy, t)
+        return dy
+
+    def attempt(
+        t_start: float, y_start: np.ndarray, times: np.ndarray, cap: float, first: float | None
+    ) -> _Attempt:
+        count[0] = 0
+        run = dop853(
+            fun,
+            float(t_start),
+            float(t1),
+            [float(x) for x in y_start],
+            times.tolist(),
+            rtol=rtol,
+            atol=atol_list,
+            max_step=cap,
+            first_step=first,
+            progress=progress,
+            every=PROGRESS_EVERY,
+        )
+        message = run.message
+        if message and not run.failed_inside:  # a step too small, as _scipy_attempt reports it
+            message = f"the integrator stopped at t = {run.t_last:.6g}: {message}"
+        ys = np.array(run.y, dtype=float).reshape(len(run.t), n_state)
+        return _Attempt(
+            np.array(run.t, dtype=float),
+            ys,
+            message,
+            run.failed_inside,
+            float(run.t_last),
+            np.array(run.y_last, dtype=float),
+            run.t_fail,
+            count[0],
+        )
+
+    return attempt
+
+
+def _non_finite(names: Sequence[str], dy: Any, t: float) -> _StepFailure:
+    """The failure of a derivative that is not finite: a pole where a velocity (solved from the
+    constraints) is not, else a blow-up."""
+    bad = [c + "'" for c, x in zip(names, dy[: len(names)]) if not math.isfinite(x)]
+    if bad:
+        return _StepFailure(
+            f"a pole at t = {t:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
+            f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite",
+            t,
+        )
+    return _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}", t)
+
+
 def _scipy_attempt(
     compiled: CompiledModel,
     t1: float,
@@ -1119,7 +1199,6 @@ def _scipy_attempt(
 
     rhs = compiled.rhs
     names = compiled.layout.coordinates
-    n = len(names)
 
     def fun(t: float, y: np.ndarray) -> np.ndarray:
         count[0] += 1
@@ -1128,14 +1207,7 @@ def _scipy_attempt(
         except (np.linalg.LinAlgError, ZeroDivisionError, ValueError, ArithmeticError) as exc:
             raise _StepFailure(f"the right-hand side failed at t = {t:.6g}: {exc}", t) from None
         if not np.all(np.isfinite(dy)):
-            bad = [c + "'" for c, x in zip(names, dy[:n]) if not math.isfinite(x)]
-            if bad:
-                raise _StepFailure(
-                    f"a pole at t = {t:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
-                    f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite",
-                    t,
-                )
-            raise _StepFailure(f"the solution blew up (non-finite derivative) at t = {t:.6g}", t)
+            raise _non_finite(names, dy, t)
         return dy
 
     count = [0]
