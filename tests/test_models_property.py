@@ -96,3 +96,17 @@ def test_energy_is_conserved_by_reduced_equations(spec: Spec, seed: int) -> None
     values.update({k: sp.Float(v) for k, v in got.items()})
     energy = s.kinetic_energy - s.force_function
     assert number(energy.diff(t), values) == pytest.approx(0, abs=1e-9)
+
+
+@given(spec=systems(), seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=25)
+def test_classic_mass_matrix_is_the_jacobian_of_the_equations(spec: Spec, seed: int) -> None:
+    """The classic forms' M is ∂²T̃/∂q̇_σ∂q̇_τ (models.reduced.reduced_mass_matrix, not the
+    residuals' Jacobian): SymPy's own Jacobian of the printed equations in the accelerations
+    must give the same numbers."""
+    s = spec.system
+    values = random_state(s, np.random.default_rng(seed))
+    for model in ("voronets", "chaplygin") if s.is_chaplygin else ("voronets",):
+        eqs = s.equations(model, "classic")
+        oracle = sp.Matrix([e.lhs for e in eqs.equations]).jacobian(list(eqs.unknowns))
+        assert matrix(eqs.mass_matrix, values) == pytest.approx(matrix(oracle, values), rel=1e-10, abs=1e-12)
