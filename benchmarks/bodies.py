@@ -168,7 +168,9 @@ ROUTES = {
 
 # ------------------------------------------------------------------------------ the parent
 def _env(cache: str) -> dict[str, str]:
-    return os.environ | {"CHAPLYGIN_CACHE": cache, "PYTHONPATH": str(SRC)}
+    """A child's environment: its cache, this tree, and bytecode written and reused as for a user."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    return env | {"CHAPLYGIN_CACHE": cache, "PYTHONPATH": str(SRC)}
 
 
 def spawn(route: str, data: str, cache: str) -> dict[str, Any]:
