@@ -843,6 +843,8 @@ CAUSES: list[tuple[str, str, str | tuple[str, ...]]] = [
     ("expression", "limit", "atan(1/cosh(exp(1e-300)*E*x'))"),
     ("expression", "limit", "x*exp(1e-300)*E"),
     ("expression", "ok", "atan(1/cosh(exp(0.5)*E*x')) + exp(x)*exp(0.25)"),
+    # seed 4: SymPy's atan2 of constants of undecided sign is -I*log(…); a log of its cube took 9 s
+    ("constant", "ok", "log(-pi-atan2(tan(E)*8e72*pi, -4e58)**3)"),
 ]
 
 
@@ -887,3 +889,23 @@ def test_constants_near_the_new_limits_keep_their_value(text: str, expected: sp.
 def test_a_divisor_that_cancels_at_15_digits_is_evaluated_with_more() -> None:
     # log(cosh(x)) = x²/2 - x⁴/12 + …, so 1/log(cosh(1e-17)) = 2e34 to 34 digits
     assert math.isclose(parse_constant("1/log(cosh(1e-17))"), 2e34, rel_tol=1e-12)
+
+
+_TAN_E = math.tan(math.e)  # tan(E) < 0, which SymPy's assumptions cannot tell
+
+
+@pytest.mark.parametrize(
+    ("y", "x", "expected"),
+    [
+        ("tan(E)*8", "-4", math.atan2(8 * _TAN_E, -4)),
+        ("tan(E)", "1", math.atan2(_TAN_E, 1)),
+        ("-tan(E)", "-2", math.atan2(-_TAN_E, -2)),
+        ("tan(E)", "-2", math.atan2(_TAN_E, -2)),
+        ("3*pi", "-5", math.atan2(3 * math.pi, -5)),
+        ("tan(E)", "1e-30", math.atan2(_TAN_E, 1e-30)),
+    ],
+)
+def test_atan2_of_constants_is_math_atan2(y: str, x: str, expected: float) -> None:
+    # SymPy's atan2 of constants of undecided sign goes complex (-I*log(…)); math.atan2 is the oracle
+    assert math.isclose(parse_constant(f"atan2({y}, {x})"), expected, rel_tol=1e-13)
+    assert not parse_expression(f"atan2({y}, {x})", fg.NAMES).has(sp.I)

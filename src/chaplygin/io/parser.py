@@ -886,6 +886,8 @@ class _Parser:
         elif name in ("asin", "acos", "atan"):
             self.check_reduced_angle(name, args[0].expr, tok.pos)
         result = _SYMPY_FUNCTIONS[name](*[a.expr for a in args])
+        if name == "atan2" and result.has(sp.I):
+            result = _real_atan2(args[0].expr, args[1].expr, result)
         return _Value(self.check_defined(result, tok.pos), 1, tok.pos)
 
     def check_hyperbolic(self, name: str, arg: sp.Expr, pos: int) -> None:
@@ -1068,6 +1070,25 @@ class _Parser:
         if isinstance(result, (sp.Pow, sp.exp)):  # (x^a)^b may have become x^(a*b)
             self.check_exponent_numerators(result.as_base_exp()[1], pos, "the exponent")
         return _Value(self.check_defined(result, pos), terms, base.pos)
+
+
+def _real_atan2(y: sp.Expr, x: sp.Expr, symbolic: sp.Expr) -> sp.Expr:
+    """``atan2(y, x)`` of two real constants as ``atan(y/x)`` plus the quadrant's multiple of π.
+
+    Where SymPy cannot decide the signs of ``y`` and ``x`` by its assumptions (``tan(E)``), its
+    ``atan2`` is ``-I*log((x + I*y)/sqrt(x**2 + y**2))``: complex in form, and slow to evaluate
+    (a sign test on it takes seconds).  The signs are decided numerically here, at 15 digits, as
+    every constant is bounded; ``symbolic`` (SymPy's form) is kept when one of them is 0 there.
+    """
+    if not (y.is_number and x.is_number):
+        return symbolic
+    yv, xv = y.evalf(15), x.evalf(15)
+    if not (yv.is_Float and xv.is_Float) or xv == 0 or yv == 0:
+        return symbolic
+    base = sp.atan(y / x)
+    if xv > 0:
+        return base
+    return base + (sp.pi if yv > 0 else -sp.pi)
 
 
 def _complex_terms(expr: sp.Expr, complex_atoms: frozenset[sp.Expr], cap: int) -> int:
