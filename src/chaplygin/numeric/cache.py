@@ -61,16 +61,17 @@ FORMAT = 2
 
 @functools.cache
 def _version() -> str:
-    """The library version and a digest of its source files.
+    """The library version and a digest of its source files (every layer's, not only this folder's).
 
     The digest makes an edited (e.g. editable, in-development) installation a
     different version, so no entry derived by other code is ever used.
     """
     from chaplygin._version import __version__
 
+    package = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    for path in sorted(package.rglob("*.py")):
+        h.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
     return f"{__version__}+{h.hexdigest()[:16]}"
 
 
