@@ -69,15 +69,10 @@ def definition(system: System) -> str | None:
         return memo
     import sympy as sp
 
+    given = system.__dict__.get("_given_constraints")  # (absent from a System pickled by an older version)
     forces = [system.forces.get(q, sp.S.Zero) for q in system.coordinates]
-    exprs = [
-        *system.coordinates,
-        system.kinetic_energy,
-        system.force_function,
-        *forces,
-        *system._given_constraints,
-    ]
-    nodes = _nodes(exprs)
+    exprs = [*system.coordinates, system.kinetic_energy, system.force_function, *forces, *(given or ())]
+    nodes = None if given is None else _nodes(exprs)
     digest = None
     if nodes is not None:
         head = [system.constraint_form, list(system._dep), len(system.coordinates), len(forces)]
@@ -176,17 +171,17 @@ def _constants(constants: Any) -> str | None:
     return ",".join(out)
 
 
-def _memo(system: System) -> dict[str, CompiledModel]:
-    return system.__dict__.setdefault("_stored_models", {})
+#: the models loaded or stored by this process, by key (a key names what a model is, so an
+#: equal system's is the same; kept here, not on the System, which stays picklable)
+_LOADED: dict[str, CompiledModel] = {}
 
 
-def load_model(system: System, key: str | None) -> CompiledModel | None:
-    """The compiled model stored under ``key`` (loaded once per system), or None."""
+def load_model(key: str | None) -> CompiledModel | None:
+    """The compiled model stored under ``key`` (loaded once per process), or None."""
     if key is None:
         return None
-    memo = _memo(system)
-    if key in memo:
-        return memo[key]
+    if key in _LOADED:
+        return _LOADED[key]
     value = cache.load(key)
     if not isinstance(value, dict):
         return None
@@ -195,7 +190,7 @@ def load_model(system: System, key: str | None) -> CompiledModel | None:
     except (KeyError, TypeError, ValueError, ImportError):  # an unexpected shape: derive anew
         return None
     if compiled is not None:
-        memo[key] = compiled
+        _LOADED[key] = compiled
     return compiled
 
 
@@ -220,7 +215,7 @@ def _build(value: dict[str, Any]) -> CompiledModel | None:
     return CompiledModel(layout, module, backend)
 
 
-def store_model(system: System, key: str | None, compiled: CompiledModel) -> None:
+def store_model(key: str | None, compiled: CompiledModel) -> None:
     """Store ``compiled`` under ``key`` (nothing where ``key`` is None or it is not source)."""
     if key is None or compiled.backend not in STORED:
         return
@@ -242,7 +237,7 @@ def store_model(system: System, key: str | None, compiled: CompiledModel) -> Non
             return  # numba calling a C fill by its library's path, which the cache may lose
         value["module"] = source
     cache.store(key, value)
-    _memo(system)[key] = compiled
+    _LOADED[key] = compiled
 
 
 # ------------------------------------------------------------------ other generated source

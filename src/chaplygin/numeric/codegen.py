@@ -651,10 +651,10 @@ def compile_model(
     )
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
     key = _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT)
-    found = _modelcache.load_model(system, key)
+    found = _modelcache.load_model(key)
     if found is None:
         found = _compile_model(system, model, form, backend, constants, numeric)
-        _modelcache.store_model(system, key, found)
+        _modelcache.store_model(key, found)
     return found
 
 
