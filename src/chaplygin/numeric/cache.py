@@ -15,7 +15,9 @@ not.  An entry is one JSON document in ``cache_dir()/derivations`` (see
   and the document repeats its key and version.  An entry that fails any check
   (truncated, edited, unreadable, from another version) is deleted and
   reported as a miss, so the caller derives anew and overwrites it.  Nothing
-  in an entry is ever evaluated: it is data (JSON) only.
+  in an entry is ever evaluated but generated source that the library itself
+  stored (the run plans of :mod:`chaplygin.apps._quick`, the compiled models of
+  :mod:`chaplygin.numeric._modelcache`), once these checks passed; the rest is data.
 
 SymPy expressions are stored as data too: :func:`expressions_to_data` writes
 them as a table of nodes (a symbol, a number, or one of a fixed set of
