@@ -296,6 +296,7 @@ class System:
                 )
             self._dep = tuple(dep)
             self._ind = tuple(i for i in range(self.n) if i not in dep)
+            self._given_constraints = tuple(rhs)  # as given (the key of chaplygin.numeric._modelcache)
             self._check_counts()
             ind_xd = [v.xd[i] for i in self._ind]
             rows, consts = [], []
@@ -349,6 +350,7 @@ class System:
             raise SystemDefinitionError("dependent: a coordinate is listed twice.")
         self._dep = tuple(dep)
         self._ind = tuple(i for i in range(self.n) if i not in dep)
+        self._given_constraints = tuple(exprs)  # as given (the key of chaplygin.numeric._modelcache)
         self._check_counts()
         rows, consts = [], []
         fast = self._internal_native(exprs)  # SymEngine where it can, SymPy (A built here) where not

@@ -15,7 +15,9 @@ not.  An entry is one JSON document in ``cache_dir()/derivations`` (see
   and the document repeats its key and version.  An entry that fails any check
   (truncated, edited, unreadable, from another version) is deleted and
   reported as a miss, so the caller derives anew and overwrites it.  Nothing
-  in an entry is ever evaluated: it is data (JSON) only.
+  in an entry is ever evaluated but generated source that the library itself
+  stored (the run plans of :mod:`chaplygin.apps._quick`, the compiled models of
+  :mod:`chaplygin.numeric._modelcache`), once these checks passed; the rest is data.
 
 SymPy expressions are stored as data too: :func:`expressions_to_data` writes
 them as a table of nodes (a symbol, a number, or one of a fixed set of
@@ -61,16 +63,17 @@ FORMAT = 2
 
 @functools.cache
 def _version() -> str:
-    """The library version and a digest of its source files.
+    """The library version and a digest of its source files (every layer's, not only this folder's).
 
     The digest makes an edited (e.g. editable, in-development) installation a
     different version, so no entry derived by other code is ever used.
     """
     from chaplygin._version import __version__
 
+    package = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    for path in sorted(package.rglob("*.py")):
+        h.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
     return f"{__version__}+{h.hexdigest()[:16]}"
 
 

@@ -41,7 +41,7 @@ from chaplygin.core._native import chetaev_matrices
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
-from chaplygin.numeric import _cfill
+from chaplygin.numeric import _cfill, _modelcache
 from chaplygin.numeric._ckernel import CompiledModel, Layout
 from chaplygin.numeric._layout import state_symbols
 from chaplygin.numeric._loop import _k_pivot, _k_solve
@@ -633,20 +633,39 @@ def compile_model(
         elimination whose size grows fast with the number of constraints.
         ``"auto"`` chooses ``"numeric"`` from :data:`NUMERIC_REDUCTION_FROM`
         coordinates on (never for the ``jax`` backend).  Other models ignore it.
+
+    Notes
+    -----
+    What is compiled is also stored on disk (:mod:`chaplygin.numeric._modelcache`), so another
+    process that compiles the same model of an equal system loads it and derives nothing.
     """
     if reduction not in REDUCTIONS:
         raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
-    entry = registry.get(model, form)
+    entry = registry.get(model, form)  # refuses an unknown model or form before anything is looked up
+    _check_backend(backend)
     numeric = (
         entry.reduced
         and entry.is_true_motion
         and backend != "jax"
         and (reduction == "numeric" or (reduction == "auto" and system.n >= NUMERIC_REDUCTION_FROM))
     )
+    variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
+    key = _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT)
+    found = _modelcache.load_model(key)
+    if found is None:
+        found = _compile_model(system, model, form, backend, constants, numeric)
+        _modelcache.store_model(key, found)
+    return found
+
+
+def _compile_model(
+    system: System, model: str, form: str, backend: str, constants: Any, numeric: bool
+) -> CompiledModel:
+    """:func:`compile_model` without the disk cache: derive (once per system) and generate."""
+    entry = registry.get(model, form)
     if not numeric:
         kwargs = {} if constants is None else {"constants": constants}
         return compile_equations(system.equations(model, form, **kwargs), backend)
-    _check_backend(backend)
     if entry.obstruction(system):
         system.equations(model, form)  # raises the error that explains why
     cache = system.__dict__.setdefault("_compiled_numeric", {})
