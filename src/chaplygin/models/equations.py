@@ -11,7 +11,7 @@ from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
 from chaplygin.core._fast import gradient
-from chaplygin.core._symbols import TIME, pretty
+from chaplygin.core._symbols import TIME, pretty, replace_shared
 from chaplygin.errors import ModelError
 from chaplygin.models._rational import normal_all, simplified
 from chaplygin.models.registry import MODELS
@@ -101,7 +101,7 @@ class Equations:
         return MODELS[self.model].title(self.form)
 
     def _user(self, expr: sp.Expr) -> sp.Expr:
-        return expr.xreplace(self._to_fun)
+        return replace_shared(expr, self._to_fun)
 
     @cached_property
     def equations(self) -> list[sp.Eq]:
