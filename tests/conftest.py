@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -101,3 +102,22 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if hasattr(config, "workerinput"):  # an xdist worker: under xdist only the workers collect
         rank = {name: k for k, name in enumerate(FIRST)}
         items.sort(key=lambda item: rank.get(item.path.name, len(FIRST)))
+
+
+@pytest.fixture(scope="module")
+def failing() -> Any:
+    """A system that fails in two ways (test_backends, test_pyloop): ẍ = k ẋ² blows up at
+    t = 1/(k ẋ(0)), and the mass of y drops to exactly 0 at t = a."""
+    import sympy as sp
+    from sympy.physics.mechanics import dynamicsymbols
+
+    from chaplygin import System
+    from chaplygin.core._symbols import TIME
+
+    x, y, z = dynamicsymbols("x y z")
+    a, k = sp.symbols("a k", positive=True)
+    mass_y = sp.Piecewise((1, TIME < a), (0, True))
+    T = sp.Rational(1, 2) * x.diff(TIME) ** 2 + sp.Rational(1, 2) * mass_y * y.diff(TIME) ** 2
+    return System(
+        [x, y, z], T, {z.diff(TIME): y.diff(TIME)}, forces={x: k * x.diff(TIME) ** 2}, name="failing"
+    )

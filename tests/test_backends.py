@@ -10,11 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin import ChaplyginError, System, examples
-from chaplygin.core._symbols import TIME
 from chaplygin.numeric._ckernel import Unavailable, compiler
 from chaplygin.numeric._loop import integrate_dop853, loop_model, shared
 from chaplygin.numeric.codegen import compile_equations, compile_model
@@ -50,17 +47,6 @@ def disk() -> System:
 @pytest.fixture(scope="module")
 def sphere() -> System:
     return examples.rolling_sphere()
-
-
-@pytest.fixture(scope="module")
-def failing() -> System:
-    """ẍ = k ẋ² (blows up at t = 1/(k ẋ(0))); the mass of y drops to exactly 0 at t = a."""
-    x, y, z = dynamicsymbols("x y z")
-    a, k = sp.symbols("a k", positive=True)
-    t = TIME
-    mass_y = sp.Piecewise((1, t < a), (0, True))
-    T = sp.Rational(1, 2) * x.diff(t) ** 2 + sp.Rational(1, 2) * mass_y * y.diff(t) ** 2
-    return System([x, y, z], T, {z.diff(t): y.diff(t)}, forces={x: k * x.diff(t) ** 2}, name="failing")
 
 
 FAILING_0 = {"x": 0.0, "y": 0.0, "z": 0.0, "x'": 1.0, "y'": 1.0}

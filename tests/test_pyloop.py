@@ -19,15 +19,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
-from sympy.physics.mechanics import dynamicsymbols
 
 import chaplygin
-from chaplygin import System, examples
-from chaplygin.core._symbols import TIME
+from chaplygin import examples
 from chaplygin.models import registry
 from chaplygin.numeric import codegen
 from chaplygin.numeric._dop853 import TOO_SMALL_STEP, StepFailure
@@ -151,17 +148,6 @@ def test_progress_is_told_the_accepted_steps() -> None:
 
 
 # ------------------------------------------------------------------ simulate's two routes
-@pytest.fixture(scope="module")
-def failing() -> System:
-    """ẍ = k ẋ² (blows up at t = 1/(k ẋ(0))); the mass of y drops to exactly 0 at t = a."""
-    x, y, z = dynamicsymbols("x y z")
-    a, k = sp.symbols("a k", positive=True)
-    t = TIME
-    mass_y = sp.Piecewise((1, t < a), (0, True))
-    T = sp.Rational(1, 2) * x.diff(t) ** 2 + sp.Rational(1, 2) * mass_y * y.diff(t) ** 2
-    return System([x, y, z], T, {z.diff(t): y.diff(t)}, forces={x: k * x.diff(t) ** 2}, name="failing")
-
-
 @pytest.mark.parametrize(
     ("params", "expected"),
     [
