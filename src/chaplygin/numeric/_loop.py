@@ -570,10 +570,18 @@ MODEL = (fill_c.address, DIM, N, N_OBSERVED)
 # ------------------------------------------------------------------ loading
 @functools.cache
 def shared() -> ModuleType:
-    """The shared loop module: written to the code cache and compiled by numba once per installation."""
+    """The shared loop module: written to the code cache and compiled by numba once per installation.
+
+    numba finds a compiled function by its source file's path.  Where ``NUMBA_CACHE_DIR`` names
+    numba's cache, the loop's source is kept there, beside what numba compiles from it, so that
+    processes with different chaplygin caches (``$CHAPLYGIN_CACHE``) but one numba cache share
+    the compiled loop; otherwise it is in chaplygin's code cache.
+    """
     from chaplygin.numeric.cache import import_source
 
-    return import_source(_kernel_source(), "dop853")
+    numba_cache = os.environ.get("NUMBA_CACHE_DIR")
+    folder = Path(numba_cache) / "chaplygin-loop" if numba_cache else None
+    return import_source(_kernel_source(), "dop853", folder)
 
 
 def loop_model(compiled: CompiledModel) -> CompiledModel:

@@ -325,18 +325,19 @@ _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
 
 
-def import_source(source: str, tag: str) -> ModuleType:
+def import_source(source: str, tag: str, folder: Path | None = None) -> ModuleType:
     """Write ``source`` to the code cache (atomically, keyed by its hash) and import it.
 
     Each source is imported once per process.  The module is registered in
     ``sys.modules`` under its file name: numba's cache re-imports a compiled
-    function's module by name when it loads it.
+    function's module by name when it loads it.  ``folder`` replaces the code cache's
+    folder (``cache_dir()/codegen``).
     """
     digest = hashlib.sha256(source.encode()).hexdigest()[:24]
     with _LOCK:
         if digest in _LOADED:
             return _LOADED[digest]
-        directory = cache_dir() / "codegen"
+        directory = cache_dir() / "codegen" if folder is None else folder
         directory.mkdir(parents=True, exist_ok=True)
         path = directory / f"chaplygin_{tag}_{digest}.py"
         if not path.exists() or path.read_text(encoding="utf-8") != source:
