@@ -1354,6 +1354,9 @@ def _distributed(
         for future in queue:
             run_ids, _ = pending.pop(future)
             rows: list[dict[str, Any]] = []
+            if future.status not in ("finished", "cancelled", "error"):
+                # done, then lost with a killed worker before it was read: Dask computes it again
+                distributed.wait(future)
             if future.status == "finished":
                 rows = future.result()
             elif future.status == "cancelled":
