@@ -5,6 +5,7 @@ Newton–Euler model of the rattleback written here with NumPy."""
 from __future__ import annotations
 
 import re
+from typing import Any
 
 import numpy as np
 import pytest
@@ -268,13 +269,25 @@ def _growth_newton_euler(spin: float, D: float) -> float:
     return float(np.max(np.linalg.eigvals(_jacobian(lambda s: _newton_euler(s, D), steady)).real))
 
 
+_LAMBDIFIED: dict[int, tuple[Any, Any, list[int]]] = {}  # id -> (the body, kept alive: no id reuse; …)
+
+
+def _lambdified(body) -> tuple[Any, list[int]]:
+    """M and F of the body's Chaplygin equations as one NumPy function (once per body: the
+    rattleback's take seconds to lambdify), and where ψ'', θ'', φ'' are among the unknowns."""
+    if id(body) not in _LAMBDIFIED:
+        eqs = body.equations("chaplygin")
+        psi, theta, phi = body.independent
+        state = [theta, phi, psi.diff(t), theta.diff(t), phi.diff(t)]
+        order = [list(eqs.unknowns).index(q.diff(t, 2)) for q in (psi, theta, phi)]
+        f_mf = sp.lambdify([*state, psi], [eqs.mass_matrix, eqs.forcing], "numpy")
+        _LAMBDIFIED[id(body)] = (body, f_mf, order)
+    return _LAMBDIFIED[id(body)][1:]
+
+
 def _growth_chaplygin(body, spin: float) -> float:
     """Linearise chaplygin's Chaplygin equations about θ = φ = 0, ψ̇ = spin (ψ is cyclic)."""
-    eqs = body.equations("chaplygin")
-    psi, theta, phi = body.independent
-    state = [theta, phi, psi.diff(t), theta.diff(t), phi.diff(t)]
-    order = [list(eqs.unknowns).index(q.diff(t, 2)) for q in (psi, theta, phi)]
-    f_mf = sp.lambdify([*state, psi], [eqs.mass_matrix, eqs.forcing], "numpy")
+    f_mf, order = _lambdified(body)
 
     def f(x: np.ndarray) -> np.ndarray:
         M, F = (np.asarray(v, dtype=float) for v in f_mf(*x, 0.0))
