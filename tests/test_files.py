@@ -626,3 +626,25 @@ def test_unexpected_failures_become_file_errors(monkeypatch: pytest.MonkeyPatch)
     assert type(exc) is SystemFileError and exc.source == "knife.toml"
     assert "could not read this (OverflowError: int too large to convert to float)" in exc.reason
     assert isinstance(exc.__cause__, OverflowError)
+
+
+def test_a_large_expression_prints_in_argument_order_and_reads_back(monkeypatch) -> None:
+    """Above ORDERED_NODES the printer keeps SymPy's argument order (nothing sorted): the text
+    must still be the same expression, read back by the file parser."""
+    from chaplygin.core import _symbols
+    from chaplygin.io.parser import Names, parse_expression
+
+    system = examples.rolling_disk()
+    eqs = system.equations("chetaev")
+    exprs = [e for e in [*eqs.mass_matrix, *eqs.forcing] if e.is_Add or e.is_Mul]
+    names = Names.build(
+        parameters=[str(p) for p in system.parameters],
+        coordinates=[q.func.__name__ for q in system.coordinates],
+    )
+    ordered = [_symbols.file_syntax(e) for e in exprs]
+    monkeypatch.setattr(_symbols, "ORDERED_NODES", 0)
+    unsorted = [_symbols.file_syntax(e) for e in exprs]
+    assert unsorted != ordered  # the other order was taken
+    monkeypatch.undo()
+    # read back (the parser's symbols carry their own assumptions) and printed sorted: the same text
+    assert [_symbols.file_syntax(parse_expression(text, names)) for text in unsorted] == ordered
