@@ -8,7 +8,6 @@ how long they took.
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -22,6 +21,7 @@ from chaplygin import examples
 from chaplygin.numeric._ckernel import Unavailable, compiler
 from chaplygin.numeric.simulate import SYMMETRIC_METHODS, choose_backend, simulate
 from chaplygin.numeric.symmetric import METHODS
+from subprocesses import SRC, run_json
 
 try:
     compiler()
@@ -30,7 +30,6 @@ except Unavailable:  # pragma: no cover - every CI machine has a C compiler
     HAVE_CC = False
 
 needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler")
-SRC = str(Path(chaplygin.__file__).resolve().parents[1])
 RUN = ["simulate", "example:rolling-disk", "-m", "chaplygin", "-t", "2", "-n", "21"]
 
 # a process that runs the command line, then reports what it built and imported
@@ -52,26 +51,11 @@ print(json.dumps({"stats": _ckernel.STATS, "file": model.module.__file__}))
 """
 
 
-def _python(script: str, args: list[str], cache: Path, **env: str) -> dict:
-    environ = {**os.environ, "CHAPLYGIN_CACHE": str(cache), "PYTHONPATH": SRC, **env}
-    done = subprocess.run(
-        [sys.executable, "-c", script, *args],
-        capture_output=True,
-        text=True,
-        env=environ,
-        timeout=600,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr
-    lines = done.stdout.strip().splitlines()
-    return {**json.loads(lines[-1]), "stdout": "\n".join(lines[:-1])}
-
-
 @needs_cc
 def test_second_process_loads_the_compiled_kernel(tmp_path):
-    first = _python(COMPILE, [], tmp_path)
+    first = run_json(COMPILE, [], tmp_path)
     assert first["stats"]["built"] == 2  # the DOP853 loop and this model's fill
-    second = _python(COMPILE, [], tmp_path)
+    second = run_json(COMPILE, [], tmp_path)
     assert second["stats"] == {"built": 0, "loaded": 2, "discarded": 0}
     assert second["file"] == first["file"]
 
@@ -79,23 +63,23 @@ def test_second_process_loads_the_compiled_kernel(tmp_path):
 @needs_cc
 @pytest.mark.parametrize("damage", ["library", "record"])
 def test_a_corrupt_kernel_is_discarded_and_rebuilt(tmp_path, damage):
-    first = _python(COMPILE, [], tmp_path)
+    first = run_json(COMPILE, [], tmp_path)
     library = Path(first["file"])
     target = library if damage == "library" else library.with_suffix(".json")
     target.write_bytes(target.read_bytes()[:200] + b"garbage")
-    again = _python(COMPILE, [], tmp_path)
+    again = run_json(COMPILE, [], tmp_path)
     assert again["stats"] == {"built": 1, "loaded": 1, "discarded": 1}
     assert again["file"] == first["file"]
-    assert _python(COMPILE, [], tmp_path)["stats"]["built"] == 0  # and the rebuilt one is reused
+    assert run_json(COMPILE, [], tmp_path)["stats"]["built"] == 0  # and the rebuilt one is reused
 
 
 @needs_cc
 def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
     out = [str(tmp_path / "a.npz"), str(tmp_path / "b.npz"), str(tmp_path / "c.npz")]
-    cold = _python(CLI, [*RUN, "-o", out[0]], tmp_path / "cache")
+    cold = run_json(CLI, [*RUN, "-o", out[0]], tmp_path / "cache")
     assert cold["code"] == 0 and cold["sympy"] and cold["stats"]["built"] == 2
     assert "chaplygin [auto: c]: success" in cold["stdout"]
-    warm = _python(CLI, [*RUN, "-o", out[1]], tmp_path / "cache")
+    warm = run_json(CLI, [*RUN, "-o", out[1]], tmp_path / "cache")
     assert warm["code"] == 0 and not warm["sympy"]
     assert warm["stats"] == {"built": 0, "loaded": 2, "discarded": 0}
     assert warm["stdout"].replace(out[1], out[0]) == cold["stdout"]
@@ -104,11 +88,11 @@ def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
     # another independent velocity is applied from the plan; another configuration or
     # parameter takes the full path, which checks the mass matrix there; a dependent velocity
     # that violates the constraints takes the full path, which reports it
-    faster = _python(CLI, [*RUN, "-o", out[2], "-i", "phi'=7"], tmp_path / "cache")
+    faster = run_json(CLI, [*RUN, "-o", out[2], "-i", "phi'=7"], tmp_path / "cache")
     assert faster["code"] == 0 and not faster["sympy"]
     assert abs(float(np.load(out[2])["phi'"][0]) - 7) < 1e-15
     for override in (["-i", "theta=0.2"], ["-p", "m=2"]):
-        moved = _python(CLI, [*RUN, "-o", out[2], "--force", *override], tmp_path / "cache")
+        moved = run_json(CLI, [*RUN, "-o", out[2], "--force", *override], tmp_path / "cache")
         assert moved["code"] == 0 and moved["sympy"], override
     bad = subprocess.run(
         [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "d.npz"), "-i", "x'=5"],
@@ -129,39 +113,39 @@ def test_warm_runs_of_the_python_backends_need_no_sympy(tmp_path, backend, env):
     """The numpy and numba backends have run plans too (auto without a C compiler is numpy)."""
     cache, out = tmp_path / "cache", [str(tmp_path / f"{k}.npz") for k in "abc"]
     args = [*RUN, "-b", backend]
-    cold = _python(CLI, [*args, "-o", out[0]], cache, **env)
-    warm = _python(CLI, [*args, "-o", out[1]], cache, **env)
+    cold = run_json(CLI, [*args, "-o", out[0]], cache, **env)
+    warm = run_json(CLI, [*args, "-o", out[1]], cache, **env)
     assert cold["code"] == warm["code"] == 0 and cold["sympy"] and not warm["sympy"]
     assert warm["stdout"].replace(out[1], out[0]) == cold["stdout"]
     a, b = np.load(out[0]), np.load(out[1])
     assert a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files)
     # a plan is kept per backend: the c backend's run does not answer from this one
     if HAVE_CC and backend != "auto":
-        other = _python(CLI, [*RUN, "-b", "c", "-o", out[2]], cache)
+        other = run_json(CLI, [*RUN, "-b", "c", "-o", out[2]], cache)
         assert other["code"] == 0 and other["sympy"] and "chaplygin [c]" in other["stdout"]
 
 
 @needs_cc
 def test_a_corrupt_run_plan_is_ignored_and_replaced(tmp_path):
     cache = tmp_path / "cache"
-    _python(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], cache)
+    run_json(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], cache)
     # (the run plan: the other entries are the compiled model and the pole functions)
     (plan,) = [
         p for p in (cache / "derivations").glob("*.json") if '"defaulted"' in p.read_text(encoding="utf-8")
     ]
     plan.write_text(plan.read_text(encoding="utf-8").replace('"fill"', '"fil"'), encoding="utf-8")
-    again = _python(CLI, [*RUN, "-o", str(tmp_path / "b.npz")], cache)
+    again = run_json(CLI, [*RUN, "-o", str(tmp_path / "b.npz")], cache)
     assert again["code"] == 0 and again["sympy"]  # the full path ran
-    assert not _python(CLI, [*RUN, "-o", str(tmp_path / "c.npz")], cache)["sympy"]  # and stored a good plan
+    assert not run_json(CLI, [*RUN, "-o", str(tmp_path / "c.npz")], cache)["sympy"]  # and stored a good plan
 
 
 def test_auto_says_which_backend_ran(tmp_path):
-    without = _python(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], tmp_path, CHAPLYGIN_CC="none")
+    without = run_json(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], tmp_path, CHAPLYGIN_CC="none")
     assert "chaplygin [auto: numpy]: success" in without["stdout"]
-    forced = _python(CLI, [*RUN, "-o", str(tmp_path / "b.npz"), "-b", "numpy"], tmp_path)
+    forced = run_json(CLI, [*RUN, "-o", str(tmp_path / "b.npz"), "-b", "numpy"], tmp_path)
     assert "chaplygin [numpy]: success" in forced["stdout"]
     if HAVE_CC:
-        c = _python(CLI, [*RUN, "-o", str(tmp_path / "c.npz"), "-b", "c"], tmp_path)
+        c = run_json(CLI, [*RUN, "-o", str(tmp_path / "c.npz"), "-b", "c"], tmp_path)
         assert "chaplygin [c]: success" in c["stdout"]
         a, b = np.load(tmp_path / "b.npz"), np.load(tmp_path / "c.npz")
         assert max(float(np.max(np.abs(a[k] - b[k]))) for k in a.files) < 1e-8
@@ -200,7 +184,7 @@ from chaplygin.numeric.codegen import _source
 eqs = examples.rolling_disk().equations("chaplygin")
 print(json.dumps({"digest": hashlib.sha256(_source(eqs, "numba")[1].encode()).hexdigest()}))
 """
-    digests = {_python(script, [], tmp_path, PYTHONHASHSEED=str(seed))["digest"] for seed in (1, 2, 3)}
+    digests = {run_json(script, [], tmp_path, PYTHONHASHSEED=str(seed))["digest"] for seed in (1, 2, 3)}
     assert len(digests) == 1
 
 
@@ -236,12 +220,12 @@ print(json.dumps({
 def test_the_numba_loop_is_compiled_once_for_every_model(tmp_path):
     """A second model, in a fresh process, compiles only its own fill: the loop is loaded."""
     numba_cache = {"NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # this test's own, cold
-    first = _python(LOOP, ["rolling_disk"], tmp_path / "cache", **numba_cache)
-    second = _python(LOOP, ["knife_edge"], tmp_path / "cache", **numba_cache)
+    first = run_json(LOOP, ["rolling_disk"], tmp_path / "cache", **numba_cache)
+    second = run_json(LOOP, ["knife_edge"], tmp_path / "cache", **numba_cache)
     assert first["status"] == second["status"] == "success"
     assert first["loop_misses"] > 0 and first["fill_hits"] == 0  # cold: the loop was compiled
     assert second["loop_file"] == first["loop_file"]
     assert second["loop_misses"] == 0 and second["loop_hits"] > 0  # loaded, not compiled
     assert second["fill_hits"] == 0  # a model never seen: its fill was compiled
-    again = _python(LOOP, ["knife_edge"], tmp_path / "cache", **numba_cache)
+    again = run_json(LOOP, ["knife_edge"], tmp_path / "cache", **numba_cache)
     assert again["loop_misses"] == 0 and again["fill_hits"] == 1  # and then loaded too

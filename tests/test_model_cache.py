@@ -8,10 +8,6 @@ that derives was imported at all — never at how long they took.
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,8 +17,7 @@ from sympy.physics.mechanics import dynamicsymbols
 import chaplygin
 from chaplygin import examples
 from chaplygin.numeric import _modelcache
-
-SRC = str(Path(chaplygin.__file__).resolve().parents[1])
+from subprocesses import run_json
 
 # simulates the systems named in argv (in order), each 1 s; saves each trajectory's table to
 # OUT/<name>.npy and reports whether it derived, and whether the deriving module was imported
@@ -71,19 +66,8 @@ print(json.dumps({"derived": report, "derive imported": before}))
 
 
 def _run(cache: Path, out: Path, *names: str, **env: str) -> dict:
-    environ = {k: v for k, v in os.environ.items() if k != _modelcache.ENVIRONMENT}
-    environ |= {"CHAPLYGIN_CACHE": str(cache), "PYTHONPATH": SRC, **env}
     out.mkdir(exist_ok=True)
-    done = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(out), *names],
-        capture_output=True,
-        text=True,
-        env=environ,
-        timeout=600,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return run_json(SCRIPT, [str(out), *names], cache, unset=[_modelcache.ENVIRONMENT], **env)
 
 
 def _same(a: Path, b: Path, *names: str) -> bool:

@@ -10,11 +10,7 @@ only the steppers' own arithmetic differs.
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +19,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-import chaplygin
 from chaplygin import examples
 from chaplygin.models import registry
 from chaplygin.numeric import codegen
@@ -32,6 +27,7 @@ from chaplygin.numeric._pyloop import dop853
 from chaplygin.numeric.codegen import compile_model
 from chaplygin.numeric.simulate import _list_attempt, _pinned, _scipy_attempt, simulate
 from randomsystems import Spec, systems
+from subprocesses import run_json
 
 DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
 DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
@@ -212,7 +208,6 @@ def test_unrolled_solver_is_the_list_solver(n: int) -> None:
 
 
 # ------------------------------------------------------------------ no SciPy on the numpy path
-SRC = str(Path(chaplygin.__file__).resolve().parents[1])
 CLI = """
 import json, sys
 from chaplygin.apps.cli import main
@@ -225,19 +220,10 @@ print(json.dumps({"code": code, "sympy": "sympy" in sys.modules,
 def test_numpy_backend_runs_import_no_scipy_integrate(tmp_path: Path) -> None:
     """The full path (a first run: derivation, code generation) and the warm run plan."""
     args = ["simulate", "example:rolling-disk", "-m", "chaplygin", "-t", "2", "-n", "21", "-b", "numpy"]
-    env = {**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC}
-    reports = []
-    for name in ("cold", "warm"):
-        done = subprocess.run(
-            [sys.executable, "-c", CLI, *args, "-o", str(tmp_path / f"{name}.npz")],
-            capture_output=True,
-            text=True,
-            env=env,
-            timeout=600,
-            check=False,
-        )
-        assert done.returncode == 0, done.stderr
-        reports.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    reports = [
+        run_json(CLI, [*args, "-o", str(tmp_path / f"{name}.npz")], tmp_path / "cache")
+        for name in ("cold", "warm")
+    ]
     cold, warm = reports
     assert cold["code"] == warm["code"] == 0 and cold["sympy"] and not warm["sympy"]
     assert cold["scipy"] == warm["scipy"] == []
