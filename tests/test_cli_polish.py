@@ -363,3 +363,32 @@ def test_energy_is_called_a_change_where_it_is_not_an_invariant(tmp_path: Path, 
         assert "; energy change " in result.stdout and "energy drift" not in result.stdout
     disk = run("simulate", "example:rolling-disk", "-t", "1", "-o", tmp_path / "disk.npz")
     assert "; energy drift " in disk.stdout
+
+
+def test_the_memoised_printer_prints_what_sympys_printer_prints() -> None:
+    """file_syntax prints each distinct compound subexpression once; the text must be SymPy's
+    own (the same printer without the memo), whatever the nesting of Floats and shared terms."""
+    from sympy.printing.printer import Printer
+
+    from chaplygin.core import _symbols
+
+    printer = _symbols._printer()
+
+    class Plain(printer):  # type: ignore[misc, valid-type]
+        def _print(self, expr, **kwargs):
+            return Printer._print(self, expr, **kwargs)
+
+    x, y = dynamicsymbols("x y")
+    a = sp.Symbol("a")
+    shared = sp.sin(x) * y.diff(T_) + sp.Float("0.125") * a
+    exprs = [
+        sp.Float("0.1"),  # a Float alone prints in full; nested, as short as it reads back
+        sp.Float("0.1") * x + sp.cos(sp.Float("2.5") * x) ** sp.Float("1.5"),
+        shared**2 + shared * sp.Abs(shared) - 1 / shared + sp.exp(shared) * sp.E,
+        *examples.rolling_disk().equations("chetaev").mass_matrix,
+        *examples.rolling_disk().equations("chaplygin").forcing,
+    ]
+    for expr in exprs:
+        for order in (None, "none"):
+            assert printer({"order": order}).doprint(expr) == Plain({"order": order}).doprint(expr)
+    assert _symbols.file_syntax(exprs[2]).count("abs(") == 1

@@ -174,6 +174,27 @@ def _printer() -> Any:
     from sympy.physics.vector.printing import VectorStrPrinter
 
     class FilePrinter(VectorStrPrinter):
+        """The file syntax, each distinct compound subexpression printed once.
+
+        A rolling body's equations share subexpressions used thousands of times; SymPy's
+        printer walks the tree and prints each use again (2 s for the rattleback's mass matrix
+        and forcing, 0.1 s memoised).  The text of a compound node depends only on the node:
+        its arguments are always printed nested, where a ``Float`` prints the same whatever the
+        depth (only an atom printed alone differs, and atoms are not memoised).
+        """
+
+        def __init__(self, settings: dict[str, Any]) -> None:
+            super().__init__(settings)
+            self._printed: dict[sp.Basic, str] = {}
+
+        def _print(self, expr: Any, **kwargs: Any) -> str:
+            if kwargs or not isinstance(expr, sp.Basic) or not expr.args:
+                return str(super()._print(expr, **kwargs))
+            text = self._printed.get(expr)
+            if text is None:
+                text = self._printed[expr] = str(super()._print(expr))
+            return text
+
         def _print_Abs(self, e: sp.Expr) -> str:
             return f"abs({self._print(e.args[0])})"
 
