@@ -22,7 +22,7 @@ Chaplygin's equations), ``t = 0 … 1000``, ``rtol = 1e-10``, ``atol = 1e-12``,
    symbolic work are reported separately (numba and JAX caches are warmed
    first: one untimed run each).
 3. **Ensemble throughput**: 10⁴ random initial states (``--ensemble-n``),
-   ``simulate_ensemble`` with ``backend="numba"`` (all CPU cores, and one) and
+   ``simulate_ensemble`` with ``backend="c"`` and ``"numba"`` (all CPU cores, and one) and
    ``backend="jax"`` (``vmap``; on the GPU when JAX sees one), for a horizon of
    ``--ensemble-t`` (default 10: 10⁴ members to ``t = 1000`` take about an hour
    on two cores, see the README).
@@ -336,8 +336,9 @@ def part_ensemble(disk, eqs, n: int, t_end: float, backends: list[str]) -> None:
     rows = []
     cores = default_threads()
     runs = []
-    if "numba" in backends:
-        runs += [("numba", cores), ("numba", 1)] if cores > 1 else [("numba", 1)]
+    for loop in ("c", "numba"):
+        if loop in backends:
+            runs += [(loop, cores), (loop, 1)] if cores > 1 else [(loop, 1)]
     if "jax" in backends:
         try:
             import jax
@@ -346,13 +347,11 @@ def part_ensemble(disk, eqs, n: int, t_end: float, backends: list[str]) -> None:
         except ImportError:
             say("  (jax not installed)")
     for backend, how in runs:
-        kwargs = {"threads": how} if backend == "numba" else {}
+        kwargs = {"threads": how} if backend != "jax" else {}
         simulate_ensemble(disk, "chaplygin", t_end, Y0[:8], PARAMS, backend=backend, **kwargs)  # compile
         ens = simulate_ensemble(disk, "chaplygin", t_end, Y0, PARAMS, backend=backend, **kwargs)
         label = (
-            f"{backend} ({how} thread{'s' if how != 1 else ''})"
-            if backend == "numba"
-            else f"jax vmap ({how})"
+            f"{backend} ({how} thread{'s' if how != 1 else ''})" if backend != "jax" else f"jax vmap ({how})"
         )
         rows.append(
             (
@@ -395,7 +394,7 @@ def main() -> int:
     parser.add_argument("--ensemble-n", type=int, default=10_000)
     parser.add_argument("--ensemble-t", type=float, default=10.0, help="horizon of the ensemble members")
     parser.add_argument("--only", choices=["rhs", "trajectory", "ensemble"], action="append")
-    parser.add_argument("--ensemble-backends", default="numba,jax")
+    parser.add_argument("--ensemble-backends", default="c,numba,jax")
     parser.add_argument("--quick", action="store_true", help="t = 100 and 10^3 members")
     parser.add_argument("--json", type=Path, help="also write the numbers here")
     args = parser.parse_args()

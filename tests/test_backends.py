@@ -216,11 +216,41 @@ def test_ensemble_parameter_sweep_and_a_failing_member(disk):
     np.testing.assert_allclose(ens.y[0], ens.y[2], rtol=1e-9, atol=1e-9)
 
 
+def test_the_c_ensemble_takes_the_numba_ensembles_steps(disk):
+    """backend="c" (what "auto" picks here) is a port of the numba loop: the same members give the
+    same states, samples, statuses and step counts, a failing member included, on two threads."""
+    masses = np.array([1.0, 0.0, 2.0, 1.5])
+    params = {**DISK_P, "m": masses, "A": 0.0625 * masses, "C": 0.125 * masses}
+    starts = [{**DISK_0, "theta": 0.1 * k, "phi'": 4.0 + k} for k in range(4)]
+    runs = {
+        backend: simulate_ensemble(disk, "chaplygin", 3.0, starts, params, backend=backend, keep=7, threads=2)
+        for backend in ("auto", "numba")
+    }
+    c, nb = runs["auto"], runs["numba"]
+    assert (c.backend, nb.backend) == ("c", "numba")
+    assert list(c.code) == list(nb.code) == [0, 5, 0, 0]
+    np.testing.assert_array_equal(np.isnan(c.samples), np.isnan(nb.samples))  # NaN after the failure
+    assert np.isnan(c.samples[1, 1:]).all() and not np.isnan(c.samples[[0, 2, 3]]).any()
+    for field in ("y", "t", "energy", "constraint_residual"):
+        np.testing.assert_allclose(getattr(c, field), getattr(nb, field), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(c.samples[[0, 2, 3]], nb.samples[[0, 2, 3]], rtol=1e-10, atol=1e-12)
+    assert np.abs(c.rhs_evaluations - nb.rhs_evaluations).max() <= 0.05 * nb.rhs_evaluations.max()
+    # a step budget stops every member where the numba loop stops it
+    short = {
+        b: simulate_ensemble(disk, "chaplygin", 3.0, starts[:1], DISK_P, backend=b, max_steps=5)
+        for b in ("c", "numba")
+    }
+    assert list(short["c"].code) == list(short["numba"].code) == [4]
+    assert short["c"].t[0] == short["numba"].t[0] < 3.0
+
+
 def test_ensemble_input_errors(disk):
     with pytest.raises(ChaplyginError, match="shape"):
         simulate_ensemble(disk, "chaplygin", 1.0, np.zeros((2, 3)), DISK_P)
     with pytest.raises(ChaplyginError, match="backend"):
         simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend="numpy")
+    with pytest.raises(ChaplyginError, match="method 'Radau': the c ensemble integrates with 'DOP853' only"):
+        simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend="c", method="Radau")
     with pytest.raises(ChaplyginError, match="parameters"):
         simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0, DISK_0], {**DISK_P, "m": [1.0, 2.0, 3.0]})
 

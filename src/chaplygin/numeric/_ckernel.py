@@ -518,6 +518,35 @@ int chaplygin_observe_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, i
     return 0;
 }
 
+/* members start .. stop-1 of an ensemble (chaplygin.numeric._loop._k_batch): member i starts at
+   Y0[i] with parameters P[i] and fills out[i] (n_out samples; rows after a failure are left as
+   they were), last[i], t_last[i], status[i], n_rhs[i] and obs[i] (observe at its last state) */
+int chaplygin_batch_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, int n_p, int n_react,
+                   double t0, double t1, const double *Y0, const double *P, const double *t_out,
+                   long n_out, double rtol, const double *atol, double max_step, long max_steps,
+                   double *out, double *last, double *t_last, double *obs, long *status, long *n_rhs,
+                   long start, long stop)
+{
+    work_t w;
+    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
+    double *y_fail = malloc(sizeof(double) * (n + 1));
+    if (!y_fail) { free(w.M); return -1; }
+    long info[4];
+    double dinfo[3];
+    int rc = 0;
+    for (long i = start; i < stop && rc == 0; ++i) {
+        const double *p = P + i * n_p;
+        rc = chaplygin_dop853_@DIGEST@(fill, dim, nv, n_obs, n, t0, t1, Y0 + i * n, p, t_out, n_out, rtol,
+                             atol, max_step, 0.0, max_steps, out + i * n_out * n, info, dinfo,
+                             last + i * n, y_fail);
+        status[i] = info[1]; n_rhs[i] = info[2]; t_last[i] = dinfo[0];
+        k_observe(&w, dinfo[0], last + i * n, p, n_react, obs + i * n_obs);
+    }
+    free(y_fail);
+    free(w.M);
+    return rc;
+}
+
 /* f <- rhs(t, y, p); the kernel status (0, 2, 5) */
 int chaplygin_rhs_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t, const double *y,
                  const double *p, double *f)
@@ -545,6 +574,7 @@ class _Loop(NamedTuple):
     dop853: Any
     observe: Any
     rhs: Any
+    batch: Any
 
 
 _LOOP: list[_Loop] = []
@@ -582,9 +612,12 @@ def loop() -> _Loop:
         obs.argtypes = [_PTR, _I, _I, _I, _I, _I, _LONG, _D, _D, _D, _D]
         rhs = getattr(lib, f"chaplygin_rhs_{digest}")
         rhs.argtypes = [_PTR, _I, _I, _I, _I, _DBL, _D, _D, _D]
-        for fn in (dop, obs, rhs):
+        batch = getattr(lib, f"chaplygin_batch_{digest}")
+        batch.argtypes = [_PTR, _I, _I, _I, _I, _I, _I, _DBL, _DBL, _D, _D, _D, _LONG, _DBL, _D, _DBL, _LONG]
+        batch.argtypes += [_D, _D, _D, _D, _L, _L, _LONG, _LONG]
+        for fn in (dop, obs, rhs, batch):
             fn.restype = _I
-        _LOOP.append(_Loop(dop, obs, rhs))
+        _LOOP.append(_Loop(dop, obs, rhs, batch))
     return _LOOP[0]
 
 
@@ -647,6 +680,58 @@ class CKernel:
                 *self._shape(), ys.shape[1], self.n_react, len(ts), _p(ts), _p(ys), _p(p), _p(rows)
             )
         return rows
+
+    def batch(
+        self,
+        t0: float,
+        t1: float,
+        Y0: np.ndarray,
+        P: np.ndarray,
+        t_out: np.ndarray,
+        rtol: float,
+        atol: np.ndarray,
+        max_step: float,
+        max_steps: int,
+        out: np.ndarray,
+        last: np.ndarray,
+        t_last: np.ndarray,
+        obs: np.ndarray,
+        status: np.ndarray,
+        n_rhs: np.ndarray,
+        start: int,
+        stop: int,
+    ) -> None:
+        """Members ``start … stop-1`` of an ensemble, into the given arrays (as the numba kernel
+        ``_k_batch``; C-contiguous float64 arrays, int64 ``status``/``n_rhs``, checked by the
+        caller).  The GIL is released while it runs (ctypes)."""
+        if (
+            self._loop.batch(
+                *self._shape(),
+                Y0.shape[1],
+                P.shape[1],
+                self.n_react,
+                float(t0),
+                float(t1),
+                _p(Y0),
+                _p(P),
+                _p(t_out),
+                t_out.size,
+                float(rtol),
+                _p(atol),
+                float(max_step),
+                int(max_steps),
+                _p(out),
+                _p(last),
+                _p(t_last),
+                _p(obs),
+                status.ctypes.data_as(_L),
+                n_rhs.ctypes.data_as(_L),
+                int(start),
+                int(stop),
+            )
+            != 0
+        ):
+            raise MemoryError("the C loop could not allocate its work space")
 
     def integrate(
         self,

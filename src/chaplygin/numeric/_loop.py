@@ -819,7 +819,9 @@ def ensemble_dop853(
     The members are cut into chunks that ``threads`` Python threads (default:
     every core this process may use) hand to the compiled loop, which runs
     without the GIL; small chunks keep the cores busy when members differ in
-    cost.
+    cost.  ``model`` comes from the ``numba`` backend (the shared numba loop)
+    or the ``c`` backend (the C port of it, :meth:`CKernel.batch
+    <chaplygin.numeric._ckernel.CKernel.batch>`: the same steps and codes).
 
     Returns a dict of arrays: ``t`` (the last time reached), ``y`` (the state
     there), ``observed`` (``observe`` at that point), ``code`` (kernel status,
@@ -828,7 +830,8 @@ def ensemble_dop853(
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    model = loop_model(model)
+    if model.backend != "c":
+        model = loop_model(model)
     t0, t1 = float(t_span[0]), float(t_span[1])
     Y0 = np.ascontiguousarray(Y0, dtype=float)
     P = np.ascontiguousarray(P, dtype=float)
@@ -846,12 +849,16 @@ def ensemble_dop853(
     workers = max(1, int(threads) if threads is not None else default_threads())
     chunk = max(1, min(64, n_traj // (8 * workers)))
     bounds = [(i, min(i + chunk, n_traj)) for i in range(0, n_traj, chunk)]
-    kernel, m = shared()._k_batch, model.module.MODEL
-    n_react = len(model.layout.reactions)
+    if model.backend == "c":  # the C loop's batch (chaplygin.numeric._ckernel.CKernel.batch)
+        batch = model.module.batch
+    else:
+        kernel, m, n_react = shared()._k_batch, model.module.MODEL, len(model.layout.reactions)
+
+        def batch(*args: Any) -> None:  # CKernel.batch's arguments; the kernel's insert m, n_react
+            kernel(m, *args[:9], n_react, *args[9:])
 
     def run(bound: tuple[int, int]) -> None:
-        kernel(
-            m,
+        batch(
             t0,
             t1,
             Y0,
@@ -861,15 +868,13 @@ def ensemble_dop853(
             atol_v,
             float(max_step),
             int(max_steps),
-            n_react,
             out,
             last,
             t_last,
             obs,
             code,
             n_rhs,
-            bound[0],
-            bound[1],
+            *bound,
         )
 
     if workers == 1 or len(bounds) == 1:

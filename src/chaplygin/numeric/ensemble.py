@@ -3,11 +3,17 @@
 :func:`simulate_ensemble` integrates one model from ``N`` initial states (and,
 optionally, ``N`` sets of parameters) and keeps only what is asked for: by
 default the state reached at the end, with the energy and the constraint
-residual there.  Two engines:
+residual there.  Three engines:
 
-* ``backend="numba"``: the compiled DOP853 loop of :mod:`chaplygin.numeric._loop`
-  (the same steps as SciPy's ``DOP853``), chunks of members handed by one
-  Python thread per CPU core to the compiled loop, which releases the GIL;
+* ``backend="c"`` (what ``"auto"``, the default, picks where a C compiler is
+  found): the model's ``fill`` and the DOP853 loop in C
+  (:mod:`chaplygin.numeric._ckernel`, a fraction of a second to build once per
+  model), chunks of members handed by one Python thread per CPU core to the
+  loop, which runs without the GIL;
+* ``backend="numba"``: the same loop compiled by numba
+  (:mod:`chaplygin.numeric._loop`; the same steps as SciPy's ``DOP853``, and as
+  the C port), handed out the same way; its first compile takes seconds, once
+  per installation and model;
 * ``backend="jax"``: diffrax's ``Dopri8`` under ``jax.jit(jax.vmap(...))``,
   on a GPU when JAX sees one (optional extra ``chaplygin[jax]``).
 
@@ -37,7 +43,8 @@ if TYPE_CHECKING:
 
 __all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 
-ENSEMBLE_BACKENDS = ("numba", "jax")
+#: what ``backend=`` accepts; "auto" is "c" where a C compiler is found, else "numba"
+ENSEMBLE_BACKENDS = ("auto", "c", "numba", "jax")
 
 
 @dataclass
@@ -397,7 +404,7 @@ def simulate_ensemble(
     parameters: Mapping[Any, Any] | None = None,
     *,
     form: str = "classic",
-    backend: str = "numba",
+    backend: str = "auto",
     rtol: float = 1e-10,
     atol: float = 1e-12,
     method: str = "DOP853",
@@ -426,16 +433,18 @@ def simulate_ensemble(
     parameters : mapping
         A number for every parameter, or an array of ``N`` numbers (one per
         member) for a parameter sweep.
-    backend : {"numba", "jax"}
+    backend : {"auto", "c", "numba", "jax"}
         The compiled DOP853 loop on all CPU cores (``threads`` of them if
-        given), or diffrax under ``jax.vmap`` (``method`` ``"DOP853"`` →
-        ``Dopri8``, ``"RK45"``, ``"RK23"``).
+        given), in C or compiled by numba, or diffrax under ``jax.vmap``
+        (``method`` ``"DOP853"`` → ``Dopri8``, ``"RK45"``, ``"RK23"``).
+        ``"auto"``: ``"c"`` where a C compiler is found and the model's
+        functions have C translations, else ``"numba"``.
     keep : "final", int, or sequence of times
         ``"final"``: only the end state.  An int ``k``: also ``k`` equally
         spaced samples; a sequence: samples at those times (states only, in
         :attr:`Ensemble.samples`).
     max_steps : int
-        A member that needs more steps fails (0: no limit; numba only).
+        A member that needs more steps fails (0: no limit; not for jax).
 
     Returns
     -------
@@ -448,11 +457,15 @@ def simulate_ensemble(
         raise ChaplyginError(
             f"backend {backend!r}: ensembles run on {', '.join(map(repr, ENSEMBLE_BACKENDS))}."
         )
-    if backend == "numba" and method != "DOP853":
-        raise ChaplyginError(f"method {method!r}: the numba ensemble integrates with 'DOP853' only.")
+    if backend != "jax" and method != "DOP853":
+        raise ChaplyginError(
+            f"method {method!r}: the {backend} ensemble integrates with 'DOP853' only "
+            "(backend='jax' has 'RK45' and 'RK23')."
+        )
     times = _keep_times(keep, t0, t1)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
-    compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+    compiled = _compile(system, model, form, backend, family_c, reduction)
+    backend = compiled.backend
     if backend == "numba":
         from chaplygin.numeric._loop import loop_model
 
@@ -479,7 +492,7 @@ def simulate_ensemble(
             )
 
     start = time.perf_counter()
-    if backend == "numba":
+    if backend != "jax":
         from chaplygin.numeric._loop import ensemble_dop853
 
         res = ensemble_dop853(
@@ -533,6 +546,19 @@ def simulate_ensemble(
         wall_time=wall,
         parameters=param_columns,
     )
+
+
+def _compile(
+    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
+) -> CompiledModel:
+    """The compiled model for ``backend``; ``"auto"``: the C backend, else numba."""
+    if backend != "auto":
+        return compile_model(system, model, form, backend, constants=constants, reduction=reduction)
+    from chaplygin.numeric.codegen import BackendUnavailable
+
+    with suppress(BackendUnavailable):
+        return compile_model(system, model, form, "c", constants=constants, reduction=reduction)
+    return compile_model(system, model, form, "numba", constants=constants, reduction=reduction)
 
 
 def _keep_times(keep: Any, t0: float, t1: float) -> np.ndarray | None:
