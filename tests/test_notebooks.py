@@ -9,8 +9,6 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-import nbclient
-import nbformat
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -24,6 +22,8 @@ def test_the_tutorials_are_there() -> None:
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_stored_without_outputs(path: Path) -> None:
+    import nbformat  # in the tests, not at collection: nbformat and nbclient take seconds to import
+
     nb = nbformat.read(path, as_version=4)
     nbformat.validate(nb)
     dirty = [
@@ -38,6 +38,9 @@ def test_stored_without_outputs(path: Path) -> None:
 def test_notebook_runs(path: Path, tmp_path: Path) -> None:
     work = tmp_path / "notebooks"
     shutil.copytree(FOLDER, work)
+    import nbclient
+    import nbformat
+
     nb = nbformat.read(work / path.name, as_version=4)
     # the "python3" kernel: ipykernel's, started with sys.executable (jupyter_client puts this
     # interpreter in place of the spec's "python"), so the notebooks see this venv's chaplygin
