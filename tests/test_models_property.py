@@ -110,3 +110,14 @@ def test_classic_mass_matrix_is_the_jacobian_of_the_equations(spec: Spec, seed: 
         eqs = s.equations(model, "classic")
         oracle = sp.Matrix([e.lhs for e in eqs.equations]).jacobian(list(eqs.unknowns))
         assert matrix(eqs.mass_matrix, values) == pytest.approx(matrix(oracle, values), rel=1e-10, abs=1e-12)
+
+
+@given(spec=systems(), seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=4)
+def test_the_float_evaluator_is_sympys_evalf(spec: Spec, seed: int) -> None:
+    """The oracle of these tests (randomsystems.number: floats, memoised on the expression's
+    tree) gives SymPy's own numbers (xreplace + evalf) on the derived equations."""
+    values = random_state(spec.system, np.random.default_rng(seed))
+    eqs = spec.system.equations("chetaev")
+    for e in [*eqs.mass_matrix, *eqs.forcing]:
+        assert number(e, values) == pytest.approx(float(sp.N(e.xreplace(values))), rel=1e-12, abs=1e-12)
