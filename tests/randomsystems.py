@@ -1,12 +1,14 @@
 """Hypothesis strategies for random mechanical systems, and a plain numeric evaluator.
 
-The evaluator substitutes numbers into the *public* dynamicsymbol expressions
-(``q``, ``q'``, ``q''``) with ``xreplace`` + ``evalf``: it shares no code with
-chaplygin's compiled sampling, so tests built on it are independent oracles.
+The evaluator puts numbers for the *public* dynamicsymbol expressions (``q``, ``q'``,
+``q''``) and computes the expression with Python floats, one pass over its tree: it shares no
+code with chaplygin's compiled sampling, so tests built on it are independent oracles.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,8 +78,10 @@ def systems(
     # T = ½ q̇ᵀ (D + L Lᵀ) q̇ (+ b·q̇): positive definite for every configuration.
     L = sp.Matrix(n, n, lambda i, j: _expr(draw, coeff_vars, 1) if draw(st.booleans()) else 0)
     D = sp.diag(*[2 + sp.sin(draw(st.sampled_from(coeff_vars))) for _ in range(n)])
-    qd = sp.Matrix([qi.diff(t) for qi in q])
-    T = (qd.T * (D + L * L.T) * qd)[0] / 2
+    qd = [qi.diff(t) for qi in q]
+    K = D + L * L.T
+    # qd.T * K * qd written out: the same expression, without SymPy's matrix product (30 ms a system)
+    T = sp.Add(*[sp.Add(*[qd[i] * K[i, j] for i in range(n)]) * qd[j] for j in range(n)]) / 2
     if gyroscopic or (gyroscopic is None and draw(st.booleans())):
         T += sum(_expr(draw, coeff_vars, 1) * v for v in qd)
 
@@ -126,10 +130,57 @@ def random_state(system: System, rng: np.random.Generator) -> dict[sp.Expr, sp.E
     return values
 
 
+_FLOAT_FUNCTIONS = {
+    sp.sin: math.sin,
+    sp.cos: math.cos,
+    sp.tan: math.tan,
+    sp.exp: math.exp,
+    sp.log: math.log,
+    sp.sinh: math.sinh,
+    sp.cosh: math.cosh,
+    sp.tanh: math.tanh,
+    sp.atan: math.atan,
+}
+
+
+def numbers(exprs: Iterable[sp.Expr], values: dict[sp.Expr, sp.Expr]) -> list[float]:
+    """Each of ``exprs`` at ``values``, in floats.
+
+    A node that is a key of ``values`` takes its value (so ``q'(t)`` is matched before the
+    ``q(t)`` inside it); numbers, sums, products, powers and the functions above are computed
+    with Python floats, anything else by SymPy (``xreplace`` + ``evalf``). A subexpression met
+    again, in one expression or another, is looked up, not recomputed: the derived equations
+    are trees with many repeated subtrees, where ``xreplace`` + ``evalf`` takes seconds.
+    """
+    memo: dict[sp.Expr, float] = {key: float(value) for key, value in values.items()}
+
+    def value(e: sp.Expr) -> float:
+        if e in memo:
+            return memo[e]
+        if e.is_Number:
+            out = float(e)
+        elif e.is_Add:
+            out = math.fsum(value(a) for a in e.args)
+        elif e.is_Mul:
+            out = math.prod(value(a) for a in e.args)
+        elif e.is_Pow:
+            out = value(e.base) ** value(e.exp)
+        elif e.func in _FLOAT_FUNCTIONS:
+            out = _FLOAT_FUNCTIONS[e.func](*(value(a) for a in e.args))
+        else:
+            out = float(sp.N(e.xreplace(values)))
+        if not isinstance(out, float):  # a complex power
+            raise TypeError(f"{e} is not real at these values")
+        memo[e] = out
+        return out
+
+    return [value(sp.sympify(e)) for e in exprs]
+
+
 def number(expr: sp.Expr, values: dict[sp.Expr, sp.Expr]) -> float:
-    """``expr`` at ``values`` (``xreplace`` matches ``q'(t)`` before the ``q(t)`` inside it)."""
-    return float(sp.N(expr.xreplace(values)))
+    """``expr`` at ``values`` (see :func:`numbers`)."""
+    return numbers([expr], values)[0]
 
 
 def matrix(m: sp.Matrix, values: dict[sp.Expr, sp.Expr]) -> np.ndarray:
-    return np.array([[number(e, values) for e in row] for row in m.tolist()], dtype=float)
+    return np.array(numbers(m, values), dtype=float).reshape(m.shape)

@@ -23,6 +23,7 @@ import chaplygin
 from chaplygin import examples, simulate
 from chaplygin.apps.cli import app
 from chaplygin.bodies import Disk, Ellipsoid, Sphere, Torus, initial_state, motion, rolling_body
+from randomsystems import number
 
 runner = CliRunner()
 BODIES = ["lindelof-problem", "routh-sphere", "rattleback"]
@@ -85,15 +86,13 @@ def rot(axis: str, angle: float) -> np.ndarray:
 
 
 def _at_random_states(expr: sp.Expr, system: chaplygin.System, rng: np.random.Generator) -> np.ndarray:
-    """``expr`` at random values of the coordinates and velocities (no parameters left)."""
-    t = sp.Symbol("t")
+    """``expr`` at random values of the coordinates and velocities (no parameters left), in
+    floats (randomsystems.numbers: SymPy's subs + lambdify of the rattleback's T took a second)."""
     qs = list(system.coordinates)
-    qd = [q.diff() for q in qs]
-    names = sp.symbols(f"q0:{len(qs)} v0:{len(qs)}")
-    plain = expr.subs(dict(zip(qd, names[len(qs) :]))).subs(dict(zip(qs, names[: len(qs)])))
-    assert not plain.free_symbols - set(names) - {t}, plain.free_symbols
-    f = sp.lambdify(names, plain, "numpy")
-    return np.array([complex(f(*rng.uniform(-0.7, 0.7, size=len(names)))) for _ in range(5)])
+    state = qs + [q.diff() for q in qs]
+    return np.array(
+        [number(expr, dict(zip(state, rng.uniform(-0.7, 0.7, size=len(state))))) for _ in range(5)]
+    )
 
 
 # ---------------------------------------------------------------- identity
