@@ -58,6 +58,19 @@ def assert_same(c, py, rng: np.random.Generator, states: int = 4) -> None:
         np.testing.assert_allclose(c.observe(t, y, p), py.observe(t, y, p), rtol=1e-11, atol=1e-12)
 
 
+def assert_same_fill(c, py, rng: np.random.Generator, states: int = 2) -> None:
+    """What ``fill`` writes (``M``, ``F``, the velocities, the observables: entry by entry, before
+    any solve), through ``evaluate``: numba compiles only it and ``fill``, not ``rhs`` and
+    ``observe``, whose code around ``fill`` is the same for every model (:func:`assert_same`)."""
+    assert c.layout == py.layout
+    for _ in range(states):
+        y = rng.uniform(-0.7, 0.7, len(c.layout.state))
+        p = rng.uniform(0.5, 2.0, len(c.layout.parameters))
+        t = float(rng.uniform(0, 1))
+        for ours, theirs in zip(c.module.evaluate(t, y, p), py.module.evaluate(t, y, p), strict=True):
+            np.testing.assert_allclose(ours, theirs, rtol=1e-11, atol=1e-12)
+
+
 @needs_cc
 @pytest.mark.parametrize("model", ["chetaev", "chaplygin", "vakonomic"])
 def test_c_fill_equals_python_fill_on_the_rolling_disk(model: str, monkeypatch) -> None:
@@ -69,24 +82,13 @@ def test_c_fill_equals_python_fill_on_the_rolling_disk(model: str, monkeypatch) 
 @given(spec=systems(), seed=st.integers(0, 2**32 - 1))
 @settings(max_examples=4)
 def test_c_fill_equals_python_fill_on_random_systems(spec: Spec, seed: int) -> None:
-    """Affine and time-dependent constraints, both reductions (the numeric one solves in C).
-
-    What ``fill`` writes (``M``, ``F``, the velocities and the observables, entry by entry) is
-    compared through ``evaluate``: numba compiles only it and ``fill`` per system, not ``rhs`` and
-    ``observe``, whose code around ``fill`` is the same for every model (the rolling disk's test
-    above runs them)."""
+    """Affine and time-dependent constraints, both reductions (the numeric one solves in C);
+    the rolling disk's test above runs rhs and observe on a C fill."""
     mp = pytest.MonkeyPatch()
     try:
         for model, reduction in (("chetaev", "auto"), ("voronets", "numeric")):
             c, py = compile_both(lambda: spec.system, model, mp, reduction=reduction)
-            assert c.layout == py.layout
-            rng = np.random.default_rng(seed)
-            for _ in range(2):
-                y = rng.uniform(-0.7, 0.7, len(c.layout.state))
-                p = rng.uniform(0.5, 2.0, len(c.layout.parameters))
-                t = float(rng.uniform(0, 1))
-                for ours, theirs in zip(c.module.evaluate(t, y, p), py.module.evaluate(t, y, p), strict=True):
-                    np.testing.assert_allclose(ours, theirs, rtol=1e-11, atol=1e-12)
+            assert_same_fill(c, py, np.random.default_rng(seed))
             # each compile caches on the system's equations: start the next one afresh
             spec.system.equations("chetaev").__dict__.pop("_compiled", None)
     finally:
@@ -143,7 +145,7 @@ def test_flags_in_chaplygin_cc_override_the_defaults(monkeypatch) -> None:
     monkeypatch.setenv("CHAPLYGIN_CC", f"{_cfill.compiler()[0]} -O0")
     c, py = compile_both(examples.knife_edge, "chaplygin", monkeypatch)
     assert "-O0" in " ".join(_cfill.compiler())
-    assert_same(c, py, np.random.default_rng(5))
+    assert_same_fill(c, py, np.random.default_rng(5), states=4)
 
 
 def test_no_compiler_warns_and_numba_compiles_the_python_fill(always_c, monkeypatch) -> None:
