@@ -229,7 +229,9 @@ def test_c_printer(extra: list) -> None:
 
 def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     """|x| in T and V (SymPy's path: SymEngine cannot differentiate Abs): d|x|/dx = sign(x), not
-    unevaluated derivatives of re(x) and im(x), so every compiled path agrees."""
+    unevaluated derivatives of re(x) and im(x), so every compiled path agrees: both reductions in
+    plain Python, and each through another printer (numba's, and C's, which the numeric reduction
+    is cheap to build with: numba would spend seconds compiling its ``np.linalg.solve``)."""
     from chaplygin.numeric.codegen import compile_model
 
     x, y, th = dynamicsymbols("x y theta")
@@ -250,8 +252,12 @@ def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     state, p = np.array([0.3, 0.2, -0.5, 1.0, 0.4]), np.array([1.3, 1.1, 0.7])
     rhs = [
         compile_model(system, "voronets", backend=backend, reduction=reduction).rhs(0.0, state, p)
-        for backend in ("numpy", "numba")
-        for reduction in ("numeric", "symbolic")
+        for backend, reduction in (
+            ("numpy", "numeric"),
+            ("numpy", "symbolic"),
+            ("numba", "symbolic"),
+            ("c", "numeric"),
+        )
     ]
     assert np.all(np.isfinite(rhs))
     np.testing.assert_allclose(rhs, [rhs[0]] * 4, rtol=1e-12)

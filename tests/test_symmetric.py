@@ -18,6 +18,7 @@ from typer.testing import CliRunner
 
 from chaplygin import ChaplyginError, examples, simulate
 from chaplygin.apps.cli import app
+from chaplygin.numeric import symmetric
 from chaplygin.numeric.codegen import compile_equations, parameter_vector
 from chaplygin.numeric.simulate import METHODS
 from chaplygin.numeric.symmetric import METHODS as SYMMETRIC
@@ -151,6 +152,18 @@ def test_reversible_and_numpy_equals_numba(disk) -> None:
         assert np.max(np.abs(back.y[-1] - expected)) < 1e-12
         runs[backend] = forth.y[-1]
     assert np.max(np.abs(runs["numpy"] - runs["numba"])) < 1e-12
+
+
+def test_the_compiled_kernels_are_shared_by_every_model(disk, oscillator) -> None:
+    """numba compiles the stepping kernels once, not once per model (they call ``fill`` by address)."""
+    for system, start, params in ((disk, DISK.initial, DISK.parameters), (oscillator, OSC_START, OSC_PARAMS)):
+        tr = simulate(
+            system, "voronets", 0.2, start, params, method="gauss4", step=0.1, samples=2, backend="numba"
+        )
+        assert tr.success, tr.message
+    kernel = symmetric.shared()._gl_integrate
+    assert len(kernel.signatures) == 1, kernel.signatures
+    assert sum(kernel.stats.cache_misses.values()) + sum(kernel.stats.cache_hits.values()) == 1
 
 
 # ---------------------------------------------------------------- what a run returns

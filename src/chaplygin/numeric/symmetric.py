@@ -67,14 +67,14 @@ interpolations, and keep its order.
 
 How it runs
 -----------
-With ``backend="numba"`` the stepping loop is compiled inside the model's
-generated module: its source (with the right-hand-side kernels ``_k_call``,
-``_k_fill``, ``_k_eval`` of :mod:`chaplygin.numeric._loop`) is appended to the
-module's text, where ``fill`` is a global, and the file — in the code cache,
-keyed by a hash of its text — is compiled and cached by numba; the first run
-of a model compiles for a few seconds, later processes load it.  (Unlike the
-DOP853 loop, which is compiled once per installation and calls ``fill`` by
-address.)  With
+With ``backend="numba"`` the stepping loop is compiled once per installation,
+not once per model, like the DOP853 loop (:mod:`chaplygin.numeric._loop`): its
+kernels take the model tuple ``m = (address, DIM, N, N_OBSERVED)`` of
+:func:`chaplygin.numeric._loop.loop_model` and call the model's ``fill``
+through its address; their source, which names no model, is written once to
+the code cache (:func:`shared`) and cached there by numba.  The first run of
+the installation compiles them (some seconds); a new model then costs only its
+``fill`` and the small C wrapper the DOP853 loop uses too.  With
 ``backend="numpy"`` the very same loop runs as plain Python over the generated
 plain-Python ``fill`` (milliseconds per step: for short runs).
 Failures — the Newton iteration not converging, a singular iteration or mass
@@ -84,16 +84,19 @@ with ``status == "failed"``, a message, and the samples up to that point.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
+import os
 from pathlib import Path
+from types import ModuleType
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
-from chaplygin.numeric._loop import EPS, _k_call, _k_eval, _k_fill, _message
+from chaplygin.numeric._loop import EPS, _k_call, _k_eval, _k_fill, _k_pivot, _k_solve, _message, loop_model
 from chaplygin.numeric._loop import STATUS as _LOOP_STATUS
 from chaplygin.numeric.cache import import_source
 from chaplygin.numeric.codegen import CompiledModel
@@ -109,6 +112,7 @@ __all__ = [
     "extrapolation",
     "grid",
     "integrate_symmetric",
+    "shared",
     "stepping_module",
     "tableau",
 ]
@@ -170,22 +174,19 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------ kernels
-# Plain Python whose source is appended to a model's generated module (see
-# ``_kernel_source``), where ``fill``, ``DIM``, ``N`` and ``N_OBSERVED`` are
-# globals; compiled there by numba for the numba backend, run as Python for the
-# numpy backend.  They are never called from here.
-fill: Any = None  # placeholders
-_k_pivot: Any = None  #: the generated module defines them
-DIM = N = N_OBSERVED = 0
-_MODEL = 0
+# Plain Python whose source is compiled by numba in the shared module (see ``shared``), where
+# ``_k_eval`` calls a model's ``fill`` through its address in the model tuple ``m`` (the
+# DOP853 loop's kernels, chaplygin.numeric._loop), or appended to a model's generated numpy
+# module (``stepping_module``) and run as Python, where ``fill`` is a global and ``m`` gives
+# only the sizes.  They are never called from here.
 _GL_EPS = EPS
 
 
-def _gl_lu(G, piv):  # pragma: no cover - runs in the generated module
+def _gl_lu(G, piv):  # pragma: no cover - compiled, or run as Python
     """LU factorisation of ``G`` with partial pivoting, in place; 8 if singular."""
     n = G.shape[0]
     for c in range(n):
-        k, big = _k_pivot(G, c)  # defined in the generated module (chaplygin.numeric.codegen)
+        k, big = _k_pivot(G, c)  # defined where the kernels run
         piv[c] = k
         if big == 0.0:
             return 8
@@ -202,7 +203,7 @@ def _gl_lu(G, piv):  # pragma: no cover - runs in the generated module
     return 0
 
 
-def _gl_lu_solve(G, piv, x):  # pragma: no cover - runs in the generated module
+def _gl_lu_solve(G, piv, x):  # pragma: no cover - compiled, or run as Python
     """``x ← G⁻¹ x`` with the factors of :func:`_gl_lu`, in place."""
     n = G.shape[0]
     for c in range(n):
@@ -223,7 +224,7 @@ def _gl_lu_solve(G, piv, x):  # pragma: no cover - runs in the generated module
         x[r] = acc / G[r, r]
 
 
-def _gl_newton_matrix(t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stats):  # pragma: no cover
+def _gl_newton_matrix(m, t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stats):  # pragma: no cover
     """``G ← LU(I − h A ⊗ J)`` with ``J = ∂f/∂y`` at ``(t, y)`` by forward differences.
 
     Also leaves ``f0 = f(t, y)``.  Returns 0, or a status code (2, 3, 5, 8);
@@ -233,14 +234,14 @@ def _gl_newton_matrix(t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stat
     s = A.shape[0]
     for i in range(n):
         Ys[i] = y[i]
-    code = _k_eval(_MODEL, t, Ys, p, f0, wM, wb, wV, wO)
+    code = _k_eval(m, t, Ys, p, f0, wM, wb, wV, wO)
     stats[0] += 1
     if code != 0:
         return code
     for j in range(n):
         Ys[j] = y[j] + math.sqrt(_GL_EPS * max(1e-5, abs(y[j])))
         delta = Ys[j] - y[j]
-        code = _k_eval(_MODEL, t, Ys, p, f1, wM, wb, wV, wO)
+        code = _k_eval(m, t, Ys, p, f1, wM, wb, wV, wO)
         stats[0] += 1
         if code != 0:
             return code
@@ -256,7 +257,7 @@ def _gl_newton_matrix(t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stat
     return _gl_lu(G, piv)
 
 
-def _gl_stages(t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, stats):  # pragma: no cover
+def _gl_stages(m, t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, stats):  # pragma: no cover
     """Simplified Newton for the stage increments ``Z`` (from the guess in ``Z``), to round-off.
 
     Stops when the scaled increment is below the floating-point spacing, or
@@ -275,7 +276,7 @@ def _gl_stages(t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, 
         for a in range(s):
             for i in range(n):
                 Ys[i] = y[i] + Z[a, i]
-            code = _k_eval(_MODEL, t + c[a] * h, Ys, p, F[a], wM, wb, wV, wO)
+            code = _k_eval(m, t + c[a] * h, Ys, p, F[a], wM, wb, wV, wO)
             stats[0] += 1
             if code != 0:
                 return code, iterations, t + c[a] * h
@@ -299,7 +300,7 @@ def _gl_stages(t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, 
     return 7, iterations, t
 
 
-def _gl_integrate(t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats):  # pragma: no cover
+def _gl_integrate(m, t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats):  # pragma: no cover
     """Gauss–Legendre steps of size ``h`` from ``(t0, y0)``; ``out[k] ← y(t0 + k·per_sample·h)``.
 
     The first Newton guess continues the previous step's collocation
@@ -315,10 +316,10 @@ def _gl_integrate(t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats): 
     n = y0.size
     s = bw.size
     ns = n * s
-    wM = np.empty((DIM, DIM))
-    wb = np.empty(DIM)
-    wV = np.empty(N)
-    wO = np.empty(N_OBSERVED)
+    wM = np.empty((m[1], m[1]))
+    wb = np.empty(m[1])
+    wV = np.empty(m[2])
+    wO = np.empty(m[3])
     y = y0.copy()
     comp = np.zeros(n)
     f0 = np.empty(n)
@@ -342,7 +343,7 @@ def _gl_integrate(t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats): 
             t = t0 + step * h
             while True:
                 if refresh:
-                    code = _gl_newton_matrix(t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stats)
+                    code = _gl_newton_matrix(m, t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stats)
                     stats[3] += 1
                     if code != 0:
                         return k, code, t, Ys
@@ -358,7 +359,7 @@ def _gl_integrate(t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats): 
                                 acc += E[a, e] * Zold[e, i]
                             Z[a, i] = acc
                 code, iterations, t_fail = _gl_stages(
-                    t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, stats
+                    m, t, y, p, h, A, c, G, piv, Z, F, Ys, r, max_iter, wM, wb, wV, wO, stats
                 )
                 stats[1] += iterations
                 stats[2] = max(stats[2], iterations)
@@ -407,31 +408,52 @@ def extrapolation(c: np.ndarray) -> np.ndarray:
     return np.array([[basis(j + 1, 1.0 + c[i]) - basis(j + 1, 1.0) for j in range(s)] for i in range(s)])
 
 
-_KERNELS = (_k_call, _k_fill, _k_eval, _gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
+_GL_KERNELS = (_gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
 
 
-def _kernel_source(jit: bool) -> str:
-    """The kernels as source to append to a generated module (``@_jit`` for numba)."""
-    parts = ["", "# " + "-" * 66 + " Gauss-Legendre (chaplygin.numeric.symmetric)", f"_GL_EPS = {EPS!r}"]
-    parts.append("_MODEL = 0  # the model argument of _k_eval, unused here: fill is this module's own")
-    for fn in _KERNELS:
-        parts += ["", "", *(["@_jit"] if jit else []), inspect.getsource(fn).rstrip()]
-    return "\n".join(parts) + "\n"
+def _source(kernels: tuple[Any, ...], decorator: str | None) -> list[str]:
+    """The kernels' source lines, each function under ``decorator``."""
+    head = [decorator] if decorator else []
+    return [line for fn in kernels for line in ("", "", *head, inspect.getsource(fn).rstrip())]
+
+
+@functools.cache
+def shared() -> ModuleType:
+    """The compiled stepping kernels, shared by every model: compiled by numba once per installation.
+
+    Their source imports the DOP853 loop's address call (``_k_call``) and holds its
+    right-hand-side kernels; like the DOP853 loop's (:func:`chaplygin.numeric._loop.shared`),
+    its first line names the library version and the digest of its source files, and where
+    ``NUMBA_CACHE_DIR`` names numba's cache, it is kept there.
+    """
+    from chaplygin.numeric.cache import _version
+
+    parts = [
+        f'"""The Gauss-Legendre kernels of chaplygin {_version()}, shared by every model '
+        '(chaplygin.numeric.symmetric)."""',
+        "",
+        "import math",
+        "",
+        "import numpy as np",
+        "from numba import njit",
+        "",
+        "from chaplygin.numeric._fnptr import call_fill as _k_call",
+        "",
+        "_jit = njit(cache=True, fastmath=False)",
+        f"_GL_EPS = {EPS!r}",
+        *_source((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS), "@_jit"),
+    ]
+    numba_cache = os.environ.get("NUMBA_CACHE_DIR")
+    folder = Path(numba_cache) / "chaplygin-loop" if numba_cache else None
+    return import_source("\n".join(parts) + "\n", "gauss", folder)
 
 
 def stepping_module(compiled: CompiledModel) -> Any:
-    """The generated module of ``compiled`` with the stepping kernels appended (imported once).
-
-    ``compiled`` must come from the ``numpy`` or ``numba`` backend; with numba
-    the kernels are compiled (and cached) with the model's functions.
-    """
-    if compiled.backend not in ("numpy", "numba"):
-        raise ChaplyginError(
-            f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
-            f"Python), not {compiled.backend!r}."
-        )
+    """The generated module of a ``numpy`` model with the stepping kernels appended, as Python
+    (imported once): ``fill`` is its own, so ``_k_call`` ignores the model tuple."""
     source = Path(compiled.module.__file__).read_text(encoding="utf-8")
-    return import_source(source + _kernel_source(compiled.backend == "numba"), f"gauss_{compiled.backend}")
+    parts = [f"_GL_EPS = {EPS!r}", *_source((_k_call, _k_fill, _k_eval, *_GL_KERNELS), None)]
+    return import_source(source + "\n".join(["", *parts]) + "\n", "gauss_numpy")
 
 
 # ------------------------------------------------------------------ drivers
@@ -511,17 +533,28 @@ def integrate_symmetric(
         Output times and states (fewer rows than ``samples`` after a failure),
         status, message and counts.
     """
+    if compiled.backend not in ("numpy", "numba"):
+        raise ChaplyginError(
+            f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
+            f"Python), not {compiled.backend!r}."
+        )
     A, b, c = tableau(method)
     t0, t1 = float(t_span[0]), float(t_span[1])
     h, per_sample = grid((t0, t1), samples, step)
-    module = stepping_module(compiled)
+    if compiled.backend == "numba":
+        module = loop_model(compiled).module
+        kernels: Any = shared()
+        m = module.MODEL
+    else:
+        module = kernels = stepping_module(compiled)
+        m = (0, module.DIM, module.N, module.N_OBSERVED)
     y0 = np.ascontiguousarray(y0, dtype=float)
     p = np.ascontiguousarray(p, dtype=float)
     out = np.empty((samples, y0.size))
     stats = np.zeros(5, dtype=np.int64)
     with np.errstate(all="ignore"):  # plain Python (numpy backend): a blow-up is a status
-        filled, code, t_fail, y_fail = module._gl_integrate(
-            t0, h, per_sample, y0, p, A, b, c, extrapolation(c), int(max_iterations), out, stats
+        filled, code, t_fail, y_fail = kernels._gl_integrate(
+            m, t0, h, per_sample, y0, p, A, b, c, extrapolation(c), int(max_iterations), out, stats
         )
     times = np.linspace(t0, t1, samples)[:filled]
     n_steps = int(stats[4])
