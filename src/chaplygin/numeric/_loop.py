@@ -78,7 +78,16 @@ from chaplygin.numeric import _dop853
 if TYPE_CHECKING:  # the C loop reads the tableau here: no SymPy, no compiled model needed
     from chaplygin.numeric._ckernel import CompiledModel
 
-__all__ = ["STATUS", "LoopResult", "default_threads", "ensemble_dop853", "integrate_dop853", "loop_model"]
+__all__ = [
+    "STATUS",
+    "LoopResult",
+    "default_threads",
+    "ensemble_dop853",
+    "import_shared",
+    "integrate_dop853",
+    "loop_model",
+    "shared_source",
+]
 
 EPS = _dop853.EPS
 
@@ -498,27 +507,41 @@ def _tuple_source(name: str, value: object) -> str:
     return f"{name} = np.array({value!r})"
 
 
-def _kernel_source() -> str:
-    """The shared loop module: the tableau and the kernels, calling ``fill`` by address.
+def shared_source(title: str, lines: list[str]) -> str:
+    """The source of a kernel module shared by every model: numba's ``_jit``, ``_k_call``, then ``lines``.
 
-    Its first line names the library version and the digest of
+    Its docstring names ``title`` and the library version with the digest of
     :mod:`chaplygin.numeric`'s source files (which include
     :mod:`chaplygin.numeric._fnptr`), so another installation or an edited
     one writes another file, compiled anew.
     """
     from chaplygin.numeric.cache import _version
 
+    head = [f'"""{title} of chaplygin {_version()}, shared by every model."""', "", "import math", ""]
+    head += ["import numpy as np", "from numba import njit", ""]
+    head += ["from chaplygin.numeric._fnptr import call_fill as _k_call", ""]
+    head += ["_jit = njit(cache=True, fastmath=False)"]
+    return "\n".join([*head, *lines]) + "\n"
+
+
+def import_shared(source: str, stem: str) -> ModuleType:
+    """A :func:`shared_source` module, imported from the code cache (compiled by numba on first use).
+
+    numba finds a compiled function by its source file's path.  Where ``NUMBA_CACHE_DIR`` names
+    numba's cache, the source is kept there, beside what numba compiles from it, so that
+    processes with different chaplygin caches (``$CHAPLYGIN_CACHE``) but one numba cache share
+    the compiled kernels; otherwise it is in chaplygin's code cache.
+    """
+    from chaplygin.numeric.cache import import_source
+
+    numba_cache = os.environ.get("NUMBA_CACHE_DIR")
+    folder = Path(numba_cache) / "chaplygin-loop" if numba_cache else None
+    return import_source(source, stem, folder)
+
+
+def _kernel_source() -> str:
+    """The shared loop module: the tableau and the kernels, calling ``fill`` by address."""
     parts = [
-        f'"""The DOP853 loop of chaplygin {_version()}, shared by every model (chaplygin.numeric._loop)."""',
-        "",
-        "import math",
-        "",
-        "import numpy as np",
-        "from numba import njit",
-        "",
-        "from chaplygin.numeric._fnptr import call_fill as _k_call",
-        "",
-        "_jit = njit(cache=True, fastmath=False)",
         "_nogil_jit = njit(cache=True, nogil=True, fastmath=False)",
         _tuple_source("_DOP_A", _DOP_A),
         _tuple_source("_DOP_B", list(_DOP_B)),
@@ -530,7 +553,7 @@ def _kernel_source() -> str:
     for decorator, kernels in (("@_jit", _SERIAL_KERNELS), ("@_nogil_jit", _NOGIL_KERNELS)):
         for fn in kernels:
             parts += ["", "", decorator, inspect.getsource(fn).rstrip()]
-    return "\n".join(parts) + "\n"
+    return shared_source("The DOP853 loop", parts)
 
 
 #: appended to (a copy of) a model's generated numba module: its ``fill`` as a C function for
@@ -570,18 +593,9 @@ MODEL = (fill_c.address, DIM, N, N_OBSERVED)
 # ------------------------------------------------------------------ loading
 @functools.cache
 def shared() -> ModuleType:
-    """The shared loop module: written to the code cache and compiled by numba once per installation.
-
-    numba finds a compiled function by its source file's path.  Where ``NUMBA_CACHE_DIR`` names
-    numba's cache, the loop's source is kept there, beside what numba compiles from it, so that
-    processes with different chaplygin caches (``$CHAPLYGIN_CACHE``) but one numba cache share
-    the compiled loop; otherwise it is in chaplygin's code cache.
-    """
-    from chaplygin.numeric.cache import import_source
-
-    numba_cache = os.environ.get("NUMBA_CACHE_DIR")
-    folder = Path(numba_cache) / "chaplygin-loop" if numba_cache else None
-    return import_source(_kernel_source(), "dop853", folder)
+    """The shared loop module: written to the code cache and compiled by numba once per
+    installation (:func:`import_shared`)."""
+    return import_shared(_kernel_source(), "dop853")
 
 
 def loop_model(compiled: CompiledModel) -> CompiledModel:

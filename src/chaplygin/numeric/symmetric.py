@@ -87,7 +87,6 @@ from __future__ import annotations
 import functools
 import inspect
 import math
-import os
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -96,7 +95,18 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
-from chaplygin.numeric._loop import EPS, _k_call, _k_eval, _k_fill, _k_pivot, _k_solve, _message, loop_model
+from chaplygin.numeric._loop import (
+    EPS,
+    _k_call,
+    _k_eval,
+    _k_fill,
+    _k_pivot,
+    _k_solve,
+    _message,
+    import_shared,
+    loop_model,
+    shared_source,
+)
 from chaplygin.numeric._loop import STATUS as _LOOP_STATUS
 from chaplygin.numeric.cache import import_source
 from chaplygin.numeric.codegen import CompiledModel
@@ -426,26 +436,8 @@ def shared() -> ModuleType:
     its first line names the library version and the digest of its source files, and where
     ``NUMBA_CACHE_DIR`` names numba's cache, it is kept there.
     """
-    from chaplygin.numeric.cache import _version
-
-    parts = [
-        f'"""The Gauss-Legendre kernels of chaplygin {_version()}, shared by every model '
-        '(chaplygin.numeric.symmetric)."""',
-        "",
-        "import math",
-        "",
-        "import numpy as np",
-        "from numba import njit",
-        "",
-        "from chaplygin.numeric._fnptr import call_fill as _k_call",
-        "",
-        "_jit = njit(cache=True, fastmath=False)",
-        f"_GL_EPS = {EPS!r}",
-        *_source((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS), "@_jit"),
-    ]
-    numba_cache = os.environ.get("NUMBA_CACHE_DIR")
-    folder = Path(numba_cache) / "chaplygin-loop" if numba_cache else None
-    return import_source("\n".join(parts) + "\n", "gauss", folder)
+    lines = [f"_GL_EPS = {EPS!r}", *_source((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS), "@_jit")]
+    return import_shared(shared_source("The Gauss-Legendre kernels", lines), "gauss")
 
 
 def stepping_module(compiled: CompiledModel) -> Any:
