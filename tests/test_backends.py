@@ -249,8 +249,12 @@ def test_ensemble_input_errors(disk):
         simulate_ensemble(disk, "chaplygin", 1.0, np.zeros((2, 3)), DISK_P)
     with pytest.raises(ChaplyginError, match="backend"):
         simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend="numpy")
-    with pytest.raises(ChaplyginError, match="method 'Radau': the c ensemble integrates with 'DOP853' only"):
-        simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend="c", method="Radau")
+    for backend in ("auto", "c"):
+        with pytest.raises(
+            ChaplyginError,
+            match=f"method 'Radau': backend '{backend}' integrates ensembles with 'DOP853' only",
+        ):
+            simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0], DISK_P, backend=backend, method="Radau")
     with pytest.raises(ChaplyginError, match="parameters"):
         simulate_ensemble(disk, "chaplygin", 1.0, [DISK_0, DISK_0], {**DISK_P, "m": [1.0, 2.0, 3.0]})
 

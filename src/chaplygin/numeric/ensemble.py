@@ -459,7 +459,7 @@ def simulate_ensemble(
         )
     if backend != "jax" and method != "DOP853":
         raise ChaplyginError(
-            f"method {method!r}: the {backend} ensemble integrates with 'DOP853' only "
+            f"method {method!r}: backend {backend!r} integrates ensembles with 'DOP853' only "
             "(backend='jax' has 'RK45' and 'RK23')."
         )
     times = _keep_times(keep, t0, t1)
