@@ -85,6 +85,7 @@ __all__ = [
     "ensemble_dop853",
     "import_shared",
     "integrate_dop853",
+    "kernel_lines",
     "loop_model",
     "shared_source",
 ]
@@ -507,6 +508,12 @@ def _tuple_source(name: str, value: object) -> str:
     return f"{name} = np.array({value!r})"
 
 
+def kernel_lines(kernels: tuple[Any, ...], decorator: str | None) -> list[str]:
+    """The kernels' source lines, each function under ``decorator`` (none: plain Python)."""
+    head = [decorator] if decorator else []
+    return [line for fn in kernels for line in ("", "", *head, inspect.getsource(fn).rstrip())]
+
+
 def shared_source(title: str, lines: list[str]) -> str:
     """The source of a kernel module shared by every model: numba's ``_jit``, ``_k_call``, then ``lines``.
 
@@ -550,9 +557,7 @@ def _kernel_source() -> str:
         _tuple_source("_DOP_E5", list(_DOP_E5)),
         _tuple_source("_DOP_D", [list(r) for r in _DOP_D]),
     ]
-    for decorator, kernels in (("@_jit", _SERIAL_KERNELS), ("@_nogil_jit", _NOGIL_KERNELS)):
-        for fn in kernels:
-            parts += ["", "", decorator, inspect.getsource(fn).rstrip()]
+    parts += kernel_lines(_SERIAL_KERNELS, "@_jit") + kernel_lines(_NOGIL_KERNELS, "@_nogil_jit")
     return shared_source("The DOP853 loop", parts)
 
 

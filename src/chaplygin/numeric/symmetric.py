@@ -85,7 +85,6 @@ with ``status == "failed"``, a message, and the samples up to that point.
 from __future__ import annotations
 
 import functools
-import inspect
 import math
 from pathlib import Path
 from types import ModuleType
@@ -104,6 +103,7 @@ from chaplygin.numeric._loop import (
     _k_solve,
     _message,
     import_shared,
+    kernel_lines,
     loop_model,
     shared_source,
 )
@@ -421,12 +421,6 @@ def extrapolation(c: np.ndarray) -> np.ndarray:
 _GL_KERNELS = (_gl_lu, _gl_lu_solve, _gl_newton_matrix, _gl_stages, _gl_integrate)
 
 
-def _source(kernels: tuple[Any, ...], decorator: str | None) -> list[str]:
-    """The kernels' source lines, each function under ``decorator``."""
-    head = [decorator] if decorator else []
-    return [line for fn in kernels for line in ("", "", *head, inspect.getsource(fn).rstrip())]
-
-
 @functools.cache
 def shared() -> ModuleType:
     """The compiled stepping kernels, shared by every model: compiled by numba once per installation.
@@ -436,7 +430,10 @@ def shared() -> ModuleType:
     its first line names the library version and the digest of its source files, and where
     ``NUMBA_CACHE_DIR`` names numba's cache, it is kept there.
     """
-    lines = [f"_GL_EPS = {EPS!r}", *_source((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS), "@_jit")]
+    lines = [
+        f"_GL_EPS = {EPS!r}",
+        *kernel_lines((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS), "@_jit"),
+    ]
     return import_shared(shared_source("The Gauss-Legendre kernels", lines), "gauss")
 
 
@@ -444,7 +441,7 @@ def stepping_module(compiled: CompiledModel) -> Any:
     """The generated module of a ``numpy`` model with the stepping kernels appended, as Python
     (imported once): ``fill`` is its own, so ``_k_call`` ignores the model tuple."""
     source = Path(compiled.module.__file__).read_text(encoding="utf-8")
-    parts = [f"_GL_EPS = {EPS!r}", *_source((_k_call, _k_fill, _k_eval, *_GL_KERNELS), None)]
+    parts = [f"_GL_EPS = {EPS!r}", *kernel_lines((_k_call, _k_fill, _k_eval, *_GL_KERNELS), None)]
     return import_source(source + "\n".join(["", *parts]) + "\n", "gauss_numpy")
 
 
