@@ -78,3 +78,58 @@ def test_bad_inputs(sphere) -> None:
         equivalent(sphere, examples.rolling_sphere().equations("chetaev"), sphere.equations("chetaev"))
     with pytest.raises(ChaplyginError, match="expected an Equations object"):
         equivalent(sphere, "psi'' = 0", sphere.equations("chetaev"))
+
+
+# ---------------------------------------------------------------- where the states are drawn
+# A derivation right on part of the configuration space only: (0.3, 1.3), where main sampled every
+# coordinate, has cos φ > 0 and x > 0, so |cos φ| and |x| passed for cos φ and x there.
+m_, J_, k_ = sp.symbols("m J k", positive=True)
+KNIFE_T = m_ / 2 * (d(x) ** 2 + d(y) ** 2) + J_ / 2 * d(phi) ** 2
+
+
+def _knife(b: sp.Expr, name: str, force_function: sp.Expr | None = None):
+    from chaplygin import System
+
+    return System([x, y, phi], KNIFE_T, {d(y): b * d(x)}, force_function=force_function, name=name)
+
+
+def test_abs_cos_is_not_cos() -> None:
+    """Equations derived from ẏ = |cos φ| ẋ are not those of ẏ = cos φ ẋ: their ÿ (and λ) have the
+    wrong sign wherever cos φ < 0, so they contradict the constraint there."""
+    true, wrong = _knife(sp.cos(phi), "cos"), _knife(sp.Abs(sp.cos(phi)), "|cos|")
+    report = equivalent(true, wrong.equations("chetaev").accelerations, true.equations("chetaev"))
+    assert not report and report.max_residual > 1e-2
+    assert report.checked["phi"] == "(-π, π)" and report.checked["x"] == "±[0.1, 10]"
+    assert "sampled" in str(report) and "phi ∈ (-π, π)" in str(report)
+    assert report.samples == 24
+    cos_at_worst = sp.cos(report.worst["state"]["phi"])
+    assert cos_at_worst < 0  # where the two differ
+
+
+def test_classify_catches_a_derivation_wrong_only_where_cos_is_negative() -> None:
+    """ẍ with |cos φ| for one cos φ: right for cos φ > 0, wrong elsewhere; 'chetaev' on main."""
+    from chaplygin import classify
+
+    knife = _knife(sp.cos(phi), "cos")
+    true = {d(d(x)): sp.sin(phi) * sp.cos(phi) * d(phi) * d(x) / (1 + sp.cos(phi) ** 2), d(d(phi)): 0}
+    assert equivalent(knife, true, knife.equations("chetaev"))  # the hand derivation is right
+    wrong = {
+        **true,
+        d(d(x)): true[d(d(x))].subs(sp.cos(phi) * sp.sin(phi), sp.Abs(sp.cos(phi)) * sp.sin(phi)),
+    }
+    assert wrong != true
+    result = classify(knife, wrong)
+    assert result.verdict == "none" and result.residuals["chetaev"] > 1e-2
+    assert result.samples == 16 and result.checked["phi"] == "(-π, π)"
+    assert "sampled" in str(result)
+
+
+def test_lengths_are_sampled_with_both_signs() -> None:
+    """U = −k x²/2: a derivation with |x| for x in ẍ is wrong only for x < 0."""
+    knife = _knife(sp.cos(phi), "cos", force_function=-k_ * x**2 / 2)
+    acc = knife.equations("chaplygin").accelerations
+    assert acc[d(d(x))].has(x)
+    v = sp.Dummy("v")  # keep ẋ: only the coordinate x becomes |x|
+    wrong = {**acc, d(d(x)): acc[d(d(x))].xreplace({d(x): v}).xreplace({x: sp.Abs(x)}).xreplace({v: d(x)})}
+    report = equivalent(knife, wrong, knife.equations("chetaev"))
+    assert not report and report.worst["state"]["x"] < 0

@@ -31,6 +31,8 @@ __all__ = ["EquationsLike", "EquivalenceReport", "equivalent"]
 EquationsLike = Equations | Sequence[Any] | Mapping[Any, Any]
 
 _SYMBOLIC_MAX_OPS = 600
+#: states where the equations' matrix is this near singular (1/condition number) are skipped
+_CONDITION = 1e-10
 
 
 @dataclass
@@ -50,6 +52,10 @@ class EquivalenceReport:
         Number of admissible states evaluated.
     worst : dict
         The acceleration and state where the largest difference was seen.
+    checked : dict
+        Where the states were drawn: a range for each coordinate (angles
+        around the circle, other coordinates with both signs), t, the
+        velocities and the parameters; empty when proved symbolically.
     """
 
     equivalent: bool
@@ -58,6 +64,7 @@ class EquivalenceReport:
     samples: int
     tolerance: float
     worst: dict[str, Any] = field(default_factory=dict)
+    checked: dict[str, str] = field(default_factory=dict)
 
     def __bool__(self) -> bool:
         return self.equivalent
@@ -72,7 +79,7 @@ class EquivalenceReport:
         )
         if not self.equivalent and self.worst:
             text += f"; worst at {self.worst['acceleration']}"
-        return text
+        return text + f"; sampled {where(self.checked)}"
 
     def _repr_html_(self) -> str:
         rows = [
@@ -82,9 +89,24 @@ class EquivalenceReport:
             ("samples", str(self.samples)),
             ("tolerance", f"{self.tolerance:g}"),
         ]
+        if self.checked:
+            rows.append(("sampled", where(self.checked)))
         if not self.equivalent and self.worst:
             rows.append(("worst at", str(self.worst.get("acceleration", ""))))
         return _html.fields((label, _html.escape(value)) for label, value in rows)
+
+
+class Inconsistent(ChaplyginError):
+    """Equations with no solution at an admissible state: they contradict the constraints there."""
+
+    def __init__(self, label: str, mismatch: float) -> None:
+        super().__init__(f"{label}: the equations are inconsistent at a random admissible state.")
+        self.label, self.mismatch = label, mismatch
+
+
+def where(checked: Mapping[str, str]) -> str:
+    """``checked`` of a report in one line: ``x ∈ ±[0.1, 10], phi ∈ (-π, π), ...``."""
+    return ", ".join(f"{name} ∈ {span}" for name, span in checked.items())
 
 
 class _Linear:
@@ -204,17 +226,18 @@ class _Linear:
         F = np.asarray(F, dtype=float).reshape(-1)
         if not (np.all(np.isfinite(M)) and np.all(np.isfinite(F))):
             return None
-        x, _, rank, _ = np.linalg.lstsq(M, F, rcond=None)
+        x, _, rank, singular = np.linalg.lstsq(M, F, rcond=None)
         if rank < M.shape[1]:
             raise ChaplyginError(
                 f"{self.label}: the equations do not determine all of "
                 + ", ".join(map(self._shown, self.unknowns))
                 + " at a random admissible state."
             )
-        if np.linalg.norm(M @ x - F) > 1e-8 * max(1.0, float(np.linalg.norm(F))):
-            raise ChaplyginError(
-                f"{self.label}: the equations are inconsistent at a random admissible state."
-            )
+        if singular[-1] < _CONDITION * singular[0]:  # near a singularity: the solve is not to be trusted
+            return None
+        mismatch = float(np.linalg.norm(M @ x - F)) / max(1.0, float(np.linalg.norm(F)))
+        if mismatch > 1e-8:
+            raise Inconsistent(self.label, mismatch)
         return x[self.independent]
 
 
@@ -247,7 +270,7 @@ class _States:
         self.constants = {
             c: fixed_constants.get(c, float(self.rng.uniform(-1, 1))) for c in constants.values()
         }
-        self.sampler = StateSampler(system, params)
+        self.sampler = StateSampler(system, params, [e for r in reps for e in (*r.M, *r.F)])
         v = system._vars
         self.state_symbols = [TIME, *v.x, *v.xd, *params]
         for r in reps:
@@ -370,7 +393,16 @@ def equivalent(
     while used < samples and tries < 20 * samples:
         tries += 1
         state, values = states.draw()
-        xa, xb = a.accelerations(values), b.accelerations(values)
+        shown_state = {vsstrrepr(system.to_user(key)): val for key, val in state.items()}
+        try:
+            xa, xb = a.accelerations(values), b.accelerations(values)
+        except Inconsistent as exc:  # no solution here: they cannot be the same dynamics
+            used += 1
+            if exc.mismatch > max_res:
+                max_res = exc.mismatch
+                what = f"the constraints (the {exc.label} equations have no solution there)"
+                worst = {"acceleration": what, "first": np.nan, "second": np.nan, "state": shown_state}
+            continue
         if xa is None or xb is None:
             continue
         used += 1
@@ -382,8 +414,9 @@ def equivalent(
                 "acceleration": vsstrrepr(watched[k]),
                 "first": float(xa[k]),
                 "second": float(xb[k]),
-                "state": {vsstrrepr(system.to_user(key)): val for key, val in state.items()},
+                "state": shown_state,
             }
     if used == 0:
         raise ChaplyginError("no random admissible state gave finite values for both sets of equations.")
-    return EquivalenceReport(bool(max_res <= tolerance), "numeric", max_res, used, tolerance, worst)
+    verdict = bool(max_res <= tolerance)
+    return EquivalenceReport(verdict, "numeric", max_res, used, tolerance, worst, states.sampler.where())

@@ -1,10 +1,14 @@
 """Integrability of linear velocity constraints: conditions (28), (33) and Frobenius.
 
-* Condition (28), form B: ``∂B_βγ/∂q_σ − ∂B_βσ/∂q_γ = 0``.  For a Chaplygin
-  system it is necessary and sufficient; when B depends on the dependent
-  coordinates it is neither.
-* Condition (33), form A: ``∂A_βk/∂q_s − ∂A_βs/∂q_k = 0`` — the constraint
-  1-forms are closed.  Sufficient, not necessary (integrating factors).
+* Condition (28), form B: ``∂B_βγ/∂q_σ − ∂B_βσ/∂q_γ = 0``, and for affine or
+  time-dependent constraints also ``∂B_βσ/∂t − ∂B_β0/∂q_σ = 0`` (the dt part:
+  ``(B_β, B_β0)`` is a gradient on ``(q_σ, t)``).  When B and B_0 are free of
+  the dependent coordinates it is necessary and sufficient; otherwise it does
+  not apply (it is reported as such, ``holds=None``).
+* Condition (33), form A: the constraint 1-forms
+  ``ω_β = Σ_s A_βs dq_s + A_β0 dt`` are closed on ``(q, t)``:
+  ``∂A_βk/∂q_s − ∂A_βs/∂q_k = 0`` and ``∂A_βs/∂t − ∂A_β0/∂q_s = 0``.
+  Sufficient, not necessary (integrating factors).
 * **Frobenius**: the distribution annihilated by ``ω_β = Σ_s A_βs dq_s`` (plus
   ``A_β0 dt`` for rheonomic/affine constraints) is integrable iff it is closed
   under Lie brackets.  It is spanned by ``X_σ = ∂_σ + Σ_β B_βσ ∂_{ε+β}`` (and
@@ -68,8 +72,9 @@ class Condition:
     ----------
     name : str
         ``"(28)"``, ``"(33)"`` or ``"Frobenius"``.
-    holds : bool
-        Whether every component vanishes.
+    holds : bool or None
+        Whether every component vanishes; None where the condition does not
+        apply to these constraints (the note says why).
     failures : list of (str, sympy.Expr)
         The non-vanishing components, labelled in the paper's indices.
     note : str
@@ -77,13 +82,17 @@ class Condition:
     """
 
     name: str
-    holds: bool
+    holds: bool | None
     failures: list[tuple[str, sp.Expr]] = field(default_factory=list)
     note: str = ""
 
+    @property
+    def verdict(self) -> str:
+        """``"holds"``, ``"fails"`` or ``"not applicable"``."""
+        return "not applicable" if self.holds is None else "holds" if self.holds else "fails"
+
     def __str__(self) -> str:
-        verdict = "holds" if self.holds else "fails"
-        text = f"{self.name}: {verdict}"
+        text = f"{self.name}: {self.verdict}"
         if self.failures:
             label, expr = self.failures[0]
             more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
@@ -96,7 +105,7 @@ class Condition:
             label, expr = self.failures[0]
             more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
             first = f"{_html.escape(label)} = {_html.math(vlatex(expr))}{_html.escape(more)}"
-        return [_html.escape(self.name), "holds" if self.holds else "fails", first, _html.escape(self.note)]
+        return [_html.escape(self.name), self.verdict, first, _html.escape(self.note)]
 
 
 @dataclass
@@ -116,7 +125,7 @@ class IntegrabilityReport:
 
     @property
     def integrable(self) -> bool:
-        return self.frobenius.holds
+        return bool(self.frobenius.holds)
 
     def __str__(self) -> str:
         head = "integrable (holonomic)" if self.integrable else "not integrable (nonholonomic)"
@@ -157,19 +166,37 @@ def analyze(system: System) -> IntegrabilityReport:
     ind, dep = s._ind, s._dep
     user = s.to_user
 
+    dep_x = [v.x[i] for i in dep]
+    timed = s.is_affine or any(e.has(TIME) for e in (*s._A, *s._B))
     fail28 = []
     for b, (k, c) in ((b, kc) for b in range(s.g) for kc in combinations(range(len(ind)), 2)):
         e = sp.diff(s._B[b, c], v.x[ind[k]]) - sp.diff(s._B[b, k], v.x[ind[c]])
         if not vanishes(e):
             label = f"∂B[{_name(s, dep[b])}, {_name(s, ind[c])}]/∂{_name(s, ind[k])} − ∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂{_name(s, ind[c])}"
             fail28.append((label, user(shown(e, _tidy))))
-    if not s.is_chaplygin:
-        note28 = "B depends on the dependent coordinates, so (28) does not decide integrability here."
-    elif s.is_affine or any(e.has(TIME) for e in s._B):
-        note28 = "The constraints are affine or time-dependent: (28) covers only their velocity terms."
+    for b, k in ((b, k) for b in range(s.g) for k in range(len(ind)) if timed):
+        e = sp.diff(s._B[b, k], TIME) - sp.diff(s._B0[b], v.x[ind[k]])
+        if not vanishes(e):
+            label = (
+                f"∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂t − ∂B0[{_name(s, dep[b])}]/∂{_name(s, ind[k])}"
+            )
+            fail28.append((label, user(shown(e, _tidy))))
+    if any(e.has(*dep_x) for e in (*s._B, *s._B0)):
+        c28 = Condition(
+            "(28)",
+            None,
+            [],
+            "B depends on the dependent coordinates, and (28) decides integrability only where it "
+            "does not: see Frobenius.",
+        )
     else:
-        note28 = "For a Chaplygin system it decides integrability."
-    c28 = Condition("(28)", not fail28, fail28, note28)
+        c28 = Condition(
+            "(28)",
+            not fail28,
+            fail28,
+            "B is free of the dependent coordinates, so (28) decides integrability"
+            + (" (with its dt terms ∂B/∂t − ∂B0/∂q)." if timed else "."),
+        )
 
     fail33 = []
     for b in range(s.g):
@@ -180,11 +207,18 @@ def analyze(system: System) -> IntegrabilityReport:
                     f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
                 )
                 fail33.append((label, user(shown(e, _tidy))))
+        for k in range(s.n) if timed else ():
+            e = sp.diff(s._A[b, k], TIME) - sp.diff(s._A0[b], v.x[k])
+            if not vanishes(e):
+                label = f"∂A[{b + 1}, {_name(s, k)}]/∂t − ∂A0[{b + 1}]/∂{_name(s, k)}"
+                fail33.append((label, user(shown(e, _tidy))))
     c33 = Condition(
         "(33)",
         not fail33,
         fail33,
-        "Closed constraint forms; sufficient for integrability, not necessary.",
+        "Closed constraint forms"
+        + (" (with their dt part A0 dt, on (q, t))" if timed else "")
+        + "; sufficient for integrability, not necessary.",
     )
 
     from chaplygin.models.reduced import bracket_terms

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -22,7 +23,7 @@ import sympy as sp
 from sympy.physics.vector.printing import vlatex, vsstrrepr
 
 from chaplygin import _html
-from chaplygin.analysis.equivalence import EquationsLike, _Linear, _States
+from chaplygin.analysis.equivalence import EquationsLike, Inconsistent, _Linear, _States, where
 from chaplygin.analysis.integrability import shown as readable
 from chaplygin.core._brief import brief
 from chaplygin.core._sampling import vanishes
@@ -46,6 +47,11 @@ class ModelComparison:
     coincide : bool
         Every ``W_βσ`` vanishes (condition (28) and, for affine or rheonomic
         constraints, its time terms): Chetaev ≡ Lindelöf ≡ vakonomic(c = 0).
+    condition_28 : bool
+        Condition (28) with, for affine or time-dependent constraints, its dt
+        terms ``∂B_βσ/∂t − ∂B_β0/∂q_σ`` (as in ``integrability()``): for the
+        Chaplygin systems compared here the same as ``coincide``, and true
+        exactly when the constraints are integrable.
     defect : dict
         The Lindelöf defect, (15) minus (22), by independent coordinate.
     defect_vanishes : bool
@@ -103,14 +109,13 @@ def compare_models(system: System) -> ModelComparison:
     r = Reduction(system)
     W = bracket_terms(system)
     coincide = all(vanishes(w) for row in W for w in row)
-    c28 = all(vanishes(sp.diff(w, xd)) for row in W for w in row for xd in r.ind_xd)
     defect = lindelof_defect(system, r)
     zero = [vanishes(d) for d in defect]
     shown = {
         system.independent[k]: system.to_user(sp.S.Zero if z else readable(d, _tidy))
         for k, (d, z) in enumerate(zip(defect, zero))
     }
-    return ModelComparison(system.name, coincide, c28, shown, all(zero))
+    return ModelComparison(system.name, coincide, coincide, shown, all(zero))
 
 
 def _tidy(expr: sp.Expr) -> sp.Expr:
@@ -132,12 +137,20 @@ class Classification:
         ``c_β`` of the vakonomic member (empty otherwise).
     residuals : dict
         Largest relative difference from each candidate model.
+    samples : int
+        Number of admissible states evaluated.
+    checked : dict
+        Where they were drawn: a range for each coordinate (angles around the
+        circle, other coordinates with both signs), t, the velocities and the
+        parameters.
     """
 
     verdict: str
     constants: dict[str, float] = field(default_factory=dict)
     residuals: dict[str, float] = field(default_factory=dict)
     note: str = ""
+    samples: int = 0
+    checked: dict[str, str] = field(default_factory=dict)
 
     def __str__(self) -> str:
         text = {
@@ -149,10 +162,13 @@ class Classification:
             "none": "none of the models (Chetaev, Lindelöf, vakonomic family)",
         }[self.verdict]
         residuals = ", ".join(f"{k}: {v:.2g}" for k, v in self.residuals.items())
-        return f"{text}{'; ' + self.note if self.note else ''} (relative differences: {residuals})"
+        sampled = f"; {self.samples} states, sampled {where(self.checked)}" if self.checked else ""
+        return f"{text}{'; ' + self.note if self.note else ''} (relative differences: {residuals}{sampled})"
 
     def _repr_html_(self) -> str:
         rows = [(_html.escape(k), f"{v:.2g}") for k, v in self.residuals.items()]
+        if self.checked:
+            rows.append(("sampled", _html.escape(f"{self.samples} states, {where(self.checked)}")))
         return (
             _html.heading(f"Classification: {self.verdict}")
             + f"<p>{_html.escape(str(self))}</p>"
@@ -190,11 +206,17 @@ def classify(
     states = _States(system, reps, parameters=parameters, multipliers=None, seed=seed)
     consts = family.constants if family else []
     rows, rhs, diffs_true, diffs_lindelof, used = [], [], [], [], 0
+    contradiction = 0.0  # the largest mismatch where the equations have no solution
     for _ in range(20 * samples):
         if used == samples:
             break
         _, values = states.draw()
-        a_user, a_true = user.accelerations(values), reps[1].accelerations(values)
+        try:
+            a_user = user.accelerations(values)
+        except Inconsistent as exc:  # they contradict the constraints here: no model's equations
+            contradiction, used = max(contradiction, exc.mismatch), used + 1
+            continue
+        a_true = reps[1].accelerations(values)
         if a_user is None or a_true is None:
             continue
         scale = np.maximum(1.0, np.abs(a_user))  # every residual is relative to this
@@ -215,21 +237,30 @@ def classify(
         used += 1
     if used == 0:
         raise ChaplyginError("no random admissible state gave finite values for the equations.")
-    residuals = {"chetaev": float(max(diffs_true))}
+    residuals = {"chetaev": float(max(diffs_true, default=contradiction))}
     note = ""
     if family is not None:
-        residuals["lindelof"] = float(max(diffs_lindelof))
-        G, y = np.vstack(rows), np.concatenate(rhs)
-        c, *_ = np.linalg.lstsq(G, y, rcond=None)
-        residuals["vakonomic_family"] = float(np.max(np.abs(G @ c - y)))
+        residuals["lindelof"] = float(max(diffs_lindelof, default=contradiction))
+        c = np.zeros(len(consts))
+        if rows:
+            G, y = np.vstack(rows), np.concatenate(rhs)
+            c, *_ = np.linalg.lstsq(G, y, rcond=None)
+            residuals["vakonomic_family"] = float(np.max(np.abs(G @ c - y)))
+        else:
+            residuals["vakonomic_family"] = contradiction
     else:
         note = "the vakonomic family does not reduce for this system, so only Chetaev was tried"
+    residuals = {k: max(v, contradiction) for k, v in residuals.items()}
+    if contradiction:
+        note = "the equations contradict the constraints at some admissible states"
+    made = partial(Classification, samples=used, checked=states.sampler.where())
     if residuals["chetaev"] <= tolerance:
         if residuals.get("lindelof", 1.0) <= tolerance:
             note = "Lindelöf's equations happen to coincide with the true motion here"
-        return Classification("chetaev", residuals=residuals, note=note)
+        return made("chetaev", residuals=residuals, note=note)
     if residuals.get("lindelof", 1.0) <= tolerance:
-        return Classification("lindelof", residuals=residuals, note=note)
+        return made("lindelof", residuals=residuals, note=note)
     if residuals.get("vakonomic_family", 1.0) <= tolerance:
-        return Classification("vakonomic", {s.name: float(v) for s, v in zip(consts, c)}, residuals, note)
-    return Classification("none", residuals=residuals, note=note)
+        constants = {s.name: float(v) for s, v in zip(consts, c)}
+        return made("vakonomic", constants, residuals, note)
+    return made("none", residuals=residuals, note=note)

@@ -749,7 +749,8 @@ def check(
         ]
         for key, name in (("condition_28", "(28)"), ("condition_33", "(33)"), ("frobenius", "Frobenius")):
             c = integ[key]
-            line = f"  {name}: {'holds' if c['holds'] else 'fails'}"
+            verdict = "not applicable" if c["holds"] is None else "holds" if c["holds"] else "fails"
+            line = f"  {name}: {verdict}"
             if c["failures"]:
                 first = c["failures"][0]
                 more = len(c["failures"]) - 1

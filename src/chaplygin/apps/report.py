@@ -927,7 +927,7 @@ def _condition_rows(cond: Any) -> str:
     if len(cond.failures) > len(shown):
         fails += f"<li>… and {len(cond.failures) - len(shown)} more</li>"
     return (
-        f'<tr><td>{_esc(cond.name)}</td><td class="{cls}">{"holds" if cond.holds else "fails"}</td>'
+        f'<tr><td>{_esc(cond.name)}</td><td class="{cls}">{cond.verdict}</td>'
         f"<td>{'<ul>' + fails + '</ul>' if fails else ''}"
         f'<span class="note">{_esc(cond.note)}</span></td></tr>'
     )

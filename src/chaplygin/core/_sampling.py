@@ -7,20 +7,28 @@ symbolic model depends on this module.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
+from sympy.functions.elementary.trigonometric import TrigonometricFunction
 
 from chaplygin.core._symbols import TIME
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
+#: where :func:`vanishes` samples every symbol (an analytic expression zero on an open box is zero)
 COORDINATE_RANGE = (0.3, 1.3)
+#: where :class:`StateSampler` draws an angle (a coordinate or t inside sin, cos, tan, ...)
+ANGLE_RANGE = (-np.pi, np.pi)
+#: magnitudes of the other coordinates and of t, log-uniform, each sign equally likely
+LENGTH_MAGNITUDES = (0.1, 10.0)
 VELOCITY_RANGE = (-1.0, 1.0)
 PARAMETER_RANGE = (0.5, 1.5)
+#: a state whose B or B_0 has an entry beyond this is too near a pole of the constraints
+POLE = 1e6
 
 
 def compile_function(exprs: Any, args: Sequence[sp.Symbol]) -> Callable[..., Any]:
@@ -38,29 +46,80 @@ def parameter_values(
     return values
 
 
-class StateSampler:
-    """Draws random states ``(t, q, q̇)`` that satisfy the velocity constraints."""
+def angles(exprs: Iterable[Any], symbols: Iterable[sp.Symbol]) -> set[sp.Symbol]:
+    """Those of ``symbols`` that appear inside a trigonometric function in ``exprs``."""
+    wanted, found = set(symbols), set()
+    seen: set[sp.Basic] = set()
+    stack = [e for e in exprs if isinstance(e, sp.Basic)]
+    while stack:
+        node = stack.pop()
+        if node in seen or not node.args:
+            continue
+        seen.add(node)
+        if isinstance(node, TrigonometricFunction):
+            found |= node.free_symbols & wanted
+        else:
+            stack.extend(node.args)
+    return found
 
-    def __init__(self, system: System, parameters: Mapping[sp.Symbol, float]) -> None:
+
+class StateSampler:
+    """Draws random states ``(t, q, q̇)`` that satisfy the velocity constraints.
+
+    Every coordinate is sampled over its whole range: an angle (a coordinate
+    that appears inside a trigonometric function of the system or of
+    ``expressions``) around the whole circle, :data:`ANGLE_RANGE`; any other
+    coordinate, and t, with either sign and magnitudes log-uniform in
+    :data:`LENGTH_MAGNITUDES`.  States where the constraints are not finite or
+    near a pole (an entry of B or B_0 beyond :data:`POLE`) are drawn again.
+    :meth:`where` says where the states were drawn.
+    """
+
+    def __init__(
+        self, system: System, parameters: Mapping[sp.Symbol, float], expressions: Iterable[Any] = ()
+    ) -> None:
         self.system = system
         self.parameters = dict(parameters)
         v = system._vars
         b_args = [TIME, *v.x, *self.parameters]
         self._b = compile_function(system._B, b_args)
         self._b0 = compile_function(system._B0, b_args)
+        self.angles = angles([*system._B, *system._B0, *system._A, *system._A0, *expressions], [TIME, *v.x])
+
+    def _coordinate(self, symbol: sp.Symbol, rng: np.random.Generator) -> float:
+        if symbol in self.angles:
+            return float(rng.uniform(*ANGLE_RANGE))
+        low, high = np.log10(LENGTH_MAGNITUDES)
+        return float(rng.choice((-1.0, 1.0)) * 10 ** rng.uniform(low, high))
+
+    def where(self) -> dict[str, str]:
+        """Where :meth:`draw` samples: a range for each coordinate, t, the velocities, the parameters."""
+        s = self.system
+        length = f"±[{LENGTH_MAGNITUDES[0]:g}, {LENGTH_MAGNITUDES[1]:g}]"
+        out = {}
+        for q, x in [("t", TIME), *((c.func.__name__, x) for c, x in zip(s.coordinates, s._vars.x))]:
+            out[q] = "(-π, π)" if x in self.angles else length
+        out["velocities"] = f"({VELOCITY_RANGE[0]:g}, {VELOCITY_RANGE[1]:g})"
+        out["parameters"] = f"({PARAMETER_RANGE[0]:g}, {PARAMETER_RANGE[1]:g}) unless given"
+        return out
 
     def draw(self, rng: np.random.Generator) -> dict[sp.Symbol, float]:
         """One random admissible state as a map from internal symbols to numbers."""
         s, v = self.system, self.system._vars
-        t = float(rng.uniform(*COORDINATE_RANGE))
-        q = rng.uniform(*COORDINATE_RANGE, size=s.n)
-        qd = np.zeros(s.n)
-        qd[list(s._ind)] = rng.uniform(*VELOCITY_RANGE, size=len(s._ind))
-        if s.g:
+        for _ in range(100):
+            t = self._coordinate(TIME, rng)
+            q = np.array([self._coordinate(x, rng) for x in v.x])
+            qd = np.zeros(s.n)
+            qd[list(s._ind)] = rng.uniform(*VELOCITY_RANGE, size=len(s._ind))
+            if not s.g:
+                break
             args = (t, *q, *self.parameters.values())
-            b = np.asarray(self._b(*args), dtype=float).reshape(s.g, len(s._ind))
-            b0 = np.asarray(self._b0(*args), dtype=float).reshape(s.g)
+            with np.errstate(all="ignore"):
+                b = np.asarray(self._b(*args), dtype=float).reshape(s.g, len(s._ind))
+                b0 = np.asarray(self._b0(*args), dtype=float).reshape(s.g)
             qd[list(s._dep)] = b @ qd[list(s._ind)] + b0
+            if np.all(np.abs(b) <= POLE) and np.all(np.abs(b0) <= POLE):
+                break
         state: dict[sp.Symbol, float] = {TIME: t}
         state.update(zip(v.x, q.tolist()))
         state.update(zip(v.xd, qd.tolist()))
