@@ -35,6 +35,7 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 
 from chaplygin import _html
 from chaplygin.core._brief import brief
+from chaplygin.core._fast import derivative
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import TIME, simplify_small
 from chaplygin.models._rational import normal_all
@@ -170,12 +171,12 @@ def analyze(system: System) -> IntegrabilityReport:
     timed = s.is_affine or any(e.has(TIME) for e in (*s._A, *s._B))
     fail28 = []
     for b, (k, c) in ((b, kc) for b in range(s.g) for kc in combinations(range(len(ind)), 2)):
-        e = sp.diff(s._B[b, c], v.x[ind[k]]) - sp.diff(s._B[b, k], v.x[ind[c]])
+        e = derivative(s._B[b, c], v.x[ind[k]]) - derivative(s._B[b, k], v.x[ind[c]])
         if not vanishes(e):
             label = f"∂B[{_name(s, dep[b])}, {_name(s, ind[c])}]/∂{_name(s, ind[k])} − ∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂{_name(s, ind[c])}"
             fail28.append((label, user(shown(e, _tidy))))
     for b, k in ((b, k) for b in range(s.g) for k in range(len(ind)) if timed):
-        e = sp.diff(s._B[b, k], TIME) - sp.diff(s._B0[b], v.x[ind[k]])
+        e = derivative(s._B[b, k], TIME) - derivative(s._B0[b], v.x[ind[k]])
         if not vanishes(e):
             label = (
                 f"∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂t − ∂B0[{_name(s, dep[b])}]/∂{_name(s, ind[k])}"
@@ -201,14 +202,14 @@ def analyze(system: System) -> IntegrabilityReport:
     fail33 = []
     for b in range(s.g):
         for k, j in combinations(range(s.n), 2):
-            e = sp.diff(s._A[b, j], v.x[k]) - sp.diff(s._A[b, k], v.x[j])
+            e = derivative(s._A[b, j], v.x[k]) - derivative(s._A[b, k], v.x[j])
             if not vanishes(e):
                 label = (
                     f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
                 )
                 fail33.append((label, user(shown(e, _tidy))))
         for k in range(s.n) if timed else ():
-            e = sp.diff(s._A[b, k], TIME) - sp.diff(s._A0[b], v.x[k])
+            e = derivative(s._A[b, k], TIME) - derivative(s._A0[b], v.x[k])
             if not vanishes(e):
                 label = f"∂A[{b + 1}, {_name(s, k)}]/∂t − ∂A0[{b + 1}]/∂{_name(s, k)}"
                 fail33.append((label, user(shown(e, _tidy))))
@@ -231,7 +232,7 @@ def analyze(system: System) -> IntegrabilityReport:
             w = W[b][k]
             for c in range(len(ind)):
                 if c > k:
-                    e = sp.diff(w, r.ind_xd[c])
+                    e = derivative(w, r.ind_xd[c])
                     if not vanishes(e):
                         label = f"[X_{_name(s, ind[k])}, X_{_name(s, ind[c])}] along ∂{_name(s, dep[b])}"
                         fail_f.append((label, user(shown(e, _tidy))))
@@ -254,14 +255,14 @@ def _potential(grad: list[sp.Expr], variables: list[sp.Symbol]) -> sp.Expr | Non
     """``f`` with ``∂f/∂x_k = grad[k]`` (line integral along the axes), verified."""
     f = sp.S.Zero
     for k, x in enumerate(variables):
-        rest = sp.cancel(grad[k] - sp.diff(f, x))
+        rest = sp.cancel(grad[k] - derivative(f, x))
         if rest == 0:
             continue
         term = sp.integrate(rest, x)
         if term.has(sp.Integral):
             return None
         f += term
-    ok = all(vanishes(sp.diff(f, x) - gk) for x, gk in zip(variables, grad))
+    ok = all(vanishes(derivative(f, x) - gk) for x, gk in zip(variables, grad))
     return sp.simplify(f) if ok else None
 
 
@@ -293,7 +294,7 @@ def _finite_relations(s: System) -> list[sp.Expr]:
     for mu in candidates:
         form = [sp.cancel(mu * c) for c in coeffs]
         closed = all(
-            vanishes(sp.diff(form[j], variables[k]) - sp.diff(form[k], variables[j]))
+            vanishes(derivative(form[j], variables[k]) - derivative(form[k], variables[j]))
             for k, j in combinations(range(len(variables)), 2)
         )
         if closed:

@@ -93,6 +93,14 @@ def jacobian(exprs: Sequence[sp.Expr], variables: Sequence[sp.Symbol]) -> sp.Mat
     return sp.Matrix(len(exprs), len(variables), flat)
 
 
+def derivative(expr: sp.Expr, variable: sp.Symbol) -> sp.Expr:
+    """``∂ expr / ∂ variable`` in SymPy, ``Abs``, ``sign``, ``re`` and ``im`` differentiated in closed form."""
+    if not expr.has(*_UNSAFE):
+        return sp.diff(expr, variable)
+    real, back = _real([expr, variable])
+    return sp.diff(expr.xreplace(real), real.get(variable, variable)).xreplace(back)
+
+
 def gradient(expr: sp.Expr, variables: Sequence[sp.Symbol]) -> list[sp.Expr]:
     """``[∂ expr / ∂ v for v in variables]``."""
     return list(jacobian([expr], variables))
