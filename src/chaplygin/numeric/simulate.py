@@ -790,54 +790,86 @@ def _watch(
 
 def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
     """The first sample (before ``stop``) at or just after a pole of the solved constraints;
-    ``(stop, "")`` if none.
-
-    At a sample: ``A`` (or a factor of a denominator of its entries) is not finite, or the
-    dependent block of ``A`` is singular (rows scaled to largest entry 1).  Between two: the
-    sign of ``det A_dep`` times the factors of the denominators of ``A``'s entries (``tan φ``
-    counts as ``sin φ / cos φ``) changes — a singular block or a pole of ``B`` crossed.
-    """
-    if stop == 0:
+    ``(stop, "")`` if none (the tests of :func:`pole_marks`, sample after sample)."""
+    if stop == 0 or pole_free(system):
         return stop, ""
-    evaluate, n_factors = _pole_functions(system)
     names = [q.func.__name__ for q in system.coordinates]
+    q = np.column_stack([tr.coordinates[c][:stop] for c in names])
+    singular, sign = pole_marks(system, tr.t[:stop], q, params)
+    k = first_pole(singular, sign)
+    if k == stop:
+        return stop, ""
+    dep_names = ", ".join(names[i] + "'" for i in system._dep)
+    if singular[k]:
+        return k, (
+            f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
+            f"solved for {dep_names} there"
+        )
+    return k, (
+        f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
+        f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
+    )
+
+
+def pole_marks(
+    system: System, t: np.ndarray, q: np.ndarray, params: Mapping[str, Any]
+) -> tuple[np.ndarray, np.ndarray]:
+    """At ``K`` points ``(t[k], q[k])`` (``q``: K × n; each parameter a number or K numbers):
+    ``(singular, sign)``.
+
+    ``singular[k]``: ``A`` (or a factor of a denominator of its entries) is not finite there,
+    or the dependent block of ``A`` is singular (rows scaled to largest entry 1, smallest
+    singular value at most 1e-10, as :func:`_solvable`).  ``sign[k]``: the sign of ``det A_dep``
+    times the factors of the denominators of ``A``'s entries (``tan φ`` counts as
+    ``sin φ / cos φ``): where it changes between two points, a singular block or a pole of
+    ``B`` lies between them.
+    """
+    count = len(t)
+    evaluate, n_factors, _ = _pole_functions(system)
     columns = [
-        tr.t[:stop],
-        *(tr.coordinates[c][:stop] for c in names),
-        *(np.full(stop, params[par.name]) for par in system.parameters),
+        np.asarray(t, dtype=float),
+        *np.asarray(q, dtype=float).T,
+        *(np.broadcast_to(np.asarray(params[par.name], dtype=float), (count,)) for par in system.parameters),
     ]
     with np.errstate(all="ignore"):
         values = [np.asarray(x) for x in evaluate(*columns)]
     values = [
         np.broadcast_to(
-            np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else x.astype(float), (stop,)
+            np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else x.astype(float), (count,)
         )
         for x in values
     ]
     g, n, dep = system.g, system.n, list(system._dep)
-    a = np.stack(values[: g * n], axis=1).reshape(stop, g, n)
-    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((stop, 1))
+    a = np.stack(values[: g * n], axis=1).reshape(count, g, n)
+    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((count, 1))
     finite = np.all(np.isfinite(a), axis=(1, 2)) & np.all(np.isfinite(factors), axis=1)
-    dep_names = ", ".join(names[i] + "'" for i in dep)
+    a = np.where(np.isfinite(a), a, 0.0)
+    scale = np.max(np.abs(a), axis=2, keepdims=True)
+    usable = finite & np.all(scale[:, :, 0] > 0, axis=1)
+    block = a[:, :, dep] / np.where(scale > 0, scale, 1.0)
     with np.errstate(all="ignore"):
-        sign = np.sign(np.linalg.det(np.where(np.isfinite(a), a, 0.0)[:, :, dep]) * np.prod(factors, axis=1))
-    for k in range(stop):
-        if not finite[k] or sign[k] == 0 or not _solvable(a[k], dep):
-            return k, (
-                f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
-                f"solved for {dep_names} there"
-            )
-        if k and sign[k] != sign[k - 1]:
-            return k, (
-                f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
-                f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
-            )
-    return stop, ""
+        sign = np.sign(np.linalg.det(a[:, :, dep]) * np.prod(factors, axis=1))
+        # the smallest singular value of the scaled block (entries ≤ 1, so its largest is ≤ g)
+        # is at least |det| / g^(g−1): the SVD only where that bound does not settle it
+        unsure = ~(np.abs(np.linalg.det(block)) > 1e-10 * g ** (g - 1))
+    small = np.zeros(count, dtype=bool)
+    if np.any(unsure):
+        small[unsure] = ~(np.linalg.svd(block[unsure], compute_uv=False)[:, -1] > 1e-10)
+    singular = ~usable | small | (sign == 0)
+    return singular, sign
 
 
-def _pole_functions(system: System) -> tuple[Any, int]:
+def first_pole(singular: np.ndarray, sign: np.ndarray) -> int:
+    """The first point (of :func:`pole_marks`, in the order of the run) at a pole or just past
+    one: singular there, or the sign changed since the point before; ``len(sign)`` if none."""
+    past = np.flatnonzero(singular | np.concatenate([[False], sign[1:] != sign[:-1]]))
+    return int(past[0]) if past.size else len(sign)
+
+
+def _pole_functions(system: System) -> tuple[Any, int, bool]:
     """A NumPy function of ``(t, q…, parameters…)`` giving ``A``'s entries (row-major), then
-    the distinct factors of the denominators of ``[A | A_0]``; and how many factors.
+    the distinct factors of the denominators of ``[A | A_0]``; how many factors; and whether the
+    solved constraints are free of poles (:func:`pole_free`).
 
     Generated as a module (:func:`_pole_source`), which the disk cache of compiled models
     (:mod:`chaplygin.numeric._modelcache`) keeps: a process that checks an equal system again
@@ -850,23 +882,30 @@ def _pole_functions(system: System) -> tuple[Any, int]:
 
     key = _modelcache.source_key(system, "pole-functions", POLE_FORMAT)
     found = _modelcache.load_source(key)
-    if found is not None and type(found.get("factors")) is int:
-        source, n_factors = found["source"], found["factors"]
+    if found is not None and type(found.get("factors")) is int and type(found.get("free")) is bool:
+        source, n_factors, free = found["source"], found["factors"], found["free"]
     else:
         made = _pole_source(system)
         if made is None:  # not printable as NumPy source: lambdify, in memory only
             cached = _pole_lambdified(system)
             system.__dict__["_pole_functions"] = cached
             return cached
-        source, n_factors = made
-        _modelcache.store_source(key, source, factors=n_factors)
-    cached = (cache.import_source(source, "poles").poles, n_factors)
+        source, n_factors, free = made
+        _modelcache.store_source(key, source, factors=n_factors, free=free)
+    cached = (cache.import_source(source, "poles").poles, n_factors, free)
     system.__dict__["_pole_functions"] = cached
     return cached
 
 
+def pole_free(system: System) -> bool:
+    """Whether no motion can meet a pole of the solved constraints: the dependent block of ``A``
+    and the denominators of ``[A | A_0]`` depend on neither t nor the coordinates (e.g. the
+    rolling bodies' ``ẋ = …, ẏ = …``), so what the start satisfies holds all along."""
+    return not system.g or _pole_functions(system)[2]
+
+
 #: bumped whenever :func:`_pole_source` writes other code
-POLE_FORMAT = 1
+POLE_FORMAT = 2
 
 
 def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
@@ -895,13 +934,25 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
     return [TIME, *system._vars.x, *system.parameters], [*system._A, *factors]
 
 
-def _pole_source(system: System) -> tuple[str, int] | None:
-    """The module source of :func:`_pole_functions` (``poles(a0, a1, …)``, NumPy calls) and
-    the number of factors; None where an expression cannot be printed so."""
+def _fixed(system: System, exprs: list[Any]) -> bool:
+    """Whether the dependent block of ``A`` and the factors (:func:`_pole_expressions`'s
+    ``exprs``) are free of t and the coordinates."""
+    from chaplygin.core._symbols import TIME
+
+    moving = {TIME, *system._vars.x}
+    g, n = system.g, system.n
+    block = [exprs[b * n + j] for b in range(g) for j in system._dep]
+    return not any(moving & e.free_symbols for e in [*block, *exprs[g * n :]])
+
+
+def _pole_source(system: System) -> tuple[str, int, bool] | None:
+    """The module source of :func:`_pole_functions` (``poles(a0, a1, …)``, NumPy calls), the
+    number of factors and :func:`pole_free`; None where an expression cannot be printed so."""
     import sympy as sp
     from sympy.printing.numpy import NumPyPrinter
 
     args, exprs = _pole_expressions(system)
+    free = _fixed(system, exprs)
     names = sp.symbols(f"a0:{len(args)}")
     rename = dict(zip(args, names))
     exprs = [sp.sympify(e).xreplace(rename) for e in exprs]
@@ -923,14 +974,15 @@ def _pole_source(system: System) -> tuple[str, int] | None:
         f"def poles({', '.join(map(str, names))}):\n"
         "    return [\n" + "".join(f"        {line},\n" for line in body) + "    ]\n"
     )
-    return source, len(exprs) - system.g * system.n
+    return source, len(exprs) - system.g * system.n, free
 
 
-def _pole_lambdified(system: System) -> tuple[Any, int]:
+def _pole_lambdified(system: System) -> tuple[Any, int, bool]:
     import sympy as sp
 
     args, exprs = _pole_expressions(system)
-    return sp.lambdify(args, exprs, modules="numpy"), len(exprs) - system.g * system.n
+    n_factors = len(exprs) - system.g * system.n
+    return sp.lambdify(args, exprs, modules="numpy"), n_factors, _fixed(system, exprs)
 
 
 def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, stop: int) -> tuple[int, str]:
