@@ -206,6 +206,48 @@ def test_matching_constants_for_the_family(sphere) -> None:
         assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
 
 
+KNIFE_START = {"x": 0.0, "y": 0.0, "phi": 0.3, "x'": 1.0, "phi'": 0.2}
+KNIFE_P = {"m": 1.0, "J": 0.5}
+
+
+@pytest.mark.parametrize(
+    ("model", "options", "says"),
+    [
+        ("vakonomic", {"multipliers": "match"}, r"multipliers='match'.*give constants='match'"),
+        ("vakonomic", {"multipliers": ["a"]}, r"multipliers\[0\] = 'a' is not a number"),
+        ("vakonomic", {"multipliers": {"mu_1": "x"}}, r"multipliers: mu_1 = 'x' is not a number"),
+        ("vakonomic", {"multipliers": {"nu": 0.1}}, r"multipliers: unknown key 'nu'; give μ\(0\) for mu_1"),
+        ("vakonomic", {"multipliers": [1.0, 2.0]}, r"multipliers: 2 value\(s\) given for 1 constraint"),
+        ("vakonomic", {"multipliers": [float("nan")]}, r"multipliers\[0\] = nan is not finite"),
+        ("vakonomic", {"multipliers": [0.1], "constants": [0.2]}, r"give one of them"),
+        ("vakonomic", {"constants": "foo"}, r"constants = 'foo': give c_β .*'match'"),
+        ("vakonomic_family", {"constants": ["foo"]}, r"constants\[0\] = 'foo' is not a number"),
+        ("vakonomic_family", {"constants": {"c_2": 1.0}}, r"constants: unknown key 'c_2'; use c_1"),
+        ("vakonomic_family", {"multipliers": [0.5]}, r"takes the constants c_β .*not μ\(0\)"),
+    ],
+)
+def test_vakonomic_options_that_are_not_numbers_are_refused_by_name(model, options, says) -> None:
+    """multipliers/constants: a string, a wrong count, a non-finite value or an unknown key is an
+    InputError naming the option and what it takes (on main: a bare ValueError for
+    multipliers='match', μ(0) = 2.0 silently dropped, NaN integrated, the family ignoring μ(0))."""
+    from chaplygin import InputError
+
+    knife = examples.knife_edge()
+    with pytest.raises(InputError, match=says):
+        simulate(knife, model, 1.0, KNIFE_START, KNIFE_P, samples=3, backend="numpy", **options)
+
+
+def test_vakonomic_options_that_are_numbers_give_mu0() -> None:
+    """What is accepted: μ(0) as a number (g = 1), a sequence or a mapping by name; 'match' is μ(0) = 0."""
+    knife = examples.knife_edge()
+    for given in (0.5, [0.5], {"mu_1": 0.5}):
+        run = simulate(knife, "vakonomic", 0.5, KNIFE_START, KNIFE_P, samples=3, multipliers=given)
+        assert run.success and run["mu_1"][0] == 0.5
+    matched = simulate(knife, "vakonomic", 0.5, KNIFE_START, KNIFE_P, samples=3, constants="match")
+    zero = simulate(knife, "vakonomic", 0.5, KNIFE_START, KNIFE_P, samples=3, multipliers=[0.0])
+    assert matched["mu_1"][0] == 0.0 and np.array_equal(matched.table(), zero.table())
+
+
 def test_compare_falls_back_to_the_multiplier_model_at_a_pole():
     """A knife edge heading through φ = π/2, where ẏ = tan φ ẋ has a pole: compare warns and shows
     the Chetaev motion under the label 'chaplygin'; Lindelöf's run (no multiplier form) stops."""

@@ -490,6 +490,12 @@ def simulate_ensemble(
         )
     times = _keep_times(keep, t0, t1)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    if isinstance(family_c, str):  # "match": c_β = ∂T/∂q̇_dep at each member's own start
+        raise ChaplyginError(
+            f"constants='match': for {model!r} the constants follow from each member's start, and "
+            "an ensemble compiles one model for all; give the numbers, or use model 'vakonomic' "
+            "(μ integrated), where constants='match' starts every member with μ(0) = 0."
+        )
     compiled = _compile(system, model, form, backend, family_c, reduction)
     backend = compiled.backend
     if backend == "numba":

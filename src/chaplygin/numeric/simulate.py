@@ -511,17 +511,83 @@ def _numeric(
 def _vakonomic_setup(
     system: System, model: str, constants: Any, multipliers: Any
 ) -> tuple[Any, dict[str, Any] | None]:
-    """Constants of the family, or the initial multipliers of the multiplier form."""
+    """Constants of the family, or the initial multipliers of the multiplier form, checked: each
+    a finite number, one per constraint (a sequence, a mapping, or a number where g = 1), or
+    ``constants="match"``; anything else is refused with an :class:`InputError`."""
     entry = registry.get(model)
-    if entry.constants:
-        return ([0.0] * system.g if constants is None else constants), None
-    if entry.multipliers_in_state:
-        if multipliers is not None:
-            return None, {"mu": multipliers}
-        return None, {"constants": [0.0] * system.g if constants is None else constants}
-    if constants is not None or multipliers is not None:
-        raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
-    return None, None
+    if not (entry.constants or entry.multipliers_in_state):
+        if constants is not None or multipliers is not None:
+            raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
+        return None, None
+    if multipliers is not None and not entry.multipliers_in_state:
+        raise InputError(
+            f"multipliers: the reduced model {model!r} takes the constants c_β (constants=...), not "
+            "μ(0); μ(0) is for model 'vakonomic', which integrates μ."
+        )
+    if multipliers is not None and constants is not None:
+        raise InputError(
+            "constants and multipliers: give one of them: μ(0) itself (multipliers=...), or the "
+            "constants c_β it follows from (constants=..., or 'match' for μ(0) = 0)."
+        )
+    if multipliers is not None:
+        if isinstance(multipliers, str):
+            raise InputError(
+                f"multipliers={multipliers!r}: multipliers takes μ(0) itself, one finite number per "
+                f"constraint ({system.g}) as a sequence or a mapping by name (mu_1 …); for μ(0) = 0 "
+                "(the vakonomic momenta starting equal to the true ones) give constants='match'."
+            )
+        return None, {"mu": _vakonomic_numbers(system, multipliers, "multipliers", "μ(0)")}
+    if isinstance(constants, str) and constants == "match":
+        c: Any = "match"
+    elif constants is None:
+        c = [0.0] * system.g
+    else:
+        c = _constant_values(system, _vakonomic_numbers(system, constants, "constants", "c_β"))
+    return (c, None) if entry.constants else (None, {"constants": c})
+
+
+def _vakonomic_numbers(system: System, value: Any, what: str, symbol: str) -> list[float] | dict[Any, float]:
+    """``value`` as g finite floats (a sequence, or a number where g = 1) or a mapping of keys
+    to finite floats (its keys are checked where the names are known)."""
+    import sympy as sp
+
+    g = system.g
+    accepted = f"one finite number per constraint ({g}) as a sequence or a mapping by name" + (
+        ", 'match', or None (every c_β = 0)" if what == "constants" else ""
+    )
+    if isinstance(value, Mapping):
+        return {key: _finite(x, f"{what}: {key}", "a finite number") for key, x in value.items()}
+    if isinstance(value, (str, bytes)) or not (
+        isinstance(value, (Sequence, np.ndarray, int, float, np.number, sp.Basic))
+    ):
+        from chaplygin.core._symbols import describe
+
+        raise InputError(f"{what} = {describe(value)}: give {symbol} as {accepted}.")
+    values = list(np.ravel(np.asarray(value, dtype=object))) if np.ndim(value) else [value]
+    if len(values) != g or (not np.ndim(value) and g != 1):
+        raise InputError(
+            f"{what}: {len(values)} value(s) given for {g} constraint(s); give {symbol} as {accepted}."
+        )
+    return [_finite(x, f"{what}[{k}]", "a finite number") for k, x in enumerate(values)]
+
+
+def _constant_values(system: System, given: list[float] | dict[Any, float]) -> list[float]:
+    """The constants c_β in order, from :func:`_vakonomic_numbers` (a mapping by name or 1 … g)."""
+    if isinstance(given, list):
+        return given
+    from chaplygin.models.vakonomic import constant_symbols
+
+    names = [c.name for c in constant_symbols(system)]
+    out: list[float | None] = [None] * system.g
+    for key, value in given.items():
+        k = key - 1 if isinstance(key, int) else names.index(str(key)) if str(key) in names else -1
+        if not 0 <= k < system.g:
+            raise InputError(f"constants: unknown key {key!r}; use {', '.join(names)} or 1 … {system.g}.")
+        out[k] = value
+    missing = [name for name, value in zip(names, out) if value is None]
+    if missing:
+        raise InputError(f"constants: no value for {', '.join(missing)}; give every c_β a number.")
+    return [float(x) for x in out if x is not None]
 
 
 # ------------------------------------------------------------------ integration
@@ -1064,13 +1130,16 @@ def _initial_multipliers(
     names = [m for m in system.equations("vakonomic").multipliers]
     if "mu" in vak:
         given = vak["mu"]
-        values = (
-            [given[k] for k in range(system.g)]
-            if isinstance(given, Sequence)
-            else [given.get(m, given.get(m.func.__name__)) for m in names]
-        )
-        if any(v is None for v in values) or len(values) != system.g:
-            raise ChaplyginError(f"multipliers: give μ(0) for {', '.join(m.func.__name__ for m in names)}.")
+        if isinstance(given, list):
+            return np.array(given, dtype=float)
+        labels = [m.func.__name__ for m in names]
+        unknown = [k for k in given if k not in names and str(k) not in labels]
+        values = [given.get(m, given.get(label)) for m, label in zip(names, labels)]
+        if unknown or any(v is None for v in values):
+            raise InputError(
+                f"multipliers: {'unknown key ' + repr(unknown[0]) if unknown else 'missing values'}; "
+                f"give μ(0) for {', '.join(labels)}."
+            )
         return np.array(values, dtype=float)
     c = vak["constants"]
     if isinstance(c, str) and c == "match":
