@@ -646,6 +646,8 @@ def _stop_at_poles(
     t_pole = np.where(res["code"] == POLE, res["t"], np.nan)
     hit = np.flatnonzero(bad.any(axis=1))
     if hit.size:
+        for key in ("t", "y", "code", "observed"):  # (writable: the jax backend's arrays are not)
+            res[key] = np.array(res[key])
         k = np.argmax(bad[hit], axis=1)  # the first point at or past the pole
         last = np.where(k > 0, before[hit, np.maximum(k - 1, 0)], 0)  # the point before it
         t_pole[hit] = tt[hit, k]
