@@ -39,7 +39,7 @@ from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
 from chaplygin.numeric._loop import STATUS
 from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
-from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup, pole_free
+from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup, monitor, pole_free
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -73,7 +73,9 @@ class Ensemble:
         Every coordinate and every velocity (``"x'"``, dependent ones
         included) at :attr:`t`.
     energy, energy_initial : ndarray (N,)
-        ``T − U`` at :attr:`t` and at the start.
+        The monitored quantity at :attr:`t` and at the start: ``E = T − U``, or Jacobi's
+        integral ``h = T₂ − T₀ − U`` where :attr:`energy_column` is ``"jacobi_integral"``
+        (:func:`~chaplygin.numeric.simulate.monitor`).
     constraint_residual : ndarray (N,)
         ``max_β |Σ_s A_βs q̇_s + A_β0|`` at :attr:`t`.
     code : ndarray of int (N,)
@@ -108,6 +110,8 @@ class Ensemble:
     wall_time: float = 0.0
     parameters: dict[str, np.ndarray] = field(default_factory=dict)
     t_pole: np.ndarray | None = None
+    #: what :attr:`energy` holds: ``"energy"`` or ``"jacobi_integral"``
+    energy_column: str = "energy"
 
     def __len__(self) -> int:
         return len(self.t)
@@ -151,9 +155,13 @@ class Ensemble:
                 return table[name]
         if name in self.layout.state:
             return self.y[:, self.layout.state.index(name)]
-        if name in ("t", "energy", "constraint_residual"):
+        if name == self.energy_column:
+            return self.energy
+        if name in ("t", "constraint_residual"):
             return getattr(self, name)
-        raise KeyError(f"{name!r}: use a coordinate, a velocity, 't', 'energy' or 'constraint_residual'")
+        raise KeyError(
+            f"{name!r}: use a coordinate, a velocity, 't', {self.energy_column!r} or 'constraint_residual'"
+        )
 
     def __repr__(self) -> str:
         failed = int(np.count_nonzero(self.code))
@@ -588,6 +596,7 @@ def simulate_ensemble(
         velocities={name + "'": velocities[:, i] for i, name in enumerate(layout.coordinates)},
         energy=obs[:, 0],
         energy_initial=obs0[:, 0],
+        energy_column=monitor(system).column,
         constraint_residual=residual,
         code=res["code"],
         rhs_evaluations=res["n_rhs"],

@@ -85,6 +85,54 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     return "numpy"
 
 
+class Monitor(NamedTuple):
+    """What the ``energy`` column of a run holds (:func:`monitor`)."""
+
+    #: the column's name: ``"energy"`` or ``"jacobi_integral"``
+    column: str
+    #: how it reads in words: ``"energy"`` or ``"Jacobi integral"``
+    name: str
+    #: its formula
+    formula: str
+    #: whether it is an invariant of the motion (its change is then an integration error)
+    conserved: bool
+
+
+def monitor(system: System) -> Monitor:
+    """What the monitor of ``system``'s runs computes, and whether it is conserved.
+
+    With no non-potential forces, homogeneous constraints and nothing that depends on time
+    explicitly (:attr:`System.conserves_energy <chaplygin.System.conserves_energy>`), every
+    model conserves Jacobi's integral ``h = Σ q̇_s ∂T/∂q̇_s − T − U = T₂ − T₀ − U`` (the vakonomic
+    ones too: ``μ φ`` drops out of it, φ being homogeneous of degree one): the energy
+    ``E = T − U`` where T is quadratic in the velocities, else — a kinetic energy with
+    velocity-linear and velocity-free parts, e.g. a body written in a rotating frame — ``h``,
+    a different number, which the column then holds and is named after.  Otherwise nothing is
+    conserved in general and the column holds E, reported as a change, not a drift.
+    """
+    conserved = system.conserves_energy
+    if conserved and not _quadratic(system):
+        return Monitor("jacobi_integral", "Jacobi integral", "h = T₂ − T₀ − U", True)
+    return Monitor("energy", "energy", "E = T − U", conserved)
+
+
+def _quadratic(system: System) -> bool:
+    """Whether T is a homogeneous quadratic form in the velocities (then ``h = T − U = E``): T
+    being a polynomial of degree at most 2 in them (:class:`~chaplygin.System` checks it), its
+    value and gradient at zero velocity (``T₀`` and the coefficients of ``T₁``) vanish."""
+    cached = system.__dict__.get("_quadratic_T")
+    if cached is None:
+        import sympy as sp
+
+        xd, T = system._vars.xd, system._T
+        still = {v: sp.S.Zero for v in xd}
+        alone = [T.xreplace({**still, v: v}) for v in xd]  # T₂ + T₁ + T₀ with one velocity moving
+        parts = [T.xreplace(still), *(e.diff(v).xreplace(still) for e, v in zip(alone, xd))]
+        cached = all(e == 0 or sp.expand(e) == 0 for e in parts)
+        system.__dict__["_quadratic_T"] = cached
+    return bool(cached)
+
+
 #: the most samples one run returns: each is a row of every column in memory (10**6 samples
 #: of a ten-coordinate system take about 0.2 GB, more while they are observed)
 MAX_SAMPLES = 10**6
@@ -106,8 +154,11 @@ class Trajectory:
     multipliers : dict of str → ndarray
         λ (Chetaev) or μ (vakonomic) where the model has them.
     energy : ndarray
-        ``T − U`` at each sample (for rheonomic or affine constraints it is not
-        an invariant).
+        The monitored quantity at each sample (:func:`monitor`): the energy ``E = T − U``,
+        or, where T has velocity-linear and velocity-free parts but nothing depends on time
+        (a rotating frame), Jacobi's integral ``h = T₂ − T₀ − U``, the column then named
+        ``jacobi_integral`` (:attr:`energy_column`).  For rheonomic or affine constraints or
+        non-potential forces it is E and not an invariant (:attr:`energy_conserved`).
     constraint_residual : ndarray
         ``max_β |Σ_s A_βs q̇_s + A_β0|`` at each sample.
     status, message : str
@@ -132,13 +183,17 @@ class Trajectory:
     parameters: dict[str, float] = field(default_factory=dict)
     rhs_evaluations: int = 0
     failure: str = ""
-    #: whether E is an invariant of the system (:attr:`chaplygin.System.conserves_energy`)
+    #: whether the monitored quantity is an invariant of the system (:func:`monitor`)
     energy_conserved: bool = True
+    #: the monitored quantity's column: ``"energy"``, or ``"jacobi_integral"`` (:func:`monitor`)
+    energy_column: str = "energy"
 
     @property
     def energy_label(self) -> str:
-        """``"energy drift"`` where E is an invariant (an integration error), else ``"energy change"``."""
-        return "energy drift" if self.energy_conserved else "energy change"
+        """``"energy drift"`` where E is an invariant (an integration error), else ``"energy change"``;
+        ``"Jacobi integral drift"`` where the column holds Jacobi's integral."""
+        name = "Jacobi integral" if self.energy_column == "jacobi_integral" else "energy"
+        return f"{name} {'drift' if self.energy_conserved else 'change'}"
 
     @property
     def success(self) -> bool:
@@ -148,14 +203,29 @@ class Trajectory:
         for table in (self.coordinates, self.velocities, self.multipliers):
             if name in table:
                 return table[name]
-        if name in ("t", "energy", "constraint_residual"):
+        if name == self.energy_column:
+            return self.energy
+        if name in ("t", "constraint_residual"):
             return getattr(self, name)
+        if name == "energy":
+            raise KeyError(
+                f"'energy': this system conserves Jacobi's integral h = T₂ − T₀ − U, not E = T − U "
+                f"(its kinetic energy has velocity-linear or velocity-free parts): the column is "
+                f"{self.energy_column!r}"
+            )
         raise KeyError(f"{name!r}: the columns are {', '.join(self.columns)}")
 
     @property
     def columns(self) -> list[str]:
         """Column names in export order."""
-        return ["t", *self.coordinates, *self.velocities, "energy", "constraint_residual", *self.multipliers]
+        return [
+            "t",
+            *self.coordinates,
+            *self.velocities,
+            self.energy_column,
+            "constraint_residual",
+            *self.multipliers,
+        ]
 
     def table(self) -> np.ndarray:
         """All columns as one array (samples × columns)."""
@@ -814,7 +884,8 @@ def _watch(
     its determinant between two (a pole of ``q̇_dep = B q̇_σ + B_0`` crossed); where the
     generated ``M`` is the reduced mass matrix, it stays positive definite.
     """
-    tr.energy_conserved = system.conserves_energy  # (how the energy column reads)
+    watched = monitor(system)  # (how the energy column reads)
+    tr.energy_conserved, tr.energy_column = watched.conserved, watched.column
     k_bad, why, kind = len(tr.t), "", ""
     names = list(tr.coordinates)
     vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
