@@ -21,8 +21,8 @@ A member that fails (step-size underflow, a blow-up, a singular mass matrix,
 too many steps) does not stop the others: its status says so and its state is
 the last one reached.  A member of a reduced model whose solved constraints meet
 a pole stops there, as :func:`~chaplygin.numeric.simulate.simulate` does (code 9,
-``failure`` ``"pole"``): it is checked, by the same tests, at the samples kept,
-or at :data:`POLE_CHECKS` equally spaced times with ``keep="final"``.
+``failure`` ``"pole"``): it is checked, by the same tests, at :data:`POLE_CHECKS`
+equally spaced times and at the samples kept.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ __all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 ENSEMBLE_BACKENDS = ("auto", "c", "numba", "jax")
 #: the status code of a member that met a pole of its solved constraints (:data:`STATUS`)
 POLE = 9
-#: with ``keep="final"``, a reduced model's members are checked for a pole of the solved
-#: constraints at this many equally spaced times (with ``keep``, at the samples kept)
+#: a reduced model's members are checked for a pole of the solved constraints at this many
+#: equally spaced times, and at the samples kept
 POLE_CHECKS = 101
 #: the most numbers (members × check times × state) the samples of one block of members hold
 _BLOCK_VALUES = 1 << 23
@@ -565,21 +565,22 @@ def simulate_ensemble(
     start = time.perf_counter()
     # a reduced model's solved constraints may meet a pole (pole_free: not where A_dep is fixed)
     watch = registry.get(layout.model).reduced and not pole_free(system)
-    if watch and times is None:  # checked at POLE_CHECKS times, a block of members at a time
-        checks = np.linspace(t0, t1, POLE_CHECKS)
+    if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
+        grid = np.linspace(t0, t1, POLE_CHECKS)
+        checks = grid if times is None else np.union1d(grid, times)
         block = max(1, _BLOCK_VALUES // (len(checks) * Y0.shape[1]))
         parts = []
         for i in range(0, n, block):
             rows = slice(i, min(i + block, n))
             part = integrate(rows, checks)
             _stop_at_poles(system, compiled, part, Y0[rows], P[rows], checks, t0)
-            del part["samples"]
+            checked = part.pop("samples")
+            if times is not None:  # the kept times among the checked ones
+                part["samples"] = checked[:, np.searchsorted(checks, times)]
             parts.append(part)
         res = {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
     else:
         res = integrate(slice(None), times)
-        if watch and times is not None:
-            _stop_at_poles(system, compiled, res, Y0, P, times, t0)
     wall = time.perf_counter() - start
 
     obs = res["observed"]
