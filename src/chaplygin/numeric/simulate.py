@@ -985,15 +985,24 @@ def pole_marks(
     usable = finite & np.all(scale[:, :, 0] > 0, axis=1)
     block = a[:, :, dep] / np.where(scale > 0, scale, 1.0)
     with np.errstate(all="ignore"):
-        sign = np.sign(np.linalg.det(a[:, :, dep]) * np.prod(factors, axis=1))
+        sign = np.sign(_dets(a[:, :, dep]) * np.prod(factors, axis=1))
         # the smallest singular value of the scaled block (entries ≤ 1, so its largest is ≤ g)
         # is at least |det| / g^(g−1): the SVD only where that bound does not settle it
-        unsure = ~(np.abs(np.linalg.det(block)) > 1e-10 * g ** (g - 1))
+        unsure = ~(np.abs(_dets(block)) > 1e-10 * g ** (g - 1))
     small = np.zeros(count, dtype=bool)
     if np.any(unsure):
         small[unsure] = ~(np.linalg.svd(block[unsure], compute_uv=False)[:, -1] > 1e-10)
     singular = ~usable | small | (sign == 0)
     return singular, sign
+
+
+def _dets(m: np.ndarray) -> np.ndarray:
+    """The determinants of a stack of g × g matrices (written out for g ≤ 2: NumPy factors each)."""
+    if m.shape[1] == 1:
+        return m[:, 0, 0]
+    if m.shape[1] == 2:
+        return m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+    return np.linalg.det(m)
 
 
 def first_pole(singular: np.ndarray, sign: np.ndarray) -> int:
