@@ -101,3 +101,21 @@ def test_ensemble_members_stop_at_a_pole_on_every_backend(backend: str) -> None:
             assert math.cos(ens["theta"][k]) * math.cos(SLEIGH_0[k]["theta"]) > 0
         else:
             assert ens.code[k] == 0 and ens.t[k] == 3.0 and np.isnan(ens.t_pole[k])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_velocity_that_stops_being_finite_is_a_pole_in_simulate_and_ensembles(backend: str) -> None:
+    """ẏ = √x ẋ stops being real at x = 0, reached at t ≈ 0.0977 from x = 0.1, ẋ = −1: the loop
+    itself stops there (a non-finite velocity), which simulate and the ensemble both call a pole
+    (on main, simulate's failure was '' beside the message 'a pole at t = …')."""
+    t = sp.Symbol("t")
+    x, y = dynamicsymbols("x y")
+    edge = System([x, y], (x.diff(t) ** 2 + y.diff(t) ** 2) / 2, {y.diff(t): sp.sqrt(x) * x.diff(t)})
+    start = {"x": 0.1, "y": 0.0, "x'": -1.0}
+    ens = simulate_ensemble(edge, "chaplygin", 1.0, [start], {}, backend=backend)
+    assert ens.code[0] != 0 and 0.09 < ens.t[0] < 0.0977, ens.messages
+    if backend == "jax":  # diffrax rejects the non-finite steps until the step underflows
+        return
+    assert ens.failure[0] == "pole", ens.messages
+    run = simulate(edge, "chaplygin", 1.0, start, {}, samples=11, backend=backend)
+    assert run.failure == "pole" and "y'" in run.message, run.message

@@ -907,6 +907,8 @@ def _watch(
         if k < k_bad:
             k_bad, why, kind = k, found, "mass"
     if k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1):
+        if not tr.success and tr.message.startswith("a pole at"):  # the integrator met it (code 9)
+            tr.failure = "pole"
         return tr  # (the last sample of a failed run: its own message says why)
     keep = slice(0, k_bad)
     for table in (tr.coordinates, tr.velocities, tr.multipliers):
