@@ -206,6 +206,48 @@ def test_matching_constants_for_the_family(sphere) -> None:
         assert np.max(np.abs(family[name] - multiplier[name])) < 1e-7
 
 
+KNIFE_START = {"x": 0.0, "y": 0.0, "phi": 0.3, "x'": 1.0, "phi'": 0.2}
+KNIFE_P = {"m": 1.0, "J": 0.5}
+
+
+@pytest.mark.parametrize(
+    ("model", "options", "says"),
+    [
+        ("vakonomic", {"multipliers": "match"}, r"multipliers='match'.*give constants='match'"),
+        ("vakonomic", {"multipliers": ["a"]}, r"multipliers\[0\] = 'a' is not a number"),
+        ("vakonomic", {"multipliers": {"mu_1": "x"}}, r"multipliers: mu_1 = 'x' is not a number"),
+        ("vakonomic", {"multipliers": {"nu": 0.1}}, r"multipliers: unknown key 'nu'; give μ\(0\) for mu_1"),
+        ("vakonomic", {"multipliers": [1.0, 2.0]}, r"multipliers: 2 value\(s\) given for 1 constraint"),
+        ("vakonomic", {"multipliers": [float("nan")]}, r"multipliers\[0\] = nan is not finite"),
+        ("vakonomic", {"multipliers": [0.1], "constants": [0.2]}, r"give one of them"),
+        ("vakonomic", {"constants": "foo"}, r"constants = 'foo': give c_β .*'match'"),
+        ("vakonomic_family", {"constants": ["foo"]}, r"constants\[0\] = 'foo' is not a number"),
+        ("vakonomic_family", {"constants": {"c_2": 1.0}}, r"constants: unknown key 'c_2'; use c_1"),
+        ("vakonomic_family", {"multipliers": [0.5]}, r"takes the constants c_β .*not μ\(0\)"),
+    ],
+)
+def test_vakonomic_options_that_are_not_numbers_are_refused_by_name(model, options, says) -> None:
+    """multipliers/constants: a string, a wrong count, a non-finite value or an unknown key is an
+    InputError naming the option and what it takes (on main: a bare ValueError for
+    multipliers='match', μ(0) = 2.0 silently dropped, NaN integrated, the family ignoring μ(0))."""
+    from chaplygin import InputError
+
+    knife = examples.knife_edge()
+    with pytest.raises(InputError, match=says):
+        simulate(knife, model, 1.0, KNIFE_START, KNIFE_P, samples=3, backend="numpy", **options)
+
+
+def test_vakonomic_options_that_are_numbers_give_mu0() -> None:
+    """What is accepted: μ(0) as a number (g = 1), a sequence or a mapping by name; 'match' is μ(0) = 0."""
+    knife = examples.knife_edge()
+    for given in (0.5, [0.5], {"mu_1": 0.5}):
+        run = simulate(knife, "vakonomic", 0.5, KNIFE_START, KNIFE_P, samples=3, multipliers=given)
+        assert run.success and run["mu_1"][0] == 0.5
+    matched = simulate(knife, "vakonomic", 0.5, KNIFE_START, KNIFE_P, samples=3, constants="match")
+    zero = simulate(knife, "vakonomic", 0.5, KNIFE_START, KNIFE_P, samples=3, multipliers=[0.0])
+    assert matched["mu_1"][0] == 0.0 and np.array_equal(matched.table(), zero.table())
+
+
 def test_compare_falls_back_to_the_multiplier_model_at_a_pole():
     """A knife edge heading through φ = π/2, where ẏ = tan φ ẋ has a pole: compare warns and shows
     the Chetaev motion under the label 'chaplygin'; Lindelöf's run (no multiplier form) stops."""
@@ -230,3 +272,78 @@ def test_compare_without_a_pole_has_no_notes(recwarn):
     cmp = compare(knife, ["chaplygin", "lindelof"], 1.0, start, {"m": 1.0, "J": 0.5}, samples=21)
     assert cmp.notes == [] and all(tr.success for tr in cmp.trajectories.values())
     assert cmp.trajectories["chaplygin"].model == "chaplygin" and not recwarn.list
+
+
+def ball_in_a_rotating_frame() -> System:
+    """A homogeneous ball on a turntable spinning at Ω, written in the table's frame: the centre
+    (X, Y) and z-x-z Euler angles relative to the table.  The constraints (rolling on the table,
+    at rest in this frame) are homogeneous and nothing depends on t, but T has velocity-linear
+    and velocity-free parts: T = ½ m |(Ẋ − Ω Y, Ẏ + Ω X)|² + ⅕ m a² |ω_rel + Ω e_z|²."""
+    import sympy as sp
+
+    psi, theta, phi, x, y = dynamicsymbols("psi theta phi X Y")
+    m, a, rate = sp.symbols("m a Omega", positive=True)
+    d = [c.diff(t) for c in (psi, theta, phi, x, y)]
+    w = sp.Matrix(
+        [
+            d[1] * sp.cos(psi) + d[2] * sp.sin(theta) * sp.sin(psi),
+            d[1] * sp.sin(psi) - d[2] * sp.sin(theta) * sp.cos(psi),
+            d[0] + d[2] * sp.cos(theta),
+        ]
+    )
+    inertial = w + sp.Matrix([0, 0, rate])
+    v = sp.Matrix([d[3] - rate * y, d[4] + rate * x])
+    T = m / 2 * v.dot(v) + sp.Rational(1, 5) * m * a**2 * inertial.dot(inertial)
+    return System([psi, theta, phi, x, y], T, {d[3]: a * w[1], d[4]: -a * w[0]}, name="ball, table frame")
+
+
+def jacobi_integral(tr, m: float, a: float, rate: float) -> np.ndarray:
+    """h = T₂ − T₀ (V = 0), from the samples, with the formulas of the docstring above."""
+    q = {c: tr[c] for c in ("psi", "theta", "phi", "X", "Y")}
+    qd = {c: tr[c + "'"] for c in q}
+    wx = qd["theta"] * np.cos(q["psi"]) + qd["phi"] * np.sin(q["theta"]) * np.sin(q["psi"])
+    wy = qd["theta"] * np.sin(q["psi"]) - qd["phi"] * np.sin(q["theta"]) * np.cos(q["psi"])
+    wz = qd["psi"] + qd["phi"] * np.cos(q["theta"])
+    t2 = m / 2 * (qd["X"] ** 2 + qd["Y"] ** 2) + m * a**2 / 5 * (wx**2 + wy**2 + wz**2)
+    t0 = m / 2 * rate**2 * (q["X"] ** 2 + q["Y"] ** 2) + m * a**2 / 5 * rate**2
+    return t2 - t0
+
+
+def test_a_rotating_frame_monitors_jacobis_integral(tmp_path) -> None:
+    """Time-independent but with T₁, T₀ parts: E = T − U drifts by physics (4.8 relative on main, where
+    it was shown as 'energy drift'); the conserved quantity is Jacobi's h = T₂ − T₀ + V, which the
+    column holds and is named after, for every model (the vakonomic one too: μ·φ drops out of h)."""
+    ball = ball_in_a_rotating_frame()
+    params = {"m": 1.3, "a": 0.1, "Omega": 2.0}
+    start = {
+        "psi": 0.3,
+        "theta": 1.0,
+        "phi": 0.1,
+        "X": 0.5,
+        "Y": 0.0,
+        "psi'": 0.5,
+        "theta'": 0.4,
+        "phi'": -0.7,
+    }
+    for model, t_end, options in (
+        ("voronets", 10.0, {}),
+        ("chetaev", 10.0, {}),
+        ("vakonomic", 2.0, {"multipliers": [0.1, -0.2]}),
+    ):
+        tr = simulate(ball, model, t_end, start, params, samples=201, **options)
+        assert tr.success, tr.message
+        h = jacobi_integral(tr, 1.3, 0.1, 2.0)
+        assert "jacobi_integral" in tr.columns and "energy" not in tr.columns
+        assert tr.energy_label == "Jacobi integral drift"
+        assert np.max(np.abs(tr["jacobi_integral"] - h)) < 1e-12 * max(1.0, np.max(np.abs(h)))
+        assert np.ptp(h) < 1e-7 and tr.energy_drift() < 1e-7  # conserved: the drift is numerical
+        with pytest.raises(KeyError, match="Jacobi's integral"):
+            tr["energy"]
+    header = tr.to_csv(tmp_path / "run.csv").read_text().splitlines()[0].split(",")
+    assert "jacobi_integral" in header and "energy" not in header
+    both = compare(ball, ["voronets", "chetaev"], 2.0, start, params, samples=21)
+    assert "Jacobi integral drift" in both.summary() and "energy" not in both.summary()
+    # the same table in the inertial frame has affine constraints: E = T − U, and it is no invariant
+    plain = {("x" if k == "X" else "y" if k == "Y" else k): v for k, v in start.items()}
+    inertial = simulate(examples.turntable_ball(), "voronets", 1.0, plain, params, samples=11)
+    assert "energy" in inertial.columns and inertial.energy_label == "energy change"

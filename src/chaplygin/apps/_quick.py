@@ -45,7 +45,7 @@ PLANNED = ("c", "numpy", "numba")
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's shape changes
-FORMAT = 4
+FORMAT = 5
 
 
 def key(definition: bytes, model: str, form: str, backend: str) -> str:
@@ -98,7 +98,8 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         | {"model": layout.model, "form": layout.form},
         **code,
         "g": system.g,
-        "energy_conserved": system.conserves_energy,
+        "energy_conserved": tr.energy_conserved,
+        "energy_column": tr.energy_column,
         "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
         "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
         "defaulted": list(getattr(loaded, "defaulted", ())),
@@ -234,6 +235,7 @@ def _run(
         progress=progress,
     )
     tr.energy_conserved = bool(found["energy_conserved"])
+    tr.energy_column = str(found["energy_column"])
     return tr
 
 

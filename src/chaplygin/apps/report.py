@@ -1036,6 +1036,16 @@ def _energy_note(system: System) -> tuple[str, str]:
             f"Energy change: {measure}. E is not an invariant here ({why}): this column measures "
             "how it changes along the motion, not an integration error."
         )
+    from chaplygin.numeric.simulate import monitor
+
+    if monitor(system).column == "jacobi_integral":
+        return "Jacobi integral drift", (
+            "Jacobi integral drift: max |h − h(0)| / max(1, |h(0)|), h = T₂ − T₀ − U (T₂, T₁, T₀: the "
+            "parts of T quadratic, linear and free in the velocities). T has velocity-linear or "
+            "velocity-free parts (a moving frame) but nothing depends on time, the constraints are "
+            "homogeneous and no non-potential force acts: h, not E = T − U, is the invariant here, "
+            "so its drift measures the integration error."
+        )
     return "energy drift", (
         f"Energy drift: {measure}; E is an invariant here (scleronomic homogeneous constraints, no "
         "non-potential forces), so the drift measures the integration error."

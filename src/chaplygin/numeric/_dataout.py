@@ -262,7 +262,8 @@ def plot_trajectory(
         e0 = tr.energy[0] if len(tr.energy) else 0.0
         drift = np.abs(tr.energy - e0) / max(1.0, abs(e0))
         tiny = 1e-18  # a log axis shows exact zeros at 1e-18 instead of leaving them out
-        ax.plot(tr.t, drift + tiny, **{"label": "|E − E(0)| / max(1, |E(0)|)", **kwargs})
+        e = "h" if tr.energy_column == "jacobi_integral" else "E"  # h: Jacobi's integral
+        ax.plot(tr.t, drift + tiny, **{"label": f"|{e} − {e}(0)| / max(1, |{e}(0)|)", **kwargs})
         ax.plot(tr.t, tr.constraint_residual + tiny, **{"label": "constraint residual", **kwargs})
         ax.set(yscale="log", xlabel="t", title=f"{title}: invariants")
     else:

@@ -101,7 +101,9 @@ STATUS = {
     4: "too many steps",
     5: "the mass matrix is singular",
     6: "the solver failed",  # jax backend: another diffrax failure
-    9: "a pole: a velocity (solved from the constraints) is not finite",  # (7, 8: chaplygin.numeric.symmetric)
+    # a velocity solved from the constraints is not finite, or (ensembles, chaplygin.numeric.ensemble)
+    # they cannot be solved between two times checked; 7, 8: chaplygin.numeric.symmetric
+    9: "a pole of the solved constraints",
 }
 
 # ------------------------------------------------------------------ DOP853 tableau

@@ -64,7 +64,7 @@ __all__ = [
 
 BACKENDS = ("numpy", "numba", "jax", "c")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
-CODE_FORMAT = 7
+CODE_FORMAT = 8
 
 
 def _docstring_safe(text: str) -> str:
@@ -228,11 +228,22 @@ def _at(exprs: list[Any], plain: dict[sp.Symbol, sp.Expr]) -> list[Any]:
 
 
 def _kinematics(s: System) -> tuple[Any, list[list[Any]], list[Any], list[Any]]:
-    """``T − U``, the rows of ``A``, ``A_0`` and ``q̇`` (SymEngine's where it has them)."""
+    """The monitored quantity (:func:`monitored`), the rows of ``A``, ``A_0`` and ``q̇``
+    (SymEngine's where it has them)."""
     nat = s._native
     if nat is not None:
-        return nat.T - nat.U, nat.A, nat.A0, nat.xd
-    return s._T - s._U, s._A.tolist(), list(s._A0), list(s._vars.xd)
+        return monitored(s, nat.T, nat.U, nat.xd), nat.A, nat.A0, nat.xd
+    return monitored(s, s._T, s._U, s._vars.xd), s._A.tolist(), list(s._A0), list(s._vars.xd)
+
+
+def monitored(s: System, T: Any, U: Any, xd: Any) -> Any:
+    """What the ``energy`` observable computes (:func:`chaplygin.numeric.simulate.monitor`):
+    ``T − U``, or Jacobi's integral ``Σ q̇ ∂T/∂q̇ − T − U`` where T is not quadratic in ``q̇``."""
+    from chaplygin.numeric.simulate import monitor
+
+    if monitor(s).column == "jacobi_integral":
+        return sum((v * T.diff(v) for v in xd), 0) - T - U
+    return T - U
 
 
 def _main_block(

@@ -95,21 +95,23 @@ class Comparison:
 
     @property
     def energy_label(self) -> str:
-        """The energy column's heading: ``"energy drift"`` or ``"energy change"`` (:attr:`Trajectory.energy_label`)."""
+        """The energy column's heading: ``"energy drift"``, ``"energy change"`` or ``"Jacobi integral
+        drift"`` (:attr:`Trajectory.energy_label`)."""
         return next(iter(self.trajectories.values())).energy_label if self.trajectories else "energy drift"
 
     def summary(self) -> str:
         """A table: largest distance from the reference (and when), energy drift, residual."""
         what = f"path ({', '.join(self.path)})" if self.path else "coordinates"
+        w = max(13, len(self.energy_label))
         lines = [
             f"{self.system_name}: models compared with {self.reference} from the same initial state",
-            f"  {'model':<22} {'max distance of ' + what:>30} {'at t':>9} {self.energy_label:>13} {'max residual':>13}  status",
+            f"  {'model':<22} {'max distance of ' + what:>30} {'at t':>9} {self.energy_label:>{w}} {'max residual':>13}  status",
         ]
         for label, tr in self.trajectories.items():
             peak, when = self._peak(label)
             lines.append(
                 f"  {label:<22} {peak:>30.6g} {when:>9.4g} "
-                f"{tr.energy_drift():>13.3g} {np.max(tr.constraint_residual, initial=0.0):>13.3g}  {tr.status}"
+                f"{tr.energy_drift():>{w}.3g} {np.max(tr.constraint_residual, initial=0.0):>13.3g}  {tr.status}"
             )
         lines += [f"  note: {note}" for note in self.notes]
         return "\n".join(lines)
@@ -193,7 +195,12 @@ class Comparison:
                 for label, tr in runs
             ]
             _draw(top, drift, legend=True, log=True)
-            top.set(yscale="log", ylabel="|E − E(0)| / max(1, |E(0)|)", title=f"{self.system_name}: energy")
+            e = "h" if "jacobi" in self.energy_label.lower() else "E"
+            top.set(
+                yscale="log",
+                ylabel=f"|{e} − {e}(0)| / max(1, |{e}(0)|)",
+                title=f"{self.system_name}: {'Jacobi integral' if e == 'h' else 'energy'}",
+            )
             if residual:
                 curves = [
                     (label, tr.t, None if label in exact else tr.constraint_residual + 1e-18)

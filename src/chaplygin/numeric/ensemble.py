@@ -19,7 +19,10 @@ residual there.  Three engines:
 
 A member that fails (step-size underflow, a blow-up, a singular mass matrix,
 too many steps) does not stop the others: its status says so and its state is
-the last one reached.
+the last one reached.  A member of a reduced model whose solved constraints meet
+a pole stops there, as :func:`~chaplygin.numeric.simulate.simulate` does (code 9,
+``failure`` ``"pole"``): it is checked, by the same tests, at :data:`POLE_CHECKS`
+equally spaced times and at the samples kept.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
 from chaplygin.numeric._loop import STATUS
 from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
-from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup
+from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup, monitor, pole_free
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -45,6 +48,13 @@ __all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 
 #: what ``backend=`` accepts; "auto" is "c" where a C compiler is found, else "numba"
 ENSEMBLE_BACKENDS = ("auto", "c", "numba", "jax")
+#: the status code of a member that met a pole of its solved constraints (:data:`STATUS`)
+POLE = 9
+#: a reduced model's members are checked for a pole of the solved constraints at this many
+#: equally spaced times, and at the samples kept
+POLE_CHECKS = 101
+#: the most numbers (members × check times × state) the samples of one block of members hold
+_BLOCK_VALUES = 1 << 23
 
 
 @dataclass
@@ -63,7 +73,9 @@ class Ensemble:
         Every coordinate and every velocity (``"x'"``, dependent ones
         included) at :attr:`t`.
     energy, energy_initial : ndarray (N,)
-        ``T − U`` at :attr:`t` and at the start.
+        The monitored quantity at :attr:`t` and at the start: ``E = T − U``, or Jacobi's
+        integral ``h = T₂ − T₀ − U`` where :attr:`energy_column` is ``"jacobi_integral"``
+        (:func:`~chaplygin.numeric.simulate.monitor`).
     constraint_residual : ndarray (N,)
         ``max_β |Σ_s A_βs q̇_s + A_β0|`` at :attr:`t`.
     code : ndarray of int (N,)
@@ -74,6 +86,10 @@ class Ensemble:
         ``(N, len(times), len(layout.state))``; NaN after a failure.
     wall_time : float
         Seconds spent integrating (compilation excluded when it was cached).
+    t_pole : ndarray (N,)
+        For a member of a reduced model that met a pole of its solved constraints (code 9,
+        :attr:`failure` ``"pole"``): the first time checked at or past the pole (the member
+        stopped at :attr:`t`, the time checked before it); NaN for the others.
     """
 
     model: str
@@ -93,6 +109,9 @@ class Ensemble:
     samples: np.ndarray | None = None
     wall_time: float = 0.0
     parameters: dict[str, np.ndarray] = field(default_factory=dict)
+    t_pole: np.ndarray | None = None
+    #: what :attr:`energy` holds: ``"energy"`` or ``"jacobi_integral"``
+    energy_column: str = "energy"
 
     def __len__(self) -> int:
         return len(self.t)
@@ -108,11 +127,22 @@ class Ensemble:
         return np.where(self.code == 0, "success", "failed")
 
     @property
+    def failure(self) -> np.ndarray:
+        """Per member, as :attr:`Trajectory.failure <chaplygin.numeric.simulate.Trajectory.failure>`:
+        ``"pole"`` where the solved constraints of a reduced model met a pole (code 9), else ``""``."""
+        return np.where(self.code == POLE, "pole", "")
+
+    @property
     def messages(self) -> list[str]:
         """Why each member stopped (``""`` for the successful ones)."""
+        t_pole = self.t_pole if self.t_pole is not None else np.full(len(self.t), np.nan)
         return [
-            "" if c == 0 else f"stopped at t = {t:.6g}: {STATUS.get(int(c), 'failed')}"
-            for c, t in zip(self.code, self.t)
+            ""
+            if c == 0
+            else f"stopped at t = {t:.6g}: {STATUS[POLE]} by t = {tp:.6g}"
+            if c == POLE and np.isfinite(tp) and tp > t
+            else f"stopped at t = {t:.6g}: {STATUS.get(int(c), 'failed')}"
+            for c, t, tp in zip(self.code, self.t, t_pole)
         ]
 
     def energy_drift(self) -> np.ndarray:
@@ -125,9 +155,13 @@ class Ensemble:
                 return table[name]
         if name in self.layout.state:
             return self.y[:, self.layout.state.index(name)]
-        if name in ("t", "energy", "constraint_residual"):
+        if name == self.energy_column:
+            return self.energy
+        if name in ("t", "constraint_residual"):
             return getattr(self, name)
-        raise KeyError(f"{name!r}: use a coordinate, a velocity, 't', 'energy' or 'constraint_residual'")
+        raise KeyError(
+            f"{name!r}: use a coordinate, a velocity, 't', {self.energy_column!r} or 'constraint_residual'"
+        )
 
     def __repr__(self) -> str:
         failed = int(np.count_nonzero(self.code))
@@ -464,6 +498,12 @@ def simulate_ensemble(
         )
     times = _keep_times(keep, t0, t1)
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    if isinstance(family_c, str):  # "match": c_β = ∂T/∂q̇_dep at each member's own start
+        raise ChaplyginError(
+            f"constants='match': for {model!r} the constants follow from each member's start, and "
+            "an ensemble compiles one model for all; give the numbers, or use model 'vakonomic' "
+            "(μ integrated), where constants='match' starts every member with μ(0) = 0."
+        )
     compiled = _compile(system, model, form, backend, family_c, reduction)
     backend = compiled.backend
     if backend == "numba":
@@ -491,37 +531,56 @@ def simulate_ensemble(
                 f"{resid0[bad].max():.3g}); give states that satisfy them."
             )
 
-    start = time.perf_counter()
-    if backend != "jax":
-        from chaplygin.numeric._loop import ensemble_dop853
+    def integrate(rows: slice, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
+        if backend != "jax":
+            from chaplygin.numeric._loop import ensemble_dop853
 
-        res = ensemble_dop853(
-            compiled,
-            (t0, t1),
-            Y0,
-            P,
-            times=times,
-            rtol=rtol,
-            atol=atol,
-            max_step=max_step,
-            max_steps=max_steps,
-            threads=threads,
-        )
-    else:
+            return ensemble_dop853(
+                compiled,
+                (t0, t1),
+                Y0[rows],
+                P[rows],
+                times=sample_times,
+                rtol=rtol,
+                atol=atol,
+                max_step=max_step,
+                max_steps=max_steps,
+                threads=threads,
+            )
         from chaplygin.numeric.jaxbackend import solve_ensemble
 
-        res = solve_ensemble(
+        return solve_ensemble(
             compiled,
             (t0, t1),
-            Y0,
-            P,
-            times=times,
+            Y0[rows],
+            P[rows],
+            times=sample_times,
             rtol=rtol,
             atol=atol,
             method=method,
             max_step=max_step,
             max_steps=max_steps or 1_000_000,
         )
+
+    start = time.perf_counter()
+    # a reduced model's solved constraints may meet a pole (pole_free: not where A_dep is fixed)
+    watch = registry.get(layout.model).reduced and not pole_free(system)
+    if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
+        grid = np.linspace(t0, t1, POLE_CHECKS)
+        checks = grid if times is None else np.union1d(grid, times)
+        block = max(1, _BLOCK_VALUES // (len(checks) * Y0.shape[1]))
+        parts = []
+        for i in range(0, n, block):
+            rows = slice(i, min(i + block, n))
+            part = integrate(rows, checks)
+            _stop_at_poles(system, compiled, part, Y0[rows], P[rows], checks, t0)
+            checked = part.pop("samples")
+            if times is not None:  # the kept times among the checked ones
+                part["samples"] = checked[:, np.searchsorted(checks, times)]
+            parts.append(part)
+        res = {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+    else:
+        res = integrate(slice(None), times)
     wall = time.perf_counter() - start
 
     obs = res["observed"]
@@ -538,6 +597,7 @@ def simulate_ensemble(
         velocities={name + "'": velocities[:, i] for i, name in enumerate(layout.coordinates)},
         energy=obs[:, 0],
         energy_initial=obs0[:, 0],
+        energy_column=monitor(system).column,
         constraint_residual=residual,
         code=res["code"],
         rhs_evaluations=res["n_rhs"],
@@ -545,7 +605,70 @@ def simulate_ensemble(
         samples=res.get("samples"),
         wall_time=wall,
         parameters=param_columns,
+        t_pole=res.get("t_pole", np.full(n, np.nan)),
     )
+
+
+def _stop_at_poles(
+    system: System,
+    compiled: CompiledModel,
+    res: dict[str, np.ndarray],
+    Y0: np.ndarray,
+    P: np.ndarray,
+    times: np.ndarray,
+    t0: float,
+) -> None:
+    """End each member of ``res`` (:func:`~chaplygin.numeric._loop.ensemble_dop853`'s arrays, with
+    ``samples`` at ``times``) where its solved constraints meet a pole, as ``simulate`` does.
+
+    The tests of :func:`~chaplygin.numeric.simulate.pole_marks` run over the start, every sample
+    reached and the last state, in the order of the run: a member singular at one of these
+    points, or whose sign changes between two, gets code 9 (a pole), its time and state become
+    those of the point before, its samples from the pole on NaN, and ``res["t_pole"]`` the time
+    of the point at or past the pole (NaN for the other members; for a member the loop itself
+    stopped with code 9, a non-finite velocity, the time it stopped).
+    """
+    from chaplygin.numeric.simulate import pole_marks
+
+    layout = compiled.layout
+    count, n_times = len(Y0), len(times)
+    n = len(layout.coordinates)
+    samples = res["samples"]
+    # points: the start, the samples, the last state; those not reached (NaN samples) left out
+    tt = np.concatenate(
+        [np.full((count, 1), t0), np.broadcast_to(times, (count, n_times)), res["t"][:, None]], 1
+    )
+    qq = np.concatenate([Y0[:, None, :n], samples[:, :, :n], res["y"][:, None, :n]], axis=1)
+    reached = np.all(np.isfinite(qq), axis=2)
+    reached[:, 1:-1] &= times[None, :] <= res["t"][:, None]
+    rows, cols = np.nonzero(reached)
+    params = {name: P[rows, j] for j, name in enumerate(layout.parameters)}
+    singular_at, sign_at = pole_marks(system, tt[rows, cols], qq[rows, cols], params)
+    singular = np.zeros(reached.shape, dtype=bool)
+    sign = np.full(reached.shape, np.nan)
+    singular[rows, cols], sign[rows, cols] = singular_at, sign_at
+    # the last point reached at or before each one (its sign: that of the run so far)
+    before = np.maximum.accumulate(np.where(reached, np.arange(reached.shape[1]), 0), axis=1)
+    member = np.arange(count)[:, None]
+    changed = np.zeros(reached.shape, dtype=bool)
+    changed[:, 1:] = reached[:, 1:] & (sign[:, 1:] != sign[member, before[:, :-1]])
+    bad = reached & (singular | changed)
+    t_pole = np.where(res["code"] == POLE, res["t"], np.nan)
+    hit = np.flatnonzero(bad.any(axis=1))
+    if hit.size:
+        for key in ("t", "y", "code", "observed"):  # (writable: the jax backend's arrays are not)
+            res[key] = np.array(res[key])
+        k = np.argmax(bad[hit], axis=1)  # the first point at or past the pole
+        last = np.where(k > 0, before[hit, np.maximum(k - 1, 0)], 0)  # the point before it
+        t_pole[hit] = tt[hit, k]
+        states = np.concatenate([Y0[:, None, :], samples, res["y"][:, None, :]], axis=1)
+        res["t"][hit] = tt[hit, last]
+        res["y"][hit] = states[hit, last]
+        res["code"][hit] = POLE
+        after = np.arange(n_times)[None, :] >= np.maximum(k - 1, 0)[:, None]  # samples from the pole on
+        samples[hit] = np.where(after[:, :, None], np.nan, samples[hit])
+        res["observed"][hit] = _observe_all(compiled, res["t"][hit], res["y"][hit], P[hit])
+    res["t_pole"] = t_pole
 
 
 def _compile(

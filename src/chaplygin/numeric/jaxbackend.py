@@ -46,6 +46,7 @@ from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.numeric._ckernel import CompiledModel
 from chaplygin.numeric._layout import state_symbols
+from chaplygin.numeric.codegen import monitored
 
 try:
     import jax
@@ -81,7 +82,7 @@ def _expressions(eqs: Equations) -> tuple[Any, list[sp.Expr], list[sp.Symbol], l
     s = eqs.system
     layout, to_num, velocities, k = state_symbols(eqs)
     full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
-    energy = (s._T - s._U).xreplace(full_xd)
+    energy = monitored(s, s._T, s._U, s._vars.xd).xreplace(full_xd)
     residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
     exprs = [*eqs._M, *eqs._F, *velocities, energy, *residual]
     n_y, n_p = len(layout.state), len(layout.parameters)

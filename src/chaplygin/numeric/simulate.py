@@ -85,6 +85,54 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     return "numpy"
 
 
+class Monitor(NamedTuple):
+    """What the ``energy`` column of a run holds (:func:`monitor`)."""
+
+    #: the column's name: ``"energy"`` or ``"jacobi_integral"``
+    column: str
+    #: how it reads in words: ``"energy"`` or ``"Jacobi integral"``
+    name: str
+    #: its formula
+    formula: str
+    #: whether it is an invariant of the motion (its change is then an integration error)
+    conserved: bool
+
+
+def monitor(system: System) -> Monitor:
+    """What the monitor of ``system``'s runs computes, and whether it is conserved.
+
+    With no non-potential forces, homogeneous constraints and nothing that depends on time
+    explicitly (:attr:`System.conserves_energy <chaplygin.System.conserves_energy>`), every
+    model conserves Jacobi's integral ``h = Σ q̇_s ∂T/∂q̇_s − T − U = T₂ − T₀ − U`` (the vakonomic
+    ones too: ``μ φ`` drops out of it, φ being homogeneous of degree one): the energy
+    ``E = T − U`` where T is quadratic in the velocities, else — a kinetic energy with
+    velocity-linear and velocity-free parts, e.g. a body written in a rotating frame — ``h``,
+    a different number, which the column then holds and is named after.  Otherwise nothing is
+    conserved in general and the column holds E, reported as a change, not a drift.
+    """
+    conserved = system.conserves_energy
+    if conserved and not _quadratic(system):
+        return Monitor("jacobi_integral", "Jacobi integral", "h = T₂ − T₀ − U", True)
+    return Monitor("energy", "energy", "E = T − U", conserved)
+
+
+def _quadratic(system: System) -> bool:
+    """Whether T is a homogeneous quadratic form in the velocities (then ``h = T − U = E``): T
+    being a polynomial of degree at most 2 in them (:class:`~chaplygin.System` checks it), its
+    value and gradient at zero velocity (``T₀`` and the coefficients of ``T₁``) vanish."""
+    cached = system.__dict__.get("_quadratic_T")
+    if cached is None:
+        import sympy as sp
+
+        xd, T = system._vars.xd, system._T
+        still = {v: sp.S.Zero for v in xd}
+        alone = [T.xreplace({**still, v: v}) for v in xd]  # T₂ + T₁ + T₀ with one velocity moving
+        parts = [T.xreplace(still), *(e.diff(v).xreplace(still) for e, v in zip(alone, xd))]
+        cached = all(e == 0 or sp.expand(e) == 0 for e in parts)
+        system.__dict__["_quadratic_T"] = cached
+    return bool(cached)
+
+
 #: the most samples one run returns: each is a row of every column in memory (10**6 samples
 #: of a ten-coordinate system take about 0.2 GB, more while they are observed)
 MAX_SAMPLES = 10**6
@@ -106,8 +154,11 @@ class Trajectory:
     multipliers : dict of str → ndarray
         λ (Chetaev) or μ (vakonomic) where the model has them.
     energy : ndarray
-        ``T − U`` at each sample (for rheonomic or affine constraints it is not
-        an invariant).
+        The monitored quantity at each sample (:func:`monitor`): the energy ``E = T − U``,
+        or, where T has velocity-linear and velocity-free parts but nothing depends on time
+        (a rotating frame), Jacobi's integral ``h = T₂ − T₀ − U``, the column then named
+        ``jacobi_integral`` (:attr:`energy_column`).  For rheonomic or affine constraints or
+        non-potential forces it is E and not an invariant (:attr:`energy_conserved`).
     constraint_residual : ndarray
         ``max_β |Σ_s A_βs q̇_s + A_β0|`` at each sample.
     status, message : str
@@ -132,13 +183,17 @@ class Trajectory:
     parameters: dict[str, float] = field(default_factory=dict)
     rhs_evaluations: int = 0
     failure: str = ""
-    #: whether E is an invariant of the system (:attr:`chaplygin.System.conserves_energy`)
+    #: whether the monitored quantity is an invariant of the system (:func:`monitor`)
     energy_conserved: bool = True
+    #: the monitored quantity's column: ``"energy"``, or ``"jacobi_integral"`` (:func:`monitor`)
+    energy_column: str = "energy"
 
     @property
     def energy_label(self) -> str:
-        """``"energy drift"`` where E is an invariant (an integration error), else ``"energy change"``."""
-        return "energy drift" if self.energy_conserved else "energy change"
+        """``"energy drift"`` where E is an invariant (an integration error), else ``"energy change"``;
+        ``"Jacobi integral drift"`` where the column holds Jacobi's integral."""
+        name = "Jacobi integral" if self.energy_column == "jacobi_integral" else "energy"
+        return f"{name} {'drift' if self.energy_conserved else 'change'}"
 
     @property
     def success(self) -> bool:
@@ -148,14 +203,29 @@ class Trajectory:
         for table in (self.coordinates, self.velocities, self.multipliers):
             if name in table:
                 return table[name]
-        if name in ("t", "energy", "constraint_residual"):
+        if name == self.energy_column:
+            return self.energy
+        if name in ("t", "constraint_residual"):
             return getattr(self, name)
+        if name == "energy":
+            raise KeyError(
+                f"'energy': this system conserves Jacobi's integral h = T₂ − T₀ − U, not E = T − U "
+                f"(its kinetic energy has velocity-linear or velocity-free parts): the column is "
+                f"{self.energy_column!r}"
+            )
         raise KeyError(f"{name!r}: the columns are {', '.join(self.columns)}")
 
     @property
     def columns(self) -> list[str]:
         """Column names in export order."""
-        return ["t", *self.coordinates, *self.velocities, "energy", "constraint_residual", *self.multipliers]
+        return [
+            "t",
+            *self.coordinates,
+            *self.velocities,
+            self.energy_column,
+            "constraint_residual",
+            *self.multipliers,
+        ]
 
     def table(self) -> np.ndarray:
         """All columns as one array (samples × columns)."""
@@ -511,17 +581,83 @@ def _numeric(
 def _vakonomic_setup(
     system: System, model: str, constants: Any, multipliers: Any
 ) -> tuple[Any, dict[str, Any] | None]:
-    """Constants of the family, or the initial multipliers of the multiplier form."""
+    """Constants of the family, or the initial multipliers of the multiplier form, checked: each
+    a finite number, one per constraint (a sequence, a mapping, or a number where g = 1), or
+    ``constants="match"``; anything else is refused with an :class:`InputError`."""
     entry = registry.get(model)
-    if entry.constants:
-        return ([0.0] * system.g if constants is None else constants), None
-    if entry.multipliers_in_state:
-        if multipliers is not None:
-            return None, {"mu": multipliers}
-        return None, {"constants": [0.0] * system.g if constants is None else constants}
-    if constants is not None or multipliers is not None:
-        raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
-    return None, None
+    if not (entry.constants or entry.multipliers_in_state):
+        if constants is not None or multipliers is not None:
+            raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
+        return None, None
+    if multipliers is not None and not entry.multipliers_in_state:
+        raise InputError(
+            f"multipliers: the reduced model {model!r} takes the constants c_β (constants=...), not "
+            "μ(0); μ(0) is for model 'vakonomic', which integrates μ."
+        )
+    if multipliers is not None and constants is not None:
+        raise InputError(
+            "constants and multipliers: give one of them: μ(0) itself (multipliers=...), or the "
+            "constants c_β it follows from (constants=..., or 'match' for μ(0) = 0)."
+        )
+    if multipliers is not None:
+        if isinstance(multipliers, str):
+            raise InputError(
+                f"multipliers={multipliers!r}: multipliers takes μ(0) itself, one finite number per "
+                f"constraint ({system.g}) as a sequence or a mapping by name (mu_1 …); for μ(0) = 0 "
+                "(the vakonomic momenta starting equal to the true ones) give constants='match'."
+            )
+        return None, {"mu": _vakonomic_numbers(system, multipliers, "multipliers", "μ(0)")}
+    if isinstance(constants, str) and constants == "match":
+        c: Any = "match"
+    elif constants is None:
+        c = [0.0] * system.g
+    else:
+        c = _constant_values(system, _vakonomic_numbers(system, constants, "constants", "c_β"))
+    return (c, None) if entry.constants else (None, {"constants": c})
+
+
+def _vakonomic_numbers(system: System, value: Any, what: str, symbol: str) -> list[float] | dict[Any, float]:
+    """``value`` as g finite floats (a sequence, or a number where g = 1) or a mapping of keys
+    to finite floats (its keys are checked where the names are known)."""
+    import sympy as sp
+
+    g = system.g
+    accepted = f"one finite number per constraint ({g}) as a sequence or a mapping by name" + (
+        ", 'match', or None (every c_β = 0)" if what == "constants" else ""
+    )
+    if isinstance(value, Mapping):
+        return {key: _finite(x, f"{what}: {key}", "a finite number") for key, x in value.items()}
+    if isinstance(value, (str, bytes)) or not (
+        isinstance(value, (Sequence, np.ndarray, int, float, np.number, sp.Basic))
+    ):
+        from chaplygin.core._symbols import describe
+
+        raise InputError(f"{what} = {describe(value)}: give {symbol} as {accepted}.")
+    values = list(np.ravel(np.asarray(value, dtype=object))) if np.ndim(value) else [value]
+    if len(values) != g or (not np.ndim(value) and g != 1):
+        raise InputError(
+            f"{what}: {len(values)} value(s) given for {g} constraint(s); give {symbol} as {accepted}."
+        )
+    return [_finite(x, f"{what}[{k}]", "a finite number") for k, x in enumerate(values)]
+
+
+def _constant_values(system: System, given: list[float] | dict[Any, float]) -> list[float]:
+    """The constants c_β in order, from :func:`_vakonomic_numbers` (a mapping by name or 1 … g)."""
+    if isinstance(given, list):
+        return given
+    from chaplygin.models.vakonomic import constant_symbols
+
+    names = [c.name for c in constant_symbols(system)]
+    out: list[float | None] = [None] * system.g
+    for key, value in given.items():
+        k = key - 1 if isinstance(key, int) else names.index(str(key)) if str(key) in names else -1
+        if not 0 <= k < system.g:
+            raise InputError(f"constants: unknown key {key!r}; use {', '.join(names)} or 1 … {system.g}.")
+        out[k] = value
+    missing = [name for name, value in zip(names, out) if value is None]
+    if missing:
+        raise InputError(f"constants: no value for {', '.join(missing)}; give every c_β a number.")
+    return [float(x) for x in out if x is not None]
 
 
 # ------------------------------------------------------------------ integration
@@ -748,7 +884,8 @@ def _watch(
     its determinant between two (a pole of ``q̇_dep = B q̇_σ + B_0`` crossed); where the
     generated ``M`` is the reduced mass matrix, it stays positive definite.
     """
-    tr.energy_conserved = system.conserves_energy  # (how the energy column reads)
+    watched = monitor(system)  # (how the energy column reads)
+    tr.energy_conserved, tr.energy_column = watched.conserved, watched.column
     k_bad, why, kind = len(tr.t), "", ""
     names = list(tr.coordinates)
     vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
@@ -770,6 +907,8 @@ def _watch(
         if k < k_bad:
             k_bad, why, kind = k, found, "mass"
     if k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1):
+        if not tr.success and tr.message.startswith("a pole at"):  # the integrator met it (code 9)
+            tr.failure = "pole"
         return tr  # (the last sample of a failed run: its own message says why)
     keep = slice(0, k_bad)
     for table in (tr.coordinates, tr.velocities, tr.multipliers):
@@ -790,54 +929,95 @@ def _watch(
 
 def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
     """The first sample (before ``stop``) at or just after a pole of the solved constraints;
-    ``(stop, "")`` if none.
-
-    At a sample: ``A`` (or a factor of a denominator of its entries) is not finite, or the
-    dependent block of ``A`` is singular (rows scaled to largest entry 1).  Between two: the
-    sign of ``det A_dep`` times the factors of the denominators of ``A``'s entries (``tan φ``
-    counts as ``sin φ / cos φ``) changes — a singular block or a pole of ``B`` crossed.
-    """
-    if stop == 0:
+    ``(stop, "")`` if none (the tests of :func:`pole_marks`, sample after sample)."""
+    if stop == 0 or pole_free(system):
         return stop, ""
-    evaluate, n_factors = _pole_functions(system)
     names = [q.func.__name__ for q in system.coordinates]
+    q = np.column_stack([tr.coordinates[c][:stop] for c in names])
+    singular, sign = pole_marks(system, tr.t[:stop], q, params)
+    k = first_pole(singular, sign)
+    if k == stop:
+        return stop, ""
+    dep_names = ", ".join(names[i] + "'" for i in system._dep)
+    if singular[k]:
+        return k, (
+            f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
+            f"solved for {dep_names} there"
+        )
+    return k, (
+        f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
+        f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
+    )
+
+
+def pole_marks(
+    system: System, t: np.ndarray, q: np.ndarray, params: Mapping[str, Any]
+) -> tuple[np.ndarray, np.ndarray]:
+    """At ``K`` points ``(t[k], q[k])`` (``q``: K × n; each parameter a number or K numbers):
+    ``(singular, sign)``.
+
+    ``singular[k]``: ``A`` (or a factor of a denominator of its entries) is not finite there,
+    or the dependent block of ``A`` is singular (rows scaled to largest entry 1, smallest
+    singular value at most 1e-10, as :func:`_solvable`).  ``sign[k]``: the sign of ``det A_dep``
+    times the factors of the denominators of ``A``'s entries (``tan φ`` counts as
+    ``sin φ / cos φ``): where it changes between two points, a singular block or a pole of
+    ``B`` lies between them.
+    """
+    count = len(t)
+    evaluate, n_factors, _ = _pole_functions(system)
     columns = [
-        tr.t[:stop],
-        *(tr.coordinates[c][:stop] for c in names),
-        *(np.full(stop, params[par.name]) for par in system.parameters),
+        np.asarray(t, dtype=float),
+        *np.asarray(q, dtype=float).T,
+        *(np.broadcast_to(np.asarray(params[par.name], dtype=float), (count,)) for par in system.parameters),
     ]
     with np.errstate(all="ignore"):
         values = [np.asarray(x) for x in evaluate(*columns)]
     values = [
         np.broadcast_to(
-            np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else x.astype(float), (stop,)
+            np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else x.astype(float), (count,)
         )
         for x in values
     ]
     g, n, dep = system.g, system.n, list(system._dep)
-    a = np.stack(values[: g * n], axis=1).reshape(stop, g, n)
-    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((stop, 1))
+    a = np.stack(values[: g * n], axis=1).reshape(count, g, n)
+    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((count, 1))
     finite = np.all(np.isfinite(a), axis=(1, 2)) & np.all(np.isfinite(factors), axis=1)
-    dep_names = ", ".join(names[i] + "'" for i in dep)
+    a = np.where(np.isfinite(a), a, 0.0)
+    scale = np.max(np.abs(a), axis=2, keepdims=True)
+    usable = finite & np.all(scale[:, :, 0] > 0, axis=1)
+    block = a[:, :, dep] / np.where(scale > 0, scale, 1.0)
     with np.errstate(all="ignore"):
-        sign = np.sign(np.linalg.det(np.where(np.isfinite(a), a, 0.0)[:, :, dep]) * np.prod(factors, axis=1))
-    for k in range(stop):
-        if not finite[k] or sign[k] == 0 or not _solvable(a[k], dep):
-            return k, (
-                f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
-                f"solved for {dep_names} there"
-            )
-        if k and sign[k] != sign[k - 1]:
-            return k, (
-                f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
-                f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
-            )
-    return stop, ""
+        sign = np.sign(_dets(a[:, :, dep]) * np.prod(factors, axis=1))
+        # the smallest singular value of the scaled block (entries ≤ 1, so its largest is ≤ g)
+        # is at least |det| / g^(g−1): the SVD only where that bound does not settle it
+        unsure = ~(np.abs(_dets(block)) > 1e-10 * g ** (g - 1))
+    small = np.zeros(count, dtype=bool)
+    if np.any(unsure):
+        small[unsure] = ~(np.linalg.svd(block[unsure], compute_uv=False)[:, -1] > 1e-10)
+    singular = ~usable | small | (sign == 0)
+    return singular, sign
 
 
-def _pole_functions(system: System) -> tuple[Any, int]:
+def _dets(m: np.ndarray) -> np.ndarray:
+    """The determinants of a stack of g × g matrices (written out for g ≤ 2: NumPy factors each)."""
+    if m.shape[1] == 1:
+        return m[:, 0, 0]
+    if m.shape[1] == 2:
+        return m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+    return np.linalg.det(m)
+
+
+def first_pole(singular: np.ndarray, sign: np.ndarray) -> int:
+    """The first point (of :func:`pole_marks`, in the order of the run) at a pole or just past
+    one: singular there, or the sign changed since the point before; ``len(sign)`` if none."""
+    past = np.flatnonzero(singular | np.concatenate([[False], sign[1:] != sign[:-1]]))
+    return int(past[0]) if past.size else len(sign)
+
+
+def _pole_functions(system: System) -> tuple[Any, int, bool]:
     """A NumPy function of ``(t, q…, parameters…)`` giving ``A``'s entries (row-major), then
-    the distinct factors of the denominators of ``[A | A_0]``; and how many factors.
+    the distinct factors of the denominators of ``[A | A_0]``; how many factors; and whether the
+    solved constraints are free of poles (:func:`pole_free`).
 
     Generated as a module (:func:`_pole_source`), which the disk cache of compiled models
     (:mod:`chaplygin.numeric._modelcache`) keeps: a process that checks an equal system again
@@ -850,23 +1030,30 @@ def _pole_functions(system: System) -> tuple[Any, int]:
 
     key = _modelcache.source_key(system, "pole-functions", POLE_FORMAT)
     found = _modelcache.load_source(key)
-    if found is not None and type(found.get("factors")) is int:
-        source, n_factors = found["source"], found["factors"]
+    if found is not None and type(found.get("factors")) is int and type(found.get("free")) is bool:
+        source, n_factors, free = found["source"], found["factors"], found["free"]
     else:
         made = _pole_source(system)
         if made is None:  # not printable as NumPy source: lambdify, in memory only
             cached = _pole_lambdified(system)
             system.__dict__["_pole_functions"] = cached
             return cached
-        source, n_factors = made
-        _modelcache.store_source(key, source, factors=n_factors)
-    cached = (cache.import_source(source, "poles").poles, n_factors)
+        source, n_factors, free = made
+        _modelcache.store_source(key, source, factors=n_factors, free=free)
+    cached = (cache.import_source(source, "poles").poles, n_factors, free)
     system.__dict__["_pole_functions"] = cached
     return cached
 
 
+def pole_free(system: System) -> bool:
+    """Whether no motion can meet a pole of the solved constraints: the dependent block of ``A``
+    and the denominators of ``[A | A_0]`` depend on neither t nor the coordinates (e.g. the
+    rolling bodies' ``ẋ = …, ẏ = …``), so what the start satisfies holds all along."""
+    return not system.g or _pole_functions(system)[2]
+
+
 #: bumped whenever :func:`_pole_source` writes other code
-POLE_FORMAT = 1
+POLE_FORMAT = 2
 
 
 def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
@@ -895,13 +1082,25 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
     return [TIME, *system._vars.x, *system.parameters], [*system._A, *factors]
 
 
-def _pole_source(system: System) -> tuple[str, int] | None:
-    """The module source of :func:`_pole_functions` (``poles(a0, a1, …)``, NumPy calls) and
-    the number of factors; None where an expression cannot be printed so."""
+def _fixed(system: System, exprs: list[Any]) -> bool:
+    """Whether the dependent block of ``A`` and the factors (:func:`_pole_expressions`'s
+    ``exprs``) are free of t and the coordinates."""
+    from chaplygin.core._symbols import TIME
+
+    moving = {TIME, *system._vars.x}
+    g, n = system.g, system.n
+    block = [exprs[b * n + j] for b in range(g) for j in system._dep]
+    return not any(moving & e.free_symbols for e in [*block, *exprs[g * n :]])
+
+
+def _pole_source(system: System) -> tuple[str, int, bool] | None:
+    """The module source of :func:`_pole_functions` (``poles(a0, a1, …)``, NumPy calls), the
+    number of factors and :func:`pole_free`; None where an expression cannot be printed so."""
     import sympy as sp
     from sympy.printing.numpy import NumPyPrinter
 
     args, exprs = _pole_expressions(system)
+    free = _fixed(system, exprs)
     names = sp.symbols(f"a0:{len(args)}")
     rename = dict(zip(args, names))
     exprs = [sp.sympify(e).xreplace(rename) for e in exprs]
@@ -923,14 +1122,15 @@ def _pole_source(system: System) -> tuple[str, int] | None:
         f"def poles({', '.join(map(str, names))}):\n"
         "    return [\n" + "".join(f"        {line},\n" for line in body) + "    ]\n"
     )
-    return source, len(exprs) - system.g * system.n
+    return source, len(exprs) - system.g * system.n, free
 
 
-def _pole_lambdified(system: System) -> tuple[Any, int]:
+def _pole_lambdified(system: System) -> tuple[Any, int, bool]:
     import sympy as sp
 
     args, exprs = _pole_expressions(system)
-    return sp.lambdify(args, exprs, modules="numpy"), len(exprs) - system.g * system.n
+    n_factors = len(exprs) - system.g * system.n
+    return sp.lambdify(args, exprs, modules="numpy"), n_factors, _fixed(system, exprs)
 
 
 def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, stop: int) -> tuple[int, str]:
@@ -1012,13 +1212,16 @@ def _initial_multipliers(
     names = [m for m in system.equations("vakonomic").multipliers]
     if "mu" in vak:
         given = vak["mu"]
-        values = (
-            [given[k] for k in range(system.g)]
-            if isinstance(given, Sequence)
-            else [given.get(m, given.get(m.func.__name__)) for m in names]
-        )
-        if any(v is None for v in values) or len(values) != system.g:
-            raise ChaplyginError(f"multipliers: give μ(0) for {', '.join(m.func.__name__ for m in names)}.")
+        if isinstance(given, list):
+            return np.array(given, dtype=float)
+        labels = [m.func.__name__ for m in names]
+        unknown = [k for k in given if k not in names and str(k) not in labels]
+        values = [given.get(m, given.get(label)) for m, label in zip(names, labels)]
+        if unknown or any(v is None for v in values):
+            raise InputError(
+                f"multipliers: {'unknown key ' + repr(unknown[0]) if unknown else 'missing values'}; "
+                f"give μ(0) for {', '.join(labels)}."
+            )
         return np.array(values, dtype=float)
     c = vak["constants"]
     if isinstance(c, str) and c == "match":

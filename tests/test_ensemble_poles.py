@@ -1,0 +1,121 @@
+"""Ensembles stop a member where the solved constraints of a reduced model meet a pole, as
+``simulate`` does: on every backend, with the pole's status, time and NaN samples after it.
+
+Whether a member's motion reaches the pole is decided independently of the check under test:
+the multiplier model (``chetaev``), which does not solve the constraints and has no pole, is
+integrated on a fine grid, and the pole (``cos θ = 0`` for ``ẏ = tan θ ẋ``) is where the sign
+of ``cos θ`` changes; for the knife edge with φ̇ = 1 it is at t = π/2 − 1.2 exactly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sympy as sp
+from sympy.physics.mechanics import dynamicsymbols
+
+from chaplygin import System, examples, simulate
+from chaplygin.numeric._ckernel import Unavailable, compiler
+from chaplygin.numeric.ensemble import simulate_ensemble
+
+try:
+    compiler()
+    BACKENDS = ["c", "numba"]
+except Unavailable:  # pragma: no cover - every CI machine has a C compiler
+    BACKENDS = ["numba"]
+try:
+    import jax  # noqa: F401
+
+    BACKENDS.append("jax")
+except ImportError:
+    pass
+
+KNIFE_P = {"m": 1.0, "J": 0.5}
+KNIFE_0 = [
+    {"x": 0.0, "y": 0.0, "phi": 1.2, "x'": 1.0, "phi'": 1.0},  # φ = π/2 at t = π/2 − 1.2 ≈ 0.371
+    {"x": 0.0, "y": 0.0, "phi": 0.1, "x'": 1.0, "phi'": 0.2},  # φ ≤ 0.3: never
+]
+SLEIGH_P = {"m": 1.0, "I": 0.3, "a": 0.4, "g": 2.0}
+SLEIGH_0 = [
+    {"x": 0.0, "y": 0.0, "theta": th, "x'": v, "theta'": w}
+    for th, v, w in [(0.2, 1.0, 0.5), (0.0, 1.0, 0.0), (-0.3, 0.5, -0.2), (1.0, 0.5, 1.0), (1.3, 0.2, 0.5)]
+]
+
+
+def sleigh_on_an_incline() -> System:
+    """Chaplygin's sleigh on a slope falling along −x: the knife edge at (x, y), ẏ = tan θ ẋ."""
+    t = sp.Symbol("t")
+    x, y, th = dynamicsymbols("x y theta")
+    m, inertia, a, g = sp.symbols("m I a g", positive=True)
+    xd, yd, thd = x.diff(t), y.diff(t), th.diff(t)
+    T = m / 2 * (xd**2 + yd**2) + m * a * thd * (-xd * sp.sin(th) + yd * sp.cos(th))
+    T += (inertia + m * a**2) / 2 * thd**2
+    return System(
+        [x, y, th],
+        T,
+        [-sp.sin(th) * xd + sp.cos(th) * yd],
+        dependent=[y],
+        potential_energy=m * g * x,
+        name="sleigh on an incline",
+    )
+
+
+def first_crossing(system: System, heading: str, start: dict, params: dict, t_end: float) -> float:
+    """When the true motion's heading first crosses ±π/2 (inf: not before t_end)."""
+    true = simulate(system, "chetaev", t_end, start, params, samples=3001)
+    assert true.success
+    c = np.cos(true[heading])
+    k = np.flatnonzero(np.sign(c[1:]) != np.sign(c[:-1]))
+    return float(true.t[k[0] + 1]) if k.size else math.inf
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_ensemble_members_stop_at_a_pole_on_every_backend(backend: str) -> None:
+    knife = examples.knife_edge()
+    ens = simulate_ensemble(knife, "chaplygin", 1.0, KNIFE_0, KNIFE_P, backend=backend)
+    pole = math.pi / 2 - 1.2
+    assert list(ens.code) == [9, 0] and list(ens.failure) == ["pole", ""], ens.messages
+    assert list(ens.status) == ["failed", "success"]
+    assert ens.t[0] <= pole <= ens.t_pole[0] and ens.t_pole[0] - ens.t[0] <= 0.0101
+    assert "pole of the solved constraints" in ens.messages[0] and ens.messages[1] == ""
+    # the state reported is the motion's there (φ = 1.2 + t), not one past the pole
+    assert abs(ens["phi"][0] - (1.2 + ens.t[0])) < 1e-8 and ens["phi"][0] < math.pi / 2
+    # with samples kept: those from the pole on are NaN, as for any failure
+    kept = simulate_ensemble(knife, "chaplygin", 1.0, KNIFE_0, KNIFE_P, backend=backend, keep=21)
+    assert kept.samples is not None and kept.times is not None
+    assert kept.t[0] == pytest.approx(0.37) and kept.t_pole[0] == pytest.approx(0.38)
+    assert np.all(np.isfinite(kept.samples[0, :8])) and np.all(np.isnan(kept.samples[0, 8:]))  # t ≥ 0.4
+    assert np.allclose(kept.samples[1, -1], kept.y[1], rtol=1e-12, atol=0)  # the run's own samples
+    assert np.all(np.isfinite(kept.samples[1])) and kept.code[1] == 0
+
+    sleigh = sleigh_on_an_incline()
+    crossing = [first_crossing(sleigh, "theta", s, SLEIGH_P, 3.0) for s in SLEIGH_0]
+    assert sum(map(math.isfinite, crossing)) == 4  # four members reach the pole, one does not
+    ens = simulate_ensemble(sleigh, "chaplygin", 3.0, SLEIGH_0, SLEIGH_P, backend=backend)
+    for k, when in enumerate(crossing):
+        if math.isfinite(when):
+            assert ens.failure[k] == "pole" and ens.t[k] < when <= ens.t_pole[k] + 0.0011, ens.messages[k]
+            # stopped before it: cos θ keeps the sign it started with
+            assert math.cos(ens["theta"][k]) * math.cos(SLEIGH_0[k]["theta"]) > 0
+        else:
+            assert ens.code[k] == 0 and ens.t[k] == 3.0 and np.isnan(ens.t_pole[k])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_velocity_that_stops_being_finite_is_a_pole_in_simulate_and_ensembles(backend: str) -> None:
+    """ẏ = √x ẋ stops being real at x = 0, reached at t ≈ 0.0977 from x = 0.1, ẋ = −1: the loop
+    itself stops there (a non-finite velocity), which simulate and the ensemble both call a pole
+    (on main, simulate's failure was '' beside the message 'a pole at t = …')."""
+    t = sp.Symbol("t")
+    x, y = dynamicsymbols("x y")
+    edge = System([x, y], (x.diff(t) ** 2 + y.diff(t) ** 2) / 2, {y.diff(t): sp.sqrt(x) * x.diff(t)})
+    start = {"x": 0.1, "y": 0.0, "x'": -1.0}
+    ens = simulate_ensemble(edge, "chaplygin", 1.0, [start], {}, backend=backend)
+    assert ens.code[0] != 0 and 0.09 < ens.t[0] < 0.0977, ens.messages
+    if backend == "jax":  # diffrax rejects the non-finite steps until the step underflows
+        return
+    assert ens.failure[0] == "pole", ens.messages
+    run = simulate(edge, "chaplygin", 1.0, start, {}, samples=11, backend=backend)
+    assert run.failure == "pole" and "y'" in run.message, run.message
