@@ -701,9 +701,11 @@ class System:
 
     @property
     def conserves_energy(self) -> bool:
-        """True when ``E = T − U`` is an invariant of the motion (of either model): no
-        non-potential forces, homogeneous constraints, nothing that depends on time.  Where
-        it is, a change of E measures the integration error; elsewhere it is physics."""
+        """True when the motion (of either model) has an energy integral: no non-potential
+        forces, homogeneous constraints, nothing that depends on time.  The integral is Jacobi's
+        ``h = Σ q̇ ∂T/∂q̇ − T − U = T₂ − T₀ − U``, which is ``E = T − U`` where T is quadratic in
+        the velocities.  Where it holds, a change of h measures the integration error; elsewhere
+        a change of E is physics."""
         # (A and A_0, not B: the solved constraints B are not needed to know this)
         stationary = not any(e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._A, self._A0))
         return stationary and not self.is_affine and all(f == 0 for f in self._Qnp)
