@@ -8,8 +8,9 @@ code with chaplygin's compiled sampling, so tests built on it are independent or
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 import sympy as sp
@@ -22,17 +23,82 @@ t = dynamicsymbols._t
 k_param = sp.Symbol("k", positive=True)
 
 
-def _atom(draw: st.DrawFn, variables: list[sp.Expr]) -> sp.Expr:
-    v = draw(st.sampled_from(variables))
-    kind = draw(st.integers(0, 5))
+class Choices(Protocol):
+    """The random choices a system is built from: Hypothesis' draws (:func:`systems`) or a
+    seeded NumPy generator (:func:`seeded_system`)."""
+
+    def integer(self, lo: int, hi: int) -> int: ...
+    def boolean(self) -> bool: ...
+    def choice(self, items: Sequence[Any]) -> Any: ...
+    def permutation(self, n: int) -> list[int]: ...
+    def coefficient(self) -> sp.Expr: ...
+
+
+class _Drawn:
+    """Choices drawn by Hypothesis (the draws :func:`systems` has always made, in that order)."""
+
+    def __init__(self, draw: st.DrawFn) -> None:
+        self.draw = draw
+
+    def integer(self, lo: int, hi: int) -> int:
+        return self.draw(st.integers(lo, hi))
+
+    def boolean(self) -> bool:
+        return self.draw(st.booleans())
+
+    def choice(self, items: Sequence[Any]) -> Any:
+        return self.draw(st.sampled_from(items))
+
+    def permutation(self, n: int) -> list[int]:
+        return self.draw(st.permutations(range(n)))
+
+    def coefficient(self) -> sp.Expr:
+        return sp.Integer(self.draw(st.integers(-2, 2).filter(bool)))
+
+
+def decimal(rng: np.random.Generator, lo: float = 1e-3, hi: float = 1e3) -> sp.Rational:
+    """A random number of 15 to 17 significant digits and magnitude between ``lo`` and ``hi``
+    (log-uniform), as the exact rational of its decimal digits (as ``nsimplify`` makes of a
+    float, and a system file of a decimal literal): numerators and denominators beyond 2**53."""
+    digits = int(rng.integers(15, 18))
+    value = 10 ** rng.uniform(np.log10(lo), np.log10(hi))
+    return sp.Rational(f"{value:.{digits}g}")
+
+
+class _Seeded:
+    """Choices from a seeded NumPy generator; with ``floats``, coefficients of 15–17 significant
+    digits and magnitudes in ``scale`` (:func:`decimal`, either sign) instead of ±1, ±2."""
+
+    def __init__(self, rng: np.random.Generator, floats: bool, scale: tuple[float, float]) -> None:
+        self.rng, self.floats, self.scale = rng, floats, scale
+
+    def integer(self, lo: int, hi: int) -> int:
+        return int(self.rng.integers(lo, hi + 1))
+
+    def boolean(self) -> bool:
+        return bool(self.rng.integers(2))
+
+    def choice(self, items: Sequence[Any]) -> Any:
+        return items[int(self.rng.integers(len(items)))]
+
+    def permutation(self, n: int) -> list[int]:
+        return [int(i) for i in self.rng.permutation(n)]
+
+    def coefficient(self) -> sp.Expr:
+        sign = self.choice([-1, 1])
+        return sign * decimal(self.rng, *self.scale) if self.floats else sp.Integer(sign * self.integer(1, 2))
+
+
+def _atom(choose: Choices, variables: list[sp.Expr]) -> sp.Expr:
+    v = choose.choice(variables)
+    kind = choose.integer(0, 5)
     return [sp.S.One, v, sp.sin(v), sp.cos(v), v**2, k_param * v][kind]
 
 
-def _expr(draw: st.DrawFn, variables: list[sp.Expr], terms: int = 2) -> sp.Expr:
+def _expr(choose: Choices, variables: list[sp.Expr], terms: int = 2) -> sp.Expr:
     out = sp.S.Zero
-    for _ in range(draw(st.integers(1, terms))):
-        c = draw(st.integers(-2, 2).filter(bool))
-        out += c * _atom(draw, variables) * _atom(draw, variables)
+    for _ in range(choose.integer(1, terms)):
+        out += choose.coefficient() * _atom(choose, variables) * _atom(choose, variables)
     return out
 
 
@@ -65,56 +131,93 @@ def systems(
     (so condition (28) holds); ``dependent_forces=False`` keeps non-potential
     forces off the dependent coordinates.
     """
-    n = draw(st.integers(2, 4))
-    g = draw(st.integers(1, min(2, n - 1)))
+    return _system(
+        _Drawn(draw),
+        chaplygin=chaplygin,
+        affine=affine,
+        forces=forces,
+        gyroscopic=gyroscopic,
+        integrable=integrable,
+        dependent_forces=dependent_forces,
+    )
+
+
+def seeded_system(
+    seed: int,
+    *,
+    floats: bool = False,
+    scale: tuple[float, float] = (1e-3, 1e3),
+    timed: bool | None = None,
+    **options: Any,
+) -> Spec:
+    """The random system of ``seed`` (NumPy's generator), with :func:`systems`' ``options``;
+    ``floats``: coefficients of 15–17 significant digits and magnitudes in ``scale`` (exact
+    rationals, see :func:`decimal`); ``timed=True``: affine constraints that depend on time.
+    For tests that build a few fixed systems once (a module-scoped fixture), not many."""
+    return _system(_Seeded(np.random.default_rng(seed), floats, scale), timed=timed, **options)
+
+
+def _system(
+    choose: Choices,
+    *,
+    chaplygin: bool | None = None,
+    affine: bool | None = None,
+    forces: bool | None = None,
+    gyroscopic: bool | None = None,
+    integrable: bool = False,
+    dependent_forces: bool = True,
+    timed: bool | None = None,
+) -> Spec:
+    n = choose.integer(2, 4)
+    g = choose.integer(1, min(2, n - 1))
     q = list(dynamicsymbols(f"q1:{n + 1}"))
-    dep_idx = sorted(draw(st.permutations(range(n)))[:g])
+    dep_idx = sorted(choose.permutation(n)[:g])
     dep = [q[i] for i in dep_idx]
     ind = [qi for qi in q if qi not in dep]
-    is_chap = draw(st.booleans()) if chaplygin is None else chaplygin
-    is_affine = draw(st.booleans()) if affine is None else affine
+    is_chap = choose.boolean() if chaplygin is None else chaplygin
+    is_affine = (choose.boolean() if affine is None else affine) or bool(timed)
     coeff_vars = ind if is_chap else q
 
     # T = ½ q̇ᵀ (D + L Lᵀ) q̇ (+ b·q̇): positive definite for every configuration.
-    L = sp.Matrix(n, n, lambda i, j: _expr(draw, coeff_vars, 1) if draw(st.booleans()) else 0)
-    D = sp.diag(*[2 + sp.sin(draw(st.sampled_from(coeff_vars))) for _ in range(n)])
+    L = sp.Matrix(n, n, lambda i, j: _expr(choose, coeff_vars, 1) if choose.boolean() else 0)
+    D = sp.diag(*[2 + sp.sin(choose.choice(coeff_vars)) for _ in range(n)])
     qd = [qi.diff(t) for qi in q]
     K = D + L * L.T
     # qd.T * K * qd written out: the same expression, without SymPy's matrix product (30 ms a system)
     T = sp.Add(*[sp.Add(*[qd[i] * K[i, j] for i in range(n)]) * qd[j] for j in range(n)]) / 2
-    if gyroscopic or (gyroscopic is None and draw(st.booleans())):
-        T += sum(_expr(draw, coeff_vars, 1) * v for v in qd)
+    if gyroscopic or (gyroscopic is None and choose.boolean()):
+        T += sum(_expr(choose, coeff_vars, 1) * v for v in qd)
 
     if integrable:
-        potentials = [_expr(draw, ind, 3) for _ in dep]
+        potentials = [_expr(choose, ind, 3) for _ in dep]
         B = [[sp.diff(f, qi) for qi in ind] for f in potentials]
     else:
-        B = [[_expr(draw, coeff_vars) for _ in ind] for _ in dep]
-    timed = False
+        B = [[_expr(choose, coeff_vars) for _ in ind] for _ in dep]
+    is_timed = False
     constraints: dict[sp.Expr, sp.Expr] = {}
     for b, d in enumerate(dep):
         rhs = sum(B[b][s] * ind[s].diff(t) for s in range(len(ind)))
         if is_affine:
-            b0 = _expr(draw, coeff_vars, 1)
-            if draw(st.booleans()):
+            b0 = _expr(choose, coeff_vars, 1)
+            if timed or (timed is None and choose.boolean()):
                 b0 *= sp.cos(t)
-                timed = True
+                is_timed = True
             rhs += b0
         constraints[d.diff(t)] = rhs
 
-    U = _expr(draw, coeff_vars) if draw(st.booleans()) else None
+    U = _expr(choose, coeff_vars) if choose.boolean() else None
     Q = None
-    if forces or (forces is None and draw(st.booleans())):
-        s = draw(st.sampled_from(q if dependent_forces else ind))
-        Q = {s: -k_param * s.diff(t) + _expr(draw, coeff_vars, 1)}
+    if forces or (forces is None and choose.boolean()):
+        s = choose.choice(q if dependent_forces else ind)
+        Q = {s: -k_param * s.diff(t) + _expr(choose, coeff_vars, 1)}
 
-    if draw(st.booleans()):
+    if choose.boolean():
         # Form A: multiply the solved constraints by an invertible configuration-dependent factor.
-        exprs = [(2 + sp.cos(draw(st.sampled_from(q)))) * (d - rhs) for d, rhs in constraints.items()]
+        exprs = [(2 + sp.cos(choose.choice(q))) * (d - rhs) for d, rhs in constraints.items()]
         system = System(q, T, exprs, dependent=dep, force_function=U, forces=Q, name="random")
     else:
         system = System(q, T, constraints, force_function=U, forces=Q, name="random")
-    return Spec(system, is_chap, is_affine, timed)
+    return Spec(system, is_chap, is_affine, is_timed)
 
 
 # ------------------------------------------------------------------ numeric oracle

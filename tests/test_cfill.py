@@ -3,6 +3,7 @@ through every path that calls it, and a clear fallback where no C compiler can b
 
 from __future__ import annotations
 
+import subprocess
 import warnings
 from pathlib import Path
 
@@ -13,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from chaplygin import examples
-from chaplygin.numeric import _cfill, codegen
+from chaplygin.numeric import _cfill, _ckernel, codegen
 from chaplygin.numeric.codegen import compile_model
 from chaplygin.numeric.ensemble import simulate_ensemble
 from chaplygin.numeric.simulate import simulate
@@ -202,3 +203,70 @@ def test_a_singular_dependent_block_gives_nan_not_garbage(tmp_path) -> None:
     with warnings.catch_warnings():
         fn(0.0, *[a.ctypes.data_as(ptr) for a in arrays])
     assert np.isnan(arrays[3][0])  # F
+
+
+@needs_cc
+@pytest.mark.parametrize(
+    "literal, message",
+    [
+        ("24336000000000000000", "integer constant is too large"),
+        ("10000000000000000000", "integer constant is so large that it is unsigned"),
+        ("1e400", "floating constant exceeds range"),
+    ],
+)
+def test_a_constant_the_compiler_would_change_stops_the_build(
+    literal, message, monkeypatch, tmp_path
+) -> None:
+    """With the kernels' flags a constant C cannot hold is an error, not a warning after which the
+    library computes with another number (issue 27: 2.4336e19 became 6.0e18 and the motion was off)."""
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path))
+    if "clang" in " ".join(_cfill.compiler()):  # pragma: no cover - gcc's wording
+        message = ""
+    source = f"double chaplygin_probe_@DIGEST@(double x) {{ return {literal} * x; }}\n"
+    with pytest.raises(_cfill.Unavailable, match=message):
+        _ckernel.library(source, "probe")
+    assert not list(tmp_path.rglob("*.so"))
+
+
+def _gallery_sources() -> tuple[str, str]:
+    """One translation unit with the C ``fill`` of every gallery system's true motion (symbolic),
+    one with a numerically reduced ``fill`` (its Gaussian elimination), both with the DOP853 loop."""
+    from chaplygin.models import registry
+
+    fills = []
+    for k, entry in enumerate(examples.catalogue().values()):
+        system = entry.constructor()
+        parts = codegen._parts(system.equations(registry.true_motion(system)))
+        fills.append(
+            _cfill.source(parts.fill, [codegen._assignments(b) for b in parts.fill.blocks()], f"fill{k}")
+        )
+    numeric = codegen._numeric_reduction_parts(examples.sleigh_chain(2), "voronets")
+    reduced = _cfill.source(numeric.fill, [codegen._assignments(b) for b in numeric.fill.blocks()], "reduced")
+    loop = _ckernel.loop_source().replace("@DIGEST@", "gallery")
+    return "\n".join([*fills, loop]), reduced + loop
+
+
+@needs_cc
+def test_the_gallery_c_builds_without_a_diagnostic(tmp_path) -> None:
+    """The generated C of every gallery system (and the loop) builds with the kernels' flags and
+    -Wall -Wextra -pedantic, and the compiler says nothing (stderr is empty)."""
+    for k, source in enumerate(_gallery_sources()):
+        c_file = tmp_path / f"gallery{k}.c"
+        c_file.write_text(source, encoding="ascii")
+        run = subprocess.run(
+            [
+                *_cfill.compiler(),
+                *_cfill.FLAGS,
+                "-Wall",
+                "-Wextra",
+                "-pedantic",
+                str(c_file),
+                "-o",
+                str(tmp_path / f"g{k}.so"),
+                "-lm",
+            ],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert run.returncode == 0 and not run.stderr, run.stderr

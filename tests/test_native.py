@@ -227,6 +227,73 @@ def test_c_printer(extra: list) -> None:
             assert _close(f(POINT[X], POINT[Y], POINT[Z]), float(e.subs(POINT))), (e, code(e, "c"))
 
 
+#: exact numbers as derivations from decimal inputs make them (issue 27): beyond 2**53, 2**63 and
+#: 2**64, numerators and denominators beyond 64 bits, and a quotient of two numbers beyond doubles
+HUGE = [
+    se.Integer(2**53 + 1),
+    se.Integer(7056000000000000000),
+    se.Integer(10000000000000000000),
+    se.Integer(-24336000000000000000),
+    se.Integer(3**100),
+    se.Rational(6487556168626515477, 10**19),
+    se.Rational(-17, 10**34),
+    se.Rational(10**400 + 1, 10**399),
+    se.Rational(2**53 + 1, 3),
+    se.Rational(1, 3),
+]
+
+
+def test_exact_numbers_print_as_their_nearest_double() -> None:
+    """Every printer (SymEngine's and SymPy's, Python and C) prints an exact number so that Python,
+    numba and C compute with its correctly rounded double (Python's ``float(Fraction)``), not an
+    integer literal C truncates to 64 bits (only warning) and numba refuses; and C builds them with
+    the kernels' flags and every warning on, saying nothing."""
+    import ctypes
+    import tempfile
+    from fractions import Fraction
+    from pathlib import Path
+
+    import numba
+
+    from chaplygin.numeric._ckernel import FLAGS, compiler
+
+    x = se.Symbol("x")
+    exprs = [n * x for n in HUGE] + [n._sympy_() * sp.Symbol("x") for n in HUGE]
+    expected = [float(Fraction(int(n.p), int(n.q))) for n in HUGE] * 2
+    python = [code(e, "python") for e in exprs]
+    assert [eval(text, {"math": math, "x": 1.0}) for text in python] == expected
+    jitted = numba.njit(eval(f"lambda x: ({', '.join(python)},)", {"math": math}))
+    assert list(jitted(1.0)) == expected
+    lines = ["#include <math.h>"]
+    lines += [f"double f{k}(double x) {{ return {code(e, 'c')}; }}" for k, e in enumerate(exprs)]
+    with tempfile.TemporaryDirectory() as tmp:
+        source, library = Path(tmp) / "f.c", Path(tmp) / "f.so"
+        source.write_text("\n".join(lines) + "\n")
+        run = subprocess.run(
+            [*compiler(), *FLAGS, "-Wall", "-Wextra", "-pedantic", str(source), "-o", str(library), "-lm"],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        assert run.returncode == 0 and not run.stderr, run.stderr
+        lib = ctypes.CDLL(str(library))
+        for k, value in enumerate(expected):
+            f = getattr(lib, f"f{k}")
+            f.restype, f.argtypes = ctypes.c_double, [ctypes.c_double]
+            assert f(1.0) == value, (exprs[k], code(exprs[k], "c"))
+
+
+def test_a_number_beyond_doubles_is_refused_by_name() -> None:
+    """10^400 has no double: printing it is an error that says so, not ``inf`` in the code."""
+    from chaplygin.errors import ChaplyginError
+
+    for language in ("python", "c"):
+        with pytest.raises(ChaplyginError, match=r"10\^400.*beyond the range of double"):
+            code(se.Integer(10**400) * se.Symbol("x"), language)
+        with pytest.raises(ChaplyginError, match=r"10\^400.*beyond the range of double"):
+            code(sp.Integer(10**400) * sp.Symbol("x"), language)
+
+
 def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     """|x| in T and V (SymPy's path: SymEngine cannot differentiate Abs): d|x|/dx = sign(x), not
     unevaluated derivatives of re(x) and im(x), so every compiled path agrees: both reductions in

@@ -249,7 +249,6 @@ def _c_source(
         "/* M (row-major), F and the velocities V at (t, y, p): M x = F gives the accelerations. */",
         "static void chaplygin_fill(double t, const double *y, const double *p, double *M, double *F, double *V)",
         "{",
-        "    (void)p;",
         *statements(main),
         "}",
         "",
@@ -271,7 +270,6 @@ def _c_source(
                 "double *R, double *dV)"
             ),
             "{",
-            "    (void)p;",
             "    (void)x;",
             *statements(derivatives),
             "}",

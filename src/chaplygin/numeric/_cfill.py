@@ -80,7 +80,7 @@ def body(fill: _Fill, assigned: list[tuple[list, list[tuple[Target, Any]]]]) -> 
     ``assigned`` is :func:`chaplygin.numeric.codegen._assignments` of each of
     ``fill.blocks()``.  Raises :class:`Unavailable` for a function C lacks.
     """
-    lines = ["    (void)t;"]
+    lines = ["    (void)t; (void)y; (void)p;  /* a model need not use each */"]
     if fill.solve:
         g = fill.solve
         lines += [

@@ -52,8 +52,22 @@ from chaplygin.numeric.cache import cache_dir
 
 __all__ = ["FLAGS", "STATS", "CKernel", "CompiledModel", "Layout", "Unavailable", "compiler", "library"]
 
-#: position-independent shared library, optimised, IEEE semantics kept (no -ffast-math, no FMA)
-FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")
+#: position-independent shared library, optimised, IEEE semantics kept (no -ffast-math, no FMA);
+#: a diagnostic that means a value is not the one written is an error, not a warning: a constant
+#: out of range (an integer literal beyond 64 bits is truncated, a floating one becomes inf or 0:
+#: -pedantic-errors, -Werror=overflow) or a call of an undeclared function, which C89 rules
+#: would take to return an int (-Werror=implicit-function-declaration); clang takes these too
+FLAGS = (
+    "-std=c99",
+    "-O2",
+    "-fPIC",
+    "-shared",
+    "-fno-math-errno",
+    "-ffp-contract=off",
+    "-pedantic-errors",
+    "-Werror=overflow",
+    "-Werror=implicit-function-declaration",
+)
 
 #: libraries built and loaded (from the kernel cache) by this process
 STATS = {"built": 0, "loaded": 0, "discarded": 0}

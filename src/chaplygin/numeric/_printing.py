@@ -5,8 +5,15 @@ SymEngine's ``cse`` returns, without converting them back to SymPy (at a
 thousand lines that conversion and SymPy's printers cost more than deriving
 the equations).  The output follows SymPy's ``PythonCodePrinter`` and
 ``C99CodePrinter``: ``math.``-qualified functions in Python, ``math.h`` in C,
-negative powers as divisions, rationals as floating-point quotients, floats
-with every digit (``repr``).  Operands are parenthesised by precedence.
+negative powers as divisions, floats with every digit (``repr``), operands
+parenthesised by precedence.  An exact number is printed so that C, Python,
+NumPy and numba all compute with the double nearest to it (:func:`number`): an
+integer or a rational whose numerator and denominator are exact doubles (at
+most 2**53) as it is (a rational as a floating-point quotient, which IEEE
+arithmetic rounds correctly, never C's integer division); any other as its
+correctly rounded double, the ``repr`` of Python's exact ``p / q`` — never an
+integer literal beyond 64 bits, which a C compiler truncates with only a
+warning and numba refuses.
 Anything else (a function neither language has here, ``oo``, ``I``) and
 every SymPy expression (SymPy's cse, where SymEngine cannot represent a model)
 is printed by SymPy's printers.
@@ -22,7 +29,9 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.pycode import PythonCodePrinter
 
-__all__ = ["NotPrintable", "code"]
+from chaplygin.errors import ChaplyginError
+
+__all__ = ["NotPrintable", "code", "number"]
 
 
 class NotPrintable(Exception):
@@ -60,6 +69,56 @@ _CONSTANTS = {"Pi": math.pi, "Exp1": math.e}
 # precedence: atoms and calls bind tightest, then powers, products, unary minus, sums
 _ADD, _NEG, _MUL, _POW, _ATOM = 1, 2, 3, 4, 5
 _REAL = (se.Integer, se.Rational, se.RealDouble)
+#: integers up to this magnitude are exact doubles (and fit C's ``long long``)
+EXACT = 2**53
+
+
+def number(p: int, q: int, c: bool) -> str:
+    """The exact number ``p/q`` (``q > 0``) as a C (``c``) or Python literal: its double.
+
+    ``p`` and ``q`` within :data:`EXACT` print as they are, ``q > 1`` as a quotient
+    of two doubles (``p.0/q.0`` in C, ``p/q`` in Python: one correctly rounded
+    division; callers parenthesise it); any other number as the ``repr`` of its
+    correctly rounded double.
+
+    Raises
+    ------
+    ChaplyginError
+        For a number beyond the range of doubles (about 1.8e308).
+    """
+    if abs(p) <= EXACT and q <= EXACT:
+        if q == 1:
+            return str(p)
+        return f"{p}.0/{q}.0" if c else f"{p}/{q}"
+    try:
+        value = p / q  # Python's true division of integers rounds correctly
+    except OverflowError:
+        digits = len(str(abs(p))) - len(str(q))
+        raise ChaplyginError(
+            f"a number in the equations, about 10^{digits}, is beyond the range of double precision "
+            "(about 1.8e308), so no generated code can compute with it; rescale the system's units."
+        ) from None
+    return repr(value)
+
+
+class _C(C99CodePrinter):
+    """SymPy's C printer with exact numbers printed by :func:`number`."""
+
+    def _print_Integer(self, expr: Any) -> str:
+        return number(int(expr), 1, True)
+
+    def _print_Rational(self, expr: Any) -> str:
+        return number(int(expr.p), int(expr.q), True)
+
+
+class _Python(PythonCodePrinter):
+    """SymPy's Python printer with exact numbers printed by :func:`number`."""
+
+    def _print_Integer(self, expr: Any) -> str:
+        return number(int(expr), 1, False)
+
+    def _print_Rational(self, expr: Any) -> str:
+        return number(int(expr.p), int(expr.q), False)
 
 
 def code(expr: Any, language: str) -> str:
@@ -76,15 +135,17 @@ def code(expr: Any, language: str) -> str:
         except NotPrintable:
             expr = expr._sympy_()
     if language == "c":
-        return C99CodePrinter({"strict": True}).doprint(expr)
-    return PythonCodePrinter({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
+        return _C({"strict": True}).doprint(expr)
+    return _Python({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
 
 
 def _negative(e: Any) -> bool:
     """A real number below 0, or a product whose numerical coefficient is."""
     if isinstance(e, se.Mul):
         e = e.args[0]
-    return isinstance(e, _REAL) and float(e) < 0
+    if isinstance(e, se.RealDouble):
+        return float(e) < 0
+    return isinstance(e, (se.Integer, se.Rational)) and int(e.p) < 0
 
 
 def _print(e: Any, c: bool) -> tuple[str, int]:
@@ -95,11 +156,9 @@ def _print(e: Any, c: bool) -> tuple[str, int]:
         return e.name, _ATOM
     if isinstance(e, _REAL) and _negative(e):
         return f"-{_print(-e, c)[0]}", _NEG
-    if isinstance(e, se.Integer):
-        return str(int(e)), _ATOM
-    if isinstance(e, se.Rational):
-        p, q = int(e.p), int(e.q)
-        return (f"({p}.0/{q}.0)" if c else f"({p}/{q})"), _ATOM
+    if isinstance(e, (se.Integer, se.Rational)):
+        text = number(int(e.p), int(e.q), c)
+        return (f"({text})" if "/" in text else text), _ATOM
     if isinstance(e, se.RealDouble):
         value = float(e)
         if not math.isfinite(value):

@@ -8,7 +8,8 @@ float32.
 The functions are built from the same ``M·x = F``, velocities, energy and
 constraint residuals as :mod:`chaplygin.numeric.codegen`'s generated module, with the
 same :class:`~chaplygin.numeric.codegen.Layout` (``(t, y, p)`` argument order), by
-``sympy.lambdify(..., modules="jax", cse=True)``; ``x = solve(M, F)`` is
+``sympy.lambdify(..., modules="jax", cse=True)`` (exact numbers printed as their doubles,
+:func:`chaplygin.numeric._printing.number`); ``x = solve(M, F)`` is
 ``jnp.linalg.solve``.  :func:`compile_jax` returns a
 :class:`~chaplygin.numeric.codegen.CompiledModel` whose ``rhs`` and ``observe`` take
 and return NumPy arrays (jitted; for host code and SciPy steppers) and whose
@@ -46,6 +47,7 @@ from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.numeric._ckernel import CompiledModel
 from chaplygin.numeric._layout import state_symbols
+from chaplygin.numeric._printing import number
 from chaplygin.numeric.codegen import monitored
 
 try:
@@ -98,6 +100,21 @@ def _expressions(eqs: Equations) -> tuple[Any, list[sp.Expr], list[sp.Symbol], l
     return layout, exprs, [t, *ys], ps, eqs._M.shape[0], k
 
 
+def _printer() -> type:
+    """SymPy's JAX printer, exact numbers printed as their doubles (:func:`~chaplygin.numeric._printing.number`):
+    JAX converts an integer literal to int64 and fails on one beyond 64 bits."""
+    from sympy.printing.numpy import JaxPrinter
+
+    class Printer(JaxPrinter):
+        def _print_Integer(self, expr: Any) -> str:
+            return number(int(expr), 1, False)
+
+        def _print_Rational(self, expr: Any) -> str:
+            return number(int(expr.p), int(expr.q), False)
+
+    return Printer
+
+
 class _Fields(NamedTuple):
     rhs: Callable[..., Any]
     observe: Callable[..., Any]
@@ -105,7 +122,7 @@ class _Fields(NamedTuple):
 
 def _build(eqs: Equations) -> tuple[Any, _Fields, dict[str, int], str]:
     layout, exprs, (t, *ys), ps, dim, k = _expressions(eqs)
-    f = sp.lambdify([t, ys, ps], exprs, modules="jax", cse=True, docstring_limit=0)
+    f = sp.lambdify([t, ys, ps], exprs, modules="jax", printer=_printer(), cse=True, docstring_limit=0)
     n = len(layout.coordinates)
     g = eqs.system.g
     n_react = len(layout.reactions)
