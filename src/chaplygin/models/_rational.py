@@ -11,7 +11,12 @@ exactly.  The one identity that links kernels in every rolling problem,
 two (``cos²a → 1 − sin²a``, or the other way) — a normal form modulo the
 identity — before cancelling, so that factors such as ``cos²θ`` and
 ``1 − sin²θ`` cancel.  Both directions are tried and the shorter result is
-kept.
+kept.  Before that, the input's denominators (every sum met as ``1/(…)``) are
+divided out of numerator and denominator wherever they divide both — the
+fraction-free solve puts them in both, and rewritten by the identity they are
+no longer recognisable, yet vanish together near the input's poles, where the
+expanded fraction then loses every digit in floating point — and those left in
+the denominator stay factors, unexpanded.
 
 This replaces general simplification (``cancel`` of nested fractions, then
 ``trigsimp``), which cost seconds on the rolling disk; heavy simplification
@@ -120,6 +125,9 @@ class Algebra:
         ]
         self._memo: dict[sp.Expr, Fraction] = {}
         self._bottoms: dict[PolyElement, sp.Expr] = {}
+        #: every sum met as a denominator (the base of a negative power): the candidates for
+        #: the common factors of a solution's numerator and denominator (:meth:`_divide_out`)
+        self._divisors: dict[PolyElement, None] = {}
 
     # ------------------------------------------------------------------ conversion
     def convert(self, expr: sp.Expr) -> Fraction:
@@ -142,6 +150,8 @@ class Algebra:
             if max(math.comb(len(n) + abs(k) - 1, abs(k)), math.comb(len(d) + abs(k) - 1, abs(k))) > _WORK:
                 raise TooLarge  # a power of a sum with too many terms to expand
             out = (n**k, d**k) if k >= 0 else (d ** (-k), n ** (-k))
+            if k < 0 and len(n) > 1:
+                self._divisors[n] = None
         else:  # pragma: no cover - every other expression is a kernel
             raise KeyError(expr)
         _check(*out)
@@ -157,14 +167,17 @@ class Algebra:
         if denom == 1:
             return top
         if denom not in self._bottoms:  # solutions often share their denominator
-            if len(denom) > _FACTOR_TERMS:
-                self._bottoms[denom] = self._poly_expr(denom)
-            else:
-                unit, factors = denom.factor_list()
-                self._bottoms[denom] = sp.Rational(int(unit.numerator), int(unit.denominator)) * sp.Mul(
-                    *(self._poly_expr(f) ** k for f, k in factors)
-                )
+            self._bottoms[denom] = self._bottom(denom)
         return top / self._bottoms[denom]
+
+    def _bottom(self, denom: PolyElement) -> sp.Expr:
+        """A denominator as an expression: factored where it is small."""
+        if len(denom) > _FACTOR_TERMS:
+            return self._poly_expr(denom)
+        unit, factors = denom.factor_list()
+        return sp.Rational(int(unit.numerator), int(unit.denominator)) * sp.Mul(
+            *(self._poly_expr(f) ** k for f, k in factors)
+        )
 
     def _poly_expr(self, p: PolyElement) -> sp.Expr:
         if not p:
@@ -186,22 +199,74 @@ class Algebra:
 
         Raises ZeroDivisionError where the denominator vanishes by the identity.
         """
-        numer, denom = frac
+        denom, (numer,) = self._divide_out(frac[1], [frac[0]])
+        # the input's denominators stay factors as they were written: expanded and rewritten
+        # by the identity, a power of one that vanishes somewhere loses digits near there
+        # (unless the identity cancels one against the numerator: cos²θ / (1 − sin²θ) is 1)
+        kept = []
+        rewritten: list[PolyElement] = []  # the numerator rewritten each way, when needed
+        for f in self._divisors:
+            while not (split := denom.div(f))[1]:
+                rewritten = rewritten or [_eliminate(numer, pairs) for pairs in self._directions()]
+                views = [_eliminate(f, pairs) for pairs in self._directions()]
+                if not all(views):
+                    raise ZeroDivisionError
+                if any(not n.div(v)[1] for n, v in zip(rewritten, views)):
+                    break
+                denom = split[0]
+                kept.append(f)
         _check(numer, denom)
         candidates = []
         best = numer, denom
-        for direction in (0, 1) if self.pairs else (0,):
+        for pairs in self._directions():
             # the second direction starts from the first's (smaller) cancelled result
-            pairs = [(p[direction], p[1 - direction]) for p in self.pairs]
             n, d = _eliminate(best[0], pairs), _eliminate(best[1], pairs)
             if not d:
                 raise ZeroDivisionError
             best = n.cancel(d)
             candidates.append(best)
-        if denom == 1:
+        if denom == 1 and not kept:
             candidates.append((numer, denom))  # a polynomial may read best as it was written
         # the fewest terms; on a tie the fewest minus signs (sin²θ + 2/5 rather than 7/5 − cos²θ)
-        return self.field.raw_new(*min(candidates, key=_length))
+        numer, denom = min(candidates, key=_length)
+        if kept:
+            shown = self._bottom(denom) * sp.Mul(*(self._poly_expr(f) for f in kept))
+            for f in kept:
+                denom = denom * f
+            if denom.LC < 0:  # to_expr shows the denominator with a positive leading coefficient
+                numer, denom, shown = -numer, -denom, -shown
+            self._bottoms[denom] = shown
+        return self.field.raw_new(numer, denom)
+
+    def _directions(self) -> list[list[tuple[int, int]]]:
+        """The pairs of :func:`_eliminate` for each way of rewriting: sin² → 1 − cos², and back."""
+        return [[(p[d], p[1 - d]) for p in self.pairs] for d in ((0, 1) if self.pairs else (0,))]
+
+    def _divide_out(
+        self, denom: PolyElement, numers: list[PolyElement]
+    ) -> tuple[PolyElement, list[PolyElement]]:
+        """``numers / denom`` with every input denominator that divides them all divided out.
+
+        A fraction-free solve multiplies numerators and denominator alike by the denominators
+        of the input (``adj(d·M)·d·F / det(d·M)``); the identity sin² + cos² = 1, applied
+        before cancelling (:meth:`reduce`), rewrites such a common factor differently in the
+        two, and cancelling no longer finds it.  Left in, it vanishes in both wherever the
+        input's denominator does (the constraints' split at its singular set): an expression
+        that is exact, but long, and that loses every digit in floating point near there
+        (issue 27: the snakeboard's new form, off by 130 % at 0.05 rad from parallel
+        wheels).  Dividing by the known candidates is exact and cheap, where a greatest
+        common divisor of the expanded polynomials costs seconds.
+        """
+        for f in self._divisors:
+            while True:
+                qd, rd = denom.div(f)
+                if rd:
+                    break
+                parts = [n.div(f) for n in numers]
+                if any(r for _, r in parts):
+                    break
+                denom, numers = qd, [q for q, _ in parts]
+        return denom, numers
 
     def matrix(self, entries: sp.Matrix) -> tuple[DomainMatrix, PolyElement]:
         """``entries`` as ``N / d``: a polynomial matrix over one common denominator."""
@@ -236,8 +301,11 @@ class Algebra:
         den = getattr(den, "element", den)
         if not den or not _eliminate(den, self.pairs):
             raise ZeroDivisionError
-        _check(den, *(num[i, j].element for i in range(num.shape[0]) for j in range(num.shape[1])))
-        return num, den
+        rows, cols = num.shape
+        den, entries = self._divide_out(den, [num[i, j].element for i in range(rows) for j in range(cols)])
+        _check(den, *entries)
+        grid = [entries[i * cols : (i + 1) * cols] for i in range(rows)]
+        return DomainMatrix(grid, num.shape, num.domain), den
 
     def fractions(self, N: DomainMatrix, d: PolyElement) -> list[FracElement]:
         """The entries of the column ``N / d``, each reduced (:meth:`reduce`)."""
@@ -311,7 +379,24 @@ def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> lis
     except ZeroDivisionError:
         raise ModelError(f"{what} do not determine their unknowns: the mass matrix is singular.") from None
     except TooLarge:
-        return list(M.LUsolve(F))
+        return list(M.LUsolve(F.applyfunc(_zero_if_vanishing)))
+
+
+def _zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
+    """0 for an expression that vanishes identically (in normal form), else ``expr`` as it is.
+
+    For the nested solve: such a forcing term is otherwise a sum of large terms that cancel
+    only in exact arithmetic (a reduced form of the snakeboard, issue 27).
+    """
+    if expr.is_Number:
+        return expr
+    alg = Algebra([expr])
+    try:
+        numer, _ = alg.convert(expr)
+    except TooLarge:
+        return expr
+    # the rewriting is a normal form modulo the identity: it is 0 exactly when numer is
+    return sp.S.Zero if not _eliminate(numer, alg.pairs) else expr
 
 
 def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:
