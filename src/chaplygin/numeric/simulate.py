@@ -1126,10 +1126,12 @@ def _loop_attempt(
 ) -> Callable[..., _Attempt]:
     """An attempt of :func:`_pinned` with the compiled DOP853 loop.
 
-    With ``progress``, the loop runs in stretches of steps (``max_steps``), each started where
-    the last one stopped with the step it would have taken next, so the steps and the samples
-    are those of one run; the stretches grow until each takes about :data:`PROGRESS_EVERY`
-    seconds, and ``progress`` is told the time reached after each.
+    The loop runs in stretches of steps (``max_steps``), each started where the last one
+    stopped with the step it would have taken next, so the steps, the samples and the count of
+    right-hand sides are those of one run; the stretches grow until each takes about
+    :data:`PROGRESS_EVERY` seconds, and ``progress``, if given, is told the time reached after
+    each.  Between two stretches Python runs its signal handlers: Ctrl-C (``KeyboardInterrupt``)
+    stops a compiled run within a fraction of a second, whether or not anything is displayed.
     """
     from chaplygin.numeric._loop import integrate_dop853
 
@@ -1151,14 +1153,15 @@ def _loop_attempt(
                 atol=atol,
                 max_step=cap,
                 first_step=first,
-                max_steps=0 if progress is None else stretch,
+                max_steps=stretch,
             )
             t_parts.append(res.t)
             y_parts.append(res.y)
-            n_rhs += res.n_rhs
-            if progress is None or res.code != stopped or res.y_last is None:
+            n_rhs += res.n_rhs - (len(t_parts) > 1)  # a resumed stretch evaluates f(t, y) once more
+            if res.code != stopped or res.y_last is None:
                 break
-            progress(res.t_last)
+            if progress is not None:
+                progress(res.t_last)
             times = times[len(res.t) :]
             t_start, y_start, first = res.t_last, res.y_last, res.h_next
             if time.monotonic() - started < PROGRESS_EVERY / 2:
