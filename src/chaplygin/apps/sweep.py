@@ -718,6 +718,9 @@ def _locked(directory: Path) -> Iterator[None]:
 
 def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: bool) -> str:
     """Check the output: ``"new"``, ``"resume"`` (an earlier sweep, same settings) or ``"replace"``."""
+    from chaplygin.numeric.simulate import check_writable
+
+    check_writable(directory, folder=True)  # (it, or the folder above that will hold it)
     if directory.exists() and not directory.is_dir():
         if not force:
             raise SweepOutputExists(f"{directory} already exists (a file); pass --force to replace it.")

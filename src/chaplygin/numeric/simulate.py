@@ -271,10 +271,16 @@ class Trajectory:
 
 
 def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Path:
-    """Write through a temporary file in the same folder, then rename over ``path``."""
+    """Write through a temporary file in the same folder, then rename over ``path``.
+
+    An error creating the folder or the temporary file names ``path`` (not the hidden temporary file).
+    """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror or str(exc), str(target)) from None
     try:
         with os.fdopen(fd, "w", encoding="utf-8") if text else os.fdopen(fd, "wb") as fh:
             write(fh)
@@ -287,6 +293,32 @@ def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Pa
             os.unlink(tmp)
         raise
     return target
+
+
+def check_writable(target: str | os.PathLike[str], *, folder: bool = False) -> None:
+    """Raise :class:`ChaplyginError`, naming ``target``, unless it can be written: a file (or,
+    with ``folder``, a folder) there, and any missing folder above it, can be created.
+
+    Run before the work whose result goes there, so that an unwritable output is found at once.
+    A temporary file is created and deleted in the nearest folder that exists (the one that
+    must accept it): the permission bits do not tell (root, read-only mounts, ACLs).
+    """
+    path = Path(target).absolute()
+    if folder and path.is_dir():
+        existing = path
+    else:
+        existing = next(p for p in path.parents if os.path.lexists(p))
+    if not existing.is_dir():
+        raise ChaplyginError(f"{target}: cannot be written there: {existing} is a file, not a folder.")
+    try:
+        fd, probe = tempfile.mkstemp(dir=existing, prefix=".chaplygin-probe-", suffix=".tmp")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ChaplyginError(
+            f"{target}: cannot be written there: the folder {existing} does not accept new files "
+            f"({exc.strerror or exc})."
+        ) from None
 
 
 # ------------------------------------------------------------------ inputs
