@@ -75,7 +75,9 @@ def test_ctrl_c_stops_a_piped_simulate(tmp_path: Path) -> None:
     out.unlink()
     log = tmp_path / "log"
     with log.open("w") as fh:  # stdout and stderr to a file, not a terminal: no progress display
-        child = subprocess.Popen([*command, "--t-end", "1e8"], stdout=fh, stderr=fh, env=_environment())
+        child = subprocess.Popen(
+            [*command, "--t-end", "1e8", "--time-limit", "0"], stdout=fh, stderr=fh, env=_environment()
+        )
         _interrupt_when_busy(child, startup)
     assert child.returncode == 130
     assert "interrupted" in log.read_text()
@@ -84,27 +86,35 @@ def test_ctrl_c_stops_a_piped_simulate(tmp_path: Path) -> None:
 
 ENSEMBLE = r"""
 import sys
-from chaplygin import examples
+from chaplygin import examples, simulate
 from chaplygin.numeric.ensemble import simulate_ensemble
 
 entry = examples.get("rolling-disk")
 system = entry.constructor()
 for backend, threads in (pair.split(":") for pair in sys.argv[1:]):
-    simulate_ensemble(system, "voronets", 1.0, [entry.initial], entry.parameters, backend=backend)
+    if threads == "gauss4":  # a symmetric method's compiled kernel, one long call
+        run = lambda t: simulate(system, "voronets", t, entry.initial, entry.parameters, backend=backend,
+                                 method="gauss4", step=1e-3, samples=3)
+        long = 1e6  # 10⁹ steps
+    else:
+        run = lambda t: simulate_ensemble(system, "voronets", t, [entry.initial] * 4, entry.parameters,
+                                          backend=backend, max_steps=0, threads=int(threads), time_limit=None)
+        long = 1e8  # hours
+    run(0.01)
     print("ready", flush=True)
     try:
-        simulate_ensemble(system, "voronets", 1e9, [entry.initial] * 4, entry.parameters,
-                          backend=backend, max_steps=0, threads=int(threads))
+        run(long)
     except KeyboardInterrupt:
         print("interrupted", flush=True)
 """
 
 
-def test_ctrl_c_stops_an_ensemble() -> None:
-    """The C loop on two threads, the numba loop on one (a worker thread: the main thread waits)."""
+def test_ctrl_c_stops_an_ensemble_and_a_symmetric_run() -> None:
+    """The C loop on two threads, the numba loop on one (a worker thread: the main thread waits),
+    the Gauss-Legendre kernel (numba; on main it held the main thread to the end)."""
     from chaplygin.numeric._ckernel import Unavailable, compiler
 
-    runs = ["numba:1"]
+    runs = ["numba:1", "numba:gauss4"]
     try:
         compiler()
         runs.insert(0, "c:2")

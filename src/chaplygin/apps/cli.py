@@ -128,6 +128,21 @@ def _model_option(verb: str) -> Any:
     )
 
 
+def _time_limit_option() -> Any:
+    return typer.Option(
+        3600.0,
+        "--time-limit",
+        min=0.0,
+        help="Refuse a run (a sweep) whose pace after half a second says it would take longer than "
+        "this many seconds; 0: no limit.",
+    )
+
+
+def _limit(seconds: float) -> float | None:
+    """``--time-limit``'s value as ``time_limit=`` (0: no limit)."""
+    return seconds or None
+
+
 def _param_option(verb: str = "Override") -> Any:
     """``--param NAME=NUMBER`` (repeatable; read by :func:`_overrides`)."""
     return typer.Option(
@@ -256,13 +271,10 @@ class _Steps:
 
 
 def _duration(seconds: float) -> str:
-    """``42 s``, ``3 min 05 s``, ``2 h 07 min``: a time left, to the second where it is short."""
-    s = round(seconds)
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``, ``12 days``, ``more than a year``: a time left."""
+    from chaplygin.numeric.simulate import duration
+
+    return duration(seconds)
 
 
 #: the exit status of a command that wrote all its outputs but some of whose runs stopped before
@@ -870,6 +882,7 @@ def simulate(
     atol: float = typer.Option(
         1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."
     ),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
     from chaplygin.numeric.simulate import METHODS, SYMMETRIC_METHODS
@@ -917,6 +930,7 @@ def simulate(
                 rtol,
                 atol,
                 progress=steps.clock(f"integrating {wanted}", 0.0, t_end),
+                time_limit=_limit(time_limit),
             )
             if tr is None:
                 loaded = _load(file)
@@ -934,6 +948,7 @@ def simulate(
                     "rtol": rtol,
                     "atol": atol,
                     "progress": steps.clock(f"integrating {named(model)}", 0.0, t_end),
+                    "time_limit": _limit(time_limit),
                 }
                 if c is not None:
                     options["constants"] = c
@@ -1056,6 +1071,7 @@ def compare(
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Simulate several models from one initial state: summary table, trajectories and figures.
 
@@ -1095,6 +1111,7 @@ def compare(
                     rtol=rtol,
                     atol=atol,
                     progress=steps.clock(f"simulating {label}", 0.0, t_end),
+                    time_limit=_limit(time_limit),
                 )
                 runs.update(part.trajectories)
                 notes += part.notes
@@ -1222,6 +1239,7 @@ def sweep(
         False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Simulate a model over a grid of parameters and initial values; one Parquet row per run.
 
@@ -1272,6 +1290,7 @@ def sweep(
                     constants=c,
                     chunk_size=chunk_size,
                     progress=progress,
+                    time_limit=_limit(time_limit),
                 )
         except KeyboardInterrupt:
             _stderr().print(
@@ -1311,6 +1330,7 @@ def report(
     param: list[str] | None = _param_option(),
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Write one self-contained HTML report: system, integrability, equations, simulations."""
     from chaplygin.apps.report import STAGES, report_comparison, write_report
@@ -1333,6 +1353,7 @@ def report(
                 backend=backend.value,
                 parameters=params,
                 initial=start,
+                time_limit=_limit(time_limit),
             )
             write_report(
                 loaded,

@@ -1162,13 +1162,20 @@ def _not_simulated(src: _Source) -> str:
 
 
 def _compare(
-    src: _Source, models: Sequence[str] | None, t_end: float, samples: int, backend: str
+    src: _Source, models: Sequence[str] | None, t_end: float, samples: int, backend: str, **options: Any
 ) -> Comparison:
     from chaplygin.numeric.comparison import compare
 
     chosen = list(models or default_models(src.system))
     return compare(
-        src.system, chosen, float(t_end), src.initial, src.parameters, samples=samples, backend=backend
+        src.system,
+        chosen,
+        float(t_end),
+        src.initial,
+        src.parameters,
+        samples=samples,
+        backend=backend,
+        **options,
     )
 
 
@@ -1181,12 +1188,14 @@ def report_comparison(
     backend: str = "numpy",
     parameters: Mapping[str, float] | None = None,
     initial: Mapping[str, float] | None = None,
+    **options: Any,
 ) -> Comparison | None:
-    """The simulations a report of ``source`` shows (the arguments of :func:`write_report`), to
-    pass as its ``comparison``; None where the numbers for them are missing.  The command line
-    runs them first, so that it can tell whether every run reached ``t_end``."""
+    """The simulations a report of ``source`` shows (the arguments of :func:`write_report`; more
+    ``options`` of :func:`chaplygin.numeric.comparison.compare`, e.g. ``time_limit``), to pass as
+    its ``comparison``; None where the numbers for them are missing.  The command line runs them
+    first, so that it can tell whether every run reached ``t_end``."""
     src = _source(source, parameters, initial)
-    return None if _not_simulated(src) else _compare(src, models, t_end, samples, backend)
+    return None if _not_simulated(src) else _compare(src, models, t_end, samples, backend, **options)
 
 
 def render_report(

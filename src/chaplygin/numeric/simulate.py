@@ -48,7 +48,17 @@ if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they ar
     from chaplygin.core.system import System
     from chaplygin.numeric._ckernel import CompiledModel
 
-__all__ = ["BACKENDS", "MAX_CONDITION", "MAX_SAMPLES", "METHODS", "Trajectory", "choose_backend", "simulate"]
+__all__ = [
+    "BACKENDS",
+    "MAX_CONDITION",
+    "MAX_SAMPLES",
+    "METHODS",
+    "TIME_LIMIT",
+    "Trajectory",
+    "choose_backend",
+    "duration",
+    "simulate",
+]
 
 #: chaplygin.numeric.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
 SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
@@ -578,6 +588,61 @@ PROGRESS_EVERY = 0.1
 #: ``progress(t)``: told the time an integration has reached (see :func:`simulate`)
 Progress = Callable[[float], None]
 
+#: the default ``time_limit`` of :func:`simulate` and of sweeps, in seconds: a run (or a sweep)
+#: estimated to take longer is refused (``time_limit=None``, ``--time-limit 0``: no limit)
+TIME_LIMIT = 3600.0
+#: seconds of integration after which a run's whole duration is estimated from its pace
+ESTIMATE_AFTER = 0.5
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``, ``12 days``, ``more than a year``: a time, never
+    a number too long to read."""
+    if not seconds < 365 * 86400:  # (NaN too)
+        return "more than a year"
+    s = round(seconds)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    if s < 48 * 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    return f"{s // 86400} days"
+
+
+def _budget(progress: Progress | None, t0: float, t1: float, limit: float | None) -> Progress | None:
+    """``progress`` that also, once, estimates the time the run needs from its pace over
+    :data:`ESTIMATE_AFTER` seconds (counted from its first report, so that a compilation in the
+    first stretch does not count) and raises :class:`InputError` if that exceeds ``limit``."""
+    if limit is None:
+        return progress
+    origin: list[float] = []  # (wall time, t) of the first report
+    checked = [False]
+
+    def told(t: float) -> None:
+        if progress is not None:
+            progress(t)
+        if checked[0] or t >= t1:
+            return
+        now = time.monotonic()
+        if not origin:
+            origin.extend((now, t))
+            return
+        elapsed = now - origin[0]
+        if elapsed < ESTIMATE_AFTER:
+            return
+        checked[0] = True
+        left = elapsed * (t1 - t) / (t - origin[1]) if t > origin[1] else math.inf
+        if left > limit:
+            raise InputError(
+                f"t_end = {t1:g}: too long to run: the time left is estimated at {duration(left)} (from "
+                f"t = {origin[1]:.4g} to {t:.4g} in {elapsed:.1f} s), beyond the limit of {duration(limit)}; "
+                "ask for a shorter time, or pass time_limit=None (on the command line --time-limit 0) "
+                "to run it anyway."
+            )
+
+    return told
+
 
 def simulate(
     system: System,
@@ -598,6 +663,7 @@ def simulate(
     step: float | None = None,
     reduction: str = "auto",
     progress: Progress | None = None,
+    time_limit: float | None = TIME_LIMIT,
 ) -> Trajectory:
     """Simulate one model of ``system`` (the front door :func:`chaplygin.numeric.simulate`).
 
@@ -605,7 +671,12 @@ def simulate(
     every :data:`PROGRESS_EVERY` seconds of wall time (the Python steppers after a step, the
     compiled loops of the ``c`` and ``numba`` backends between runs of steps that continue
     exactly where they stopped), and once at the end with the last time reached (``t_end``
-    for a run that succeeds).  Without it nothing is checked or timed.
+    for a run that succeeds).
+
+    ``time_limit`` (seconds, default :data:`TIME_LIMIT`, one hour; None: no limit): after
+    :data:`ESTIMATE_AFTER` seconds of integration, the whole run is estimated from its pace so
+    far, and one estimated to take longer is stopped with an :class:`InputError` that gives the
+    estimate (an adaptive run: ``DOP853`` and SciPy's methods).
 
     Inputs that cannot give a motion are refused with an :class:`InputError`
     before anything is derived or compiled: a start or end time that is not
@@ -620,6 +691,8 @@ def simulate(
         _finite(t1, "t_span: the end time", "a finite number after the start"),
     )
     _check_options(t0, t1, samples, rtol, atol, max_step)
+    if time_limit is not None and not time_limit > 0:
+        raise InputError(f"time_limit = {time_limit!r}: a positive number of seconds, or None for no limit.")
     if method not in METHODS:
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
     auto = backend == "auto"
@@ -689,6 +762,7 @@ def simulate(
         max_step=max_step,
         g=system.g,
         progress=progress,
+        time_limit=time_limit,
     )
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
 
@@ -1083,8 +1157,10 @@ def integrate(
     max_step: float,
     g: int,
     progress: Progress | None = None,
+    time_limit: float | None = None,
 ) -> Trajectory:
-    """Integrate ``compiled.rhs`` from ``y0`` and sample it (``progress``: see :func:`simulate`).
+    """Integrate ``compiled.rhs`` from ``y0`` and sample it (``progress``, ``time_limit``: see
+    :func:`simulate`; the JAX backend neither reports nor estimates).
 
     ``c`` or ``numba`` backend with ``method="DOP853"``: the compiled loop of
     :mod:`chaplygin.numeric._ckernel` or :mod:`chaplygin.numeric._loop` (the whole integration in C or numba).  ``jax``
@@ -1109,17 +1185,18 @@ def integrate(
         if progress is not None and len(res.t):
             progress(float(res.t[-1]))
         return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+    told = _budget(progress, t_span[0], t_span[1], time_limit)  # (the last call below: not checked)
     if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
         if compiled.backend == "numba":
             from chaplygin.numeric._loop import loop_model
 
             compiled = loop_model(compiled)
-        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, progress)
+        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, told)
     elif method == "DOP853" and hasattr(compiled.module, "rhs_list"):
         # the numpy backend's generated code on lists, stepped in plain Python: no SciPy at all
-        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, progress)
+        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, told)
     else:  # the other methods, and a model without a list right-hand side (code of other origin)
-        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, progress)
+        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, told)
     ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
     if progress is not None:
         progress(float(ts[-1]) if len(ts) else t_span[0])
