@@ -57,6 +57,15 @@ def test_a_run_that_cannot_finish_is_refused_with_its_estimate(backend: str) -> 
         chaplygin.simulate(system, "voronets", 1.0, DISK.initial, DISK.parameters, time_limit=-1.0)
 
 
+def test_a_symmetric_run_that_cannot_finish_is_refused_with_its_estimate() -> None:
+    system = DISK.constructor()
+    with pytest.raises(
+        InputError, match=r"step: 5e\+09 steps of h = 0.001: too long to run: .* beyond the limit"
+    ):
+        chaplygin.simulate(system, "voronets", 5e6, DISK.initial, DISK.parameters, backend="numpy",
+                           method="gauss4", step=1e-3, samples=3, time_limit=60)  # fmt: skip
+
+
 def test_the_command_line_refuses_it_and_writes_nothing(tmp_path: Path) -> None:
     out = tmp_path / "r.csv"
     args = ["simulate", "example:rolling-disk", "--t-end", "1e300", "-o", str(out), "--time-limit", "60"]

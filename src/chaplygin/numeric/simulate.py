@@ -676,7 +676,8 @@ def simulate(
     ``time_limit`` (seconds, default :data:`TIME_LIMIT`, one hour; None: no limit): after
     :data:`ESTIMATE_AFTER` seconds of integration, the whole run is estimated from its pace so
     far, and one estimated to take longer is stopped with an :class:`InputError` that gives the
-    estimate (an adaptive run: ``DOP853`` and SciPy's methods).
+    estimate (the symmetric methods: from the steps taken of the steps of the grid; not the
+    ``jax`` backend).
 
     Inputs that cannot give a motion are refused with an :class:`InputError`
     before anything is derived or compiled: a start or end time that is not
@@ -714,6 +715,7 @@ def simulate(
             backend=backend,
             constants=constants,
             multipliers=multipliers,
+            time_limit=time_limit,
         )
         if progress is not None and len(tr.t):
             progress(float(tr.t[-1]))
@@ -781,6 +783,7 @@ def _simulate_symmetric(
     backend: str = "numpy",
     constants: Any = None,
     multipliers: Any = None,
+    time_limit: float | None = None,
 ) -> Trajectory:
     """:func:`chaplygin.numeric.simulate.simulate` with a symmetric fixed-step method.
 
@@ -819,7 +822,9 @@ def _simulate_symmetric(
     stepper = compile_model(system, reduced_model, reduced_form, backend)
     p = parameter_vector(stepper.layout, params)
     y0 = np.concatenate([q, qd[list(system._ind)]])
-    res = integrate_symmetric(stepper, (t0, t1), y0, p, method=method, step=h, samples=samples)
+    res = integrate_symmetric(
+        stepper, (t0, t1), y0, p, method=method, step=h, samples=samples, time_limit=time_limit
+    )
     # observed with generated plain-Python code (nothing to compile): the reduced model's
     # own observables, or — for "chetaev" — the multiplier model's (λ among them) at (q, q̇)
     reduced = _tolerant(compile_model(system, reduced_model, reduced_form, "numpy"))
