@@ -395,7 +395,7 @@ def test_interrupted_report_leaves_the_previous_file(tmp_path: Path, monkeypatch
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.html"]
 
 
-def test_a_failed_run_exits_1(tmp_path: Path, monkeypatch) -> None:
+def test_a_failed_run_is_written_and_exits_3(tmp_path: Path, monkeypatch) -> None:
     from chaplygin.numeric.simulate import Trajectory
 
     def failing(system, model, t_span, initial, parameters=None, **options):
@@ -418,7 +418,8 @@ def test_a_failed_run_exits_1(tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path / "cache"))  # no run plan answers without System
     out = tmp_path / "run.csv"
     result = run("simulate", "example:knife-edge", "--model", "chaplygin", "--t-end", "1", "--out", str(out))
-    assert result.exit_code == 1 and "blew up" in result.stderr and out.exists()
+    assert result.exit_code == 3 and "stopped early: chaplygin: the solution blew up" in result.stderr
+    assert out.exists()
 
 
 # ---------------------------------------------------------------- compare, report

@@ -144,10 +144,11 @@ def run(
     rtol: float = 1e-10,
     atol: float = 1e-12,
     progress: Callable[[float], None] | None = None,
+    time_limit: float | None = None,
 ) -> Trajectory | None:
     """The run from a stored plan, or None where the full path must run.
 
-    ``progress`` is told the time the integration reaches, as by
+    ``progress`` is told the time the integration reaches, and ``time_limit`` is applied, as by
     :func:`chaplygin.numeric.simulate.simulate`.
 
     ``params`` and ``initial`` are the command line's overrides (by name).  The
@@ -171,7 +172,7 @@ def run(
     if found is None:
         return None
     try:
-        return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress)
+        return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress, time_limit)
     except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
         return None
 
@@ -186,6 +187,7 @@ def _run(
     rtol: float,
     atol: float,
     progress: Callable[[float], None] | None = None,
+    time_limit: float | None = None,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import Layout
     from chaplygin.numeric.simulate import integrate
@@ -233,6 +235,7 @@ def _run(
         max_step=np.inf,
         g=int(found["g"]),
         progress=progress,
+        time_limit=time_limit,
     )
     tr.energy_conserved = bool(found["energy_conserved"])
     tr.energy_column = str(found["energy_column"])

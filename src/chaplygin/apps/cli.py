@@ -20,7 +20,7 @@ import os
 import sys
 import time
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
@@ -126,6 +126,21 @@ def _model_option(verb: str) -> Any:
         metavar="MODEL",
         help=f"The model to {verb}; default: the true motion (chaplygin for a Chaplygin system, else voronets).",
     )
+
+
+def _time_limit_option() -> Any:
+    return typer.Option(
+        3600.0,
+        "--time-limit",
+        min=0.0,
+        help="Refuse a run (a sweep) whose pace after half a second says it would take longer than "
+        "this many seconds; 0: no limit.",
+    )
+
+
+def _limit(seconds: float) -> float | None:
+    """``--time-limit``'s value as ``time_limit=`` (0: no limit)."""
+    return seconds or None
 
 
 def _param_option(verb: str = "Override") -> Any:
@@ -256,13 +271,27 @@ class _Steps:
 
 
 def _duration(seconds: float) -> str:
-    """``42 s``, ``3 min 05 s``, ``2 h 07 min``: a time left, to the second where it is short."""
-    s = round(seconds)
-    if s < 60:
-        return f"{s} s"
-    if s < 3600:
-        return f"{s // 60} min {s % 60:02d} s"
-    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``, ``12 days``, ``more than a year``: a time left."""
+    from chaplygin.numeric.simulate import duration
+
+    return duration(seconds)
+
+
+#: the exit status of a command that wrote all its outputs but some of whose runs stopped before
+#: the end time (a pole, a blow-up, a step size too small; a failed run of a sweep)
+STOPPED_EARLY = 3
+
+
+def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str]) -> None:
+    """Exit with :data:`STOPPED_EARLY` if any of ``runs`` (label → trajectory) did not succeed,
+    saying on stderr, for each, why and that ``where(label)`` holds it up to there."""
+    failed = {label: tr for label, tr in runs.items() if not tr.success}
+    for label, tr in failed.items():
+        _stderr().print(
+            f"stopped early: {label}: {tr.message}; {where(label)} holds the run up to there.", markup=False
+        )
+    if failed:
+        raise typer.Exit(STOPPED_EARLY)
 
 
 @contextmanager
@@ -310,6 +339,8 @@ def _errors() -> Iterator[None]:
 
 
 def _refuse_existing(paths: Sequence[Path], force: bool) -> None:
+    """Check output files before any work: none is a directory, none exists (unless ``force``),
+    and each can be written (:func:`_check_writable`)."""
     existing = [p for p in paths if p.exists()]
     for p in existing:
         if p.is_dir():
@@ -319,6 +350,16 @@ def _refuse_existing(paths: Sequence[Path], force: bool) -> None:
         raise OutputExists(
             f"{names} already exist{'s' if len(existing) == 1 else ''}; pass --force to overwrite."
         )
+    for folder in dict.fromkeys(p.parent for p in paths):  # one check per folder
+        _check_writable(next(p for p in paths if p.parent == folder))
+
+
+def _check_writable(path: Path, folder: bool = False) -> None:
+    """An output that cannot be written (a read-only folder, a file where a folder should be) is
+    refused before the work starts, naming the user's path."""
+    from chaplygin.numeric.simulate import check_writable
+
+    check_writable(path, folder=folder)
 
 
 # ====================================================================== loading
@@ -842,6 +883,7 @@ def simulate(
     atol: float = typer.Option(
         1e-12, "--atol", help="Absolute tolerance of the adaptive integrators (positive)."
     ),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Simulate one model from the file's initial state; write every column to CSV or NPZ."""
     from chaplygin.numeric.simulate import METHODS, SYMMETRIC_METHODS
@@ -889,6 +931,7 @@ def simulate(
                 rtol,
                 atol,
                 progress=steps.clock(f"integrating {wanted}", 0.0, t_end),
+                time_limit=_limit(time_limit),
             )
             if tr is None:
                 loaded = _load(file)
@@ -906,6 +949,7 @@ def simulate(
                     "rtol": rtol,
                     "atol": atol,
                     "progress": steps.clock(f"integrating {named(model)}", 0.0, t_end),
+                    "time_limit": _limit(time_limit),
                 }
                 if c is not None:
                     options["constants"] = c
@@ -924,8 +968,7 @@ def simulate(
         _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
         if created is not None:
             _emit(f"created {created}: it did not exist")
-        if not tr.success:
-            raise ChaplyginError(f"the run failed: {tr.message}; {out} holds the trajectory up to then.")
+        _stopped_early({label: tr}, lambda _label: str(out))
 
 
 # ====================================================================== compare
@@ -1029,6 +1072,7 @@ def compare(
     force: bool = typer.Option(False, "--force", help="Overwrite existing outputs in the directory."),
     rtol: float = typer.Option(1e-10, "--rtol", help="Relative tolerance of the integrator (positive)."),
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Simulate several models from one initial state: summary table, trajectories and figures.
 
@@ -1041,6 +1085,7 @@ def compare(
     with _failures():
         if out.exists() and not out.is_dir():
             raise OutputExists(f"{out} exists and is not a directory.")
+        _check_writable(out, folder=True)
         loaded = _load(file)
         params, start = _numbers(loaded, param, initial)
         system = loaded.system
@@ -1067,6 +1112,7 @@ def compare(
                     rtol=rtol,
                     atol=atol,
                     progress=steps.clock(f"simulating {label}", 0.0, t_end),
+                    time_limit=_limit(time_limit),
                 )
                 runs.update(part.trajectories)
                 notes += part.notes
@@ -1085,9 +1131,7 @@ def compare(
         )
         if created is not None:
             _emit(f"created {created}: it did not exist")
-        failed = [k for k, tr in runs.items() if not tr.success]
-        if failed:
-            raise ChaplyginError("failed: " + "; ".join(f"{k}: {runs[k].message}" for k in failed))
+        _stopped_early(runs, lambda label: str(out / f"{_safe(label)}.csv"))
 
 
 def _write_comparison(comparison: Comparison, directory: Path) -> None:
@@ -1196,6 +1240,7 @@ def sweep(
         False, "--resume", help="Finish the sweep in --out: run only the runs it lacks."
     ),
     force: bool = typer.Option(False, "--force", help="Replace an existing sweep (or file) at --out."),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Simulate a model over a grid of parameters and initial values; one Parquet row per run.
 
@@ -1223,6 +1268,8 @@ def sweep(
         from chaplygin.apps.sweep import read_results
         from chaplygin.apps.sweep import sweep as run_sweep
 
+        _check_writable(out, folder=True)
+
         label = model if form is Form.classic else f"{model}/{form.value}"
         try:
             with _run_counter(f"sweeping {label} [{backend.value}]") as progress:
@@ -1244,6 +1291,7 @@ def sweep(
                     constants=c,
                     chunk_size=chunk_size,
                     progress=progress,
+                    time_limit=_limit(time_limit),
                 )
         except KeyboardInterrupt:
             _stderr().print(
@@ -1257,10 +1305,12 @@ def sweep(
             table = read_results(out, ["status", "message"]).to_pylist()
             first = [r for r in table if r["status"] != "success"][:3]
             _stderr().print(
-                "failed runs (status 'failed' in the results), e.g.:\n"
+                f"stopped early: {result.failed} run{'s' if result.failed > 1 else ''} (status 'failed' "
+                f"in {out}, with the state reached), e.g.:\n"
                 + "\n".join(f"  run {r['run_id']}: {r['message']}" for r in first),
                 markup=False,
             )
+            raise typer.Exit(STOPPED_EARLY)
 
 
 # ====================================================================== report
@@ -1281,9 +1331,10 @@ def report(
     param: list[str] | None = _param_option(),
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
+    time_limit: float = _time_limit_option(),
 ) -> None:
     """Write one self-contained HTML report: system, integrability, equations, simulations."""
-    from chaplygin.apps.report import STAGES, write_report
+    from chaplygin.apps.report import STAGES, report_comparison, write_report
 
     specs = [_model_spec(m) for m in models.split(",")] if models else None
     _overrides(param, "--param"), _overrides(initial, "--initial")
@@ -1293,7 +1344,18 @@ def report(
         params, start = _numbers(loaded, param, initial)
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
         created = _created(out)
-        with _Steps(len(STAGES), "report") as steps:
+        with _Steps(len(STAGES) + 1, "report") as steps:
+            steps.step("report: simulating")  # first, to know whether every run reaches t_end
+            comparison = report_comparison(
+                loaded,
+                models=chosen,
+                t_end=t_end,
+                samples=samples,
+                backend=backend.value,
+                parameters=params,
+                initial=start,
+                time_limit=_limit(time_limit),
+            )
             write_report(
                 loaded,
                 out,
@@ -1303,11 +1365,14 @@ def report(
                 backend=backend.value,
                 parameters=params,
                 initial=start,
+                comparison=comparison,
                 progress=_report_progress(steps),
             )
         _emit(f"wrote {out}: the simulations run to t = {t_end:g} ({samples} samples)")
         if created is not None:
             _emit(f"created {created}: it did not exist")
+        if comparison is not None:
+            _stopped_early(comparison.trajectories, lambda _label: str(out))
 
 
 # ====================================================================== demo
@@ -1338,6 +1403,9 @@ def demo(
     with _failures():
         if out.exists() and not force and not _is_demo_report(out):
             raise OutputExists(f"{out} exists and is not a chaplygin demo report; pass --force to overwrite.")
+        if out.is_dir():
+            raise OutputExists(f"{out} is a directory; give a file name.")
+        _check_writable(out)
         loaded = _load("example:rolling-sphere")
         system = loaded.system
         params, start = loaded.parameters, loaded.initial

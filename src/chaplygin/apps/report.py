@@ -64,6 +64,7 @@ __all__ = [
     "mathml_pieces",
     "paper_table",
     "render_report",
+    "report_comparison",
     "write_report",
 ]
 
@@ -1161,6 +1162,52 @@ def _paper_section(table: PaperTable) -> str:
     return "\n".join(out)
 
 
+def _not_simulated(src: _Source) -> str:
+    """Why the report of ``src`` has no simulation ("" where it has the numbers for one)."""
+    missing = [p.name for p in src.system.parameters if p.name not in src.parameters]
+    if not missing and src.initial:
+        return ""
+    what = "numbers for the parameters " + ", ".join(missing) if missing else "initial state"
+    return f"Not simulated: no {what} were given."
+
+
+def _compare(
+    src: _Source, models: Sequence[str] | None, t_end: float, samples: int, backend: str, **options: Any
+) -> Comparison:
+    from chaplygin.numeric.comparison import compare
+
+    chosen = list(models or default_models(src.system))
+    return compare(
+        src.system,
+        chosen,
+        float(t_end),
+        src.initial,
+        src.parameters,
+        samples=samples,
+        backend=backend,
+        **options,
+    )
+
+
+def report_comparison(
+    source: Any,
+    *,
+    models: Sequence[str] | None = None,
+    t_end: float = 20.0,
+    samples: int = 401,
+    backend: str = "numpy",
+    parameters: Mapping[str, float] | None = None,
+    initial: Mapping[str, float] | None = None,
+    **options: Any,
+) -> Comparison | None:
+    """The simulations a report of ``source`` shows (the arguments of :func:`write_report`; more
+    ``options`` of :func:`chaplygin.numeric.comparison.compare`, e.g. ``time_limit``), to pass as
+    its ``comparison``; None where the numbers for them are missing.  The command line runs them
+    first, so that it can tell whether every run reached ``t_end``."""
+    src = _source(source, parameters, initial)
+    return None if _not_simulated(src) else _compare(src, models, t_end, samples, backend, **options)
+
+
 def render_report(
     source: Any,
     *,
@@ -1177,7 +1224,6 @@ def render_report(
 ) -> str:
     """The report as one HTML string (see :func:`write_report` for the arguments)."""
     from chaplygin._version import __version__
-    from chaplygin.numeric.comparison import compare
 
     src = _source(source, parameters, initial)
     system = src.system
@@ -1195,23 +1241,9 @@ def render_report(
     stage("simulation")
     note = ""
     if comparison is None:
-        missing = [p.name for p in system.parameters if p.name not in src.parameters]
-        if missing or not src.initial:
-            note = (
-                "Not simulated: no "
-                + ("numbers for the parameters " + ", ".join(missing) if missing else "initial state")
-                + " were given."
-            )
-        else:
-            comparison = compare(
-                system,
-                list(models or default_models(system)),
-                float(t_end),
-                src.initial,
-                src.parameters,
-                samples=samples,
-                backend=backend,
-            )
+        note = _not_simulated(src)
+        if not note:
+            comparison = _compare(src, models, t_end, samples, backend)
     parts.append(_simulation_section(system, comparison, note, stage))
     from chaplygin.apps.bodyview import body_section
 

@@ -60,6 +60,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
+from chaplygin.numeric.simulate import TIME_LIMIT
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -382,6 +383,8 @@ class _Plan:
     parameter_names: tuple[str, ...]
     initial_names: tuple[str, ...]
     coordinates: tuple[str, ...]
+    #: each run's ``time_limit`` (see :func:`chaplygin.numeric.simulate.simulate`)
+    time_limit: float | None = 3600.0
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -453,6 +456,7 @@ def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
         }
         if plan.constants is not None:
             options["constants"] = plan.constants
+        options["time_limit"] = plan.time_limit
         tr = simulate(system, plan.model, plan.t_end, initial, params, **options)
     except Exception as exc:
         outcome["message"] = f"{type(exc).__name__}: {exc}"[:MAX_MESSAGE]
@@ -718,6 +722,9 @@ def _locked(directory: Path) -> Iterator[None]:
 
 def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: bool) -> str:
     """Check the output: ``"new"``, ``"resume"`` (an earlier sweep, same settings) or ``"replace"``."""
+    from chaplygin.numeric.simulate import check_writable
+
+    check_writable(directory, folder=True)  # (it, or the folder above that will hold it)
     if directory.exists() and not directory.is_dir():
         if not force:
             raise SweepOutputExists(f"{directory} already exists (a file); pass --force to replace it.")
@@ -998,6 +1005,7 @@ def sweep(
     retries: int = 2,
     compact: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    time_limit: float | None = TIME_LIMIT,
 ) -> SweepResult:
     """Simulate ``model`` at every point of ``grid``; one row per run in a Parquet dataset.
 
@@ -1061,6 +1069,12 @@ def sweep(
         Merge the part files into one when the sweep is complete.
     progress : callable(done, total), optional
         Called as runs finish (``done`` counts the resumed ones too).
+    time_limit : float or None
+        Seconds (default one hour; None: no limit).  Each run is limited as by
+        :func:`chaplygin.numeric.simulate.simulate` (a run estimated to take longer is a failed
+        row), and a sweep in this process whose first runs say that the rest would take longer
+        (over the cores a LocalCluster would use) stops with a :class:`ChaplyginError` that gives
+        the estimate; the runs done are kept (``resume=True`` goes on).
 
     Returns
     -------
@@ -1144,6 +1158,7 @@ def sweep(
         parameter_names,
         initial_names,
         coords,
+        time_limit,
     )
     total = plan.runs
     if total > MAX_RUNS:
@@ -1210,7 +1225,15 @@ def sweep(
                 )
             elif len(todo):
                 _remember(recipe, sys_)
-                here = _serial(plan, todo, writer, resumed, report, watch=runner == "auto" and _can_cluster())
+                here = _serial(
+                    plan,
+                    todo,
+                    writer,
+                    resumed,
+                    report,
+                    watch=runner == "auto" and _can_cluster(),
+                    limit=time_limit,
+                )
                 where = "in this process"
                 if here < len(todo):  # the rest would take long: a LocalCluster
                     travelling = _travelling(plan, sys_)
@@ -1285,11 +1308,15 @@ def _serial(
     report: Callable[[int], None],
     *,
     watch: bool,
+    limit: float | None = None,
 ) -> int:
     """Run ``todo`` in this process; the number run.
 
     With ``watch``, stop early once the runs so far (the first, which builds and compiles the
     model, left out) say that the rest would take longer than :data:`AUTO_CLUSTER_SECONDS`.
+    With ``limit``, the first run measured estimates the rest, spread over the cores where
+    ``watch`` may hand it to a LocalCluster; more than ``limit`` seconds stops the sweep with a
+    :class:`ChaplyginError` that says so.
     """
     took: list[float] = []
     for count, run_id in enumerate(todo, 1):
@@ -1298,6 +1325,18 @@ def _serial(
         took.append(time.perf_counter() - start)
         report(resumed + count)
         left = len(todo) - count
+        if limit is not None and left and len(took) > 1:
+            rest = sum(took[1:]) / (len(took) - 1) * left / (_cores() if watch else 1)
+            if rest > limit:
+                from chaplygin.numeric.simulate import duration
+
+                raise ChaplyginError(
+                    f"{plan.runs} runs: the {left} left would take about {duration(rest)} (at "
+                    f"{sum(took[1:]) / (len(took) - 1):.3g} s a run{f' on {_cores()} cores' if watch else ''}), "
+                    f"beyond the limit of {duration(limit)}; the {count} runs done are kept: pass "
+                    "time_limit=None (--time-limit 0) with resume=True (--resume) to finish, or sweep fewer points."
+                )
+            limit = None  # estimated once
         if watch and left and len(took) > 1 and sum(took[1:]) / (len(took) - 1) * left > AUTO_CLUSTER_SECONDS:
             return count
     return len(todo)

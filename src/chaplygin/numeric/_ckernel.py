@@ -378,6 +378,11 @@ static void k_observe(work_t *w, double t, const double *y, const double *p, int
     for (int j = 0; j < w->nv; ++j) row[w->n_obs - w->nv + j] = w->V[j];
 }
 
+/* set from Python on an interrupt (Ctrl-C): every running loop stops at its next step, status 10 */
+static volatile int halt_requested = 0;
+
+void chaplygin_halt_@DIGEST@(int on) { halt_requested = on; }
+
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
@@ -433,6 +438,7 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
 
     while (direction * (t - t1) < 0.0) {
         if (max_steps > 0 && n_steps >= max_steps) { status = 4; break; }
+        if (halt_requested) { status = 10; break; }
         double min_step = 10.0 * fabs(nextafter(t, direction * INFINITY) - t);
         if (h_abs > max_step) h_abs = max_step;
         else if (h_abs < min_step) h_abs = min_step;
@@ -589,6 +595,7 @@ class _Loop(NamedTuple):
     observe: Any
     rhs: Any
     batch: Any
+    halt: Any
 
 
 _LOOP: list[_Loop] = []
@@ -631,7 +638,9 @@ def loop() -> _Loop:
         batch.argtypes += [_D, _D, _D, _D, _L, _L, _LONG, _LONG]
         for fn in (dop, obs, rhs, batch):
             fn.restype = _I
-        _LOOP.append(_Loop(dop, obs, rhs, batch))
+        halt = getattr(lib, f"chaplygin_halt_{digest}")
+        halt.argtypes, halt.restype = [_I], None
+        _LOOP.append(_Loop(dop, obs, rhs, batch, halt))
     return _LOOP[0]
 
 
@@ -746,6 +755,10 @@ class CKernel:
             != 0
         ):
             raise MemoryError("the C loop could not allocate its work space")
+
+    def halt(self, on: bool) -> None:
+        """Ask every running C loop to stop at its next step (status 10), or no longer."""
+        self._loop.halt(int(on))
 
     def integrate(
         self,

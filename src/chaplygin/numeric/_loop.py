@@ -104,6 +104,7 @@ STATUS = {
     # a velocity solved from the constraints is not finite, or (ensembles, chaplygin.numeric.ensemble)
     # they cannot be solved between two times checked; 7, 8: chaplygin.numeric.symmetric
     9: "a pole of the solved constraints",
+    10: "interrupted",  # an ensemble stopped by Ctrl-C (ensemble_dop853 raises KeyboardInterrupt)
 }
 
 # ------------------------------------------------------------------ DOP853 tableau
@@ -279,8 +280,13 @@ def _k_rms(v):  # pragma: no cover - compiled
     return math.sqrt(s / v.size)
 
 
-def _k_dop853(m, t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps, out):  # pragma: no cover
+def _k_dop853(
+    m, t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_steps, out, halt
+):  # pragma: no cover
     """Integrate the model ``m``'s ``rhs`` from ``(t0, y0)`` to ``t1``; ``out[j] ← y(t_out[j])``.
+
+    ``halt`` (int64, 1): where another thread sets ``halt[0]``, the loop stops at its next step
+    with status 10 (an interrupted ensemble, :func:`ensemble_dop853`).
 
     Returns ``(filled, status, t, y, n_rhs, n_steps, t_fail, y_fail, h_next)``:
     ``filled`` rows of ``out`` were written, ``(t, y)`` is the last accepted
@@ -358,6 +364,9 @@ def _k_dop853(m, t0, t1, y0, p, t_out, rtol, atol, max_step, first_step, max_ste
     while direction * (t - t1) < 0.0:
         if max_steps > 0 and n_steps >= max_steps:
             status = 4
+            break
+        if halt[0] != 0:
+            status = 10
             break
         min_step = 10.0 * abs(np.nextafter(t, direction * np.inf) - t)
         if h_abs > max_step:
@@ -474,6 +483,7 @@ def _k_batch(
     n_rhs,
     start,
     stop,
+    halt,
 ):  # pragma: no cover
     """``_k_dop853`` for rows ``start … stop-1`` of ``Y0`` (parameters ``P[i]``); releases the GIL."""
     wM = np.empty((m[1], m[1]))
@@ -482,7 +492,7 @@ def _k_batch(
     wO = np.empty(m[3])
     for i in range(start, stop):
         _filled, st, t, y, nr, _ns, _tf, _yf, _h = _k_dop853(
-            m, t0, t1, Y0[i], P[i], t_out, rtol, atol, max_step, 0.0, max_steps, out[i]
+            m, t0, t1, Y0[i], P[i], t_out, rtol, atol, max_step, 0.0, max_steps, out[i], halt
         )
         status[i] = st
         t_last[i] = t
@@ -674,6 +684,9 @@ class LoopResult(NamedTuple):
 
 _tolerances = _dop853.tolerances
 
+#: the ``halt`` flag of a single run, never set (simulate stops it between stretches instead)
+_NO_HALT = np.zeros(1, dtype=np.int64)
+
 
 def _message(
     module: ModuleType,
@@ -794,6 +807,7 @@ def integrate_dop853(
             float(first_step or 0.0),
             int(max_steps),
             out,
+            _NO_HALT,
         )
     message = _message(model.module, code, t, t_fail, y_fail, p, max_steps, model.layout.coordinates)
     status = "success" if code == 0 else "failed"
@@ -870,13 +884,17 @@ def ensemble_dop853(
     workers = max(1, int(threads) if threads is not None else default_threads())
     chunk = max(1, min(64, n_traj // (8 * workers)))
     bounds = [(i, min(i + chunk, n_traj)) for i in range(0, n_traj, chunk)]
+    halt = np.zeros(1, dtype=np.int64)  # set on Ctrl-C: every member stops at its next step
     if model.backend == "c":  # the C loop's batch (chaplygin.numeric._ckernel.CKernel.batch)
-        batch = model.module.batch
+        batch, stop_all = model.module.batch, model.module.halt
     else:
         kernel, m, n_react = shared()._k_batch, model.module.MODEL, len(model.layout.reactions)
 
         def batch(*args: Any) -> None:  # CKernel.batch's arguments; the kernel's insert m, n_react
-            kernel(m, *args[:9], n_react, *args[9:])
+            kernel(m, *args[:9], n_react, *args[9:], halt)
+
+        def stop_all(on: bool) -> None:
+            halt[0] = int(on)
 
     def run(bound: tuple[int, int]) -> None:
         batch(
@@ -898,12 +916,21 @@ def ensemble_dop853(
             *bound,
         )
 
-    if workers == 1 or len(bounds) == 1:
-        for bound in bounds:
-            run(bound)
-    else:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            list(pool.map(run, bounds))
+    # the chunks run in worker threads, even on one core, so that the main thread, waiting,
+    # hears Ctrl-C: it then stops every loop at its next step and raises KeyboardInterrupt
+    pool = ThreadPoolExecutor(max_workers=min(workers, len(bounds)))
+    futures = [pool.submit(run, bound) for bound in bounds]
+    try:
+        for future in futures:
+            future.result()
+    except BaseException:
+        stop_all(True)
+        for future in futures:
+            future.cancel()
+        pool.shutdown(wait=True)
+        stop_all(False)
+        raise
+    pool.shutdown()
     result = {"t": t_last, "y": last, "observed": obs, "code": code, "n_rhs": n_rhs}
     if times is not None:
         result["samples"] = out

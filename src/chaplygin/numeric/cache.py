@@ -29,20 +29,23 @@ costs), so one stored derivation can be printed in any format.
 
 from __future__ import annotations
 
+import atexit
 import functools
 import hashlib
 import importlib.util
 import json
 import os
+import shutil
 import sys
 import tempfile
 import threading
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from chaplygin.errors import ChaplyginError
+from chaplygin.errors import ChaplyginError, ChaplyginWarning
 
 __all__ = [
     "FORMAT",
@@ -79,11 +82,49 @@ def _version() -> str:
 
 def cache_dir() -> Path:
     """chaplygin's cache (generated code, derivations): ``$CHAPLYGIN_CACHE``, else the
-    user's cache directory (``$XDG_CACHE_HOME/chaplygin`` or ``~/.cache/chaplygin``)."""
-    root = os.environ.get("CHAPLYGIN_CACHE") or os.path.join(
+    user's cache directory (``$XDG_CACHE_HOME/chaplygin`` or ``~/.cache/chaplygin``).
+
+    A cache that cannot be written (a read-only folder, a path under a file) is replaced, for
+    this process, by a private temporary folder deleted at exit, with one
+    :class:`~chaplygin.errors.ChaplyginWarning` that names the folder and ``CHAPLYGIN_CACHE``:
+    generated code must be written somewhere before it can be imported or loaded.
+    """
+    given = os.environ.get("CHAPLYGIN_CACHE")
+    root = given or os.path.join(
         os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"), "chaplygin"
     )
-    return Path(root)
+    with _CHECK_LOCK:
+        if root not in _USABLE:
+            _USABLE[root] = _usable(Path(root), given is not None)
+        return _USABLE[root]
+
+
+#: the folder used for each cache asked for (itself, or a private temporary fallback)
+_USABLE: dict[str, Path] = {}
+_CHECK_LOCK = threading.Lock()
+
+
+def _usable(root: Path, from_variable: bool) -> Path:
+    """``root`` if a file can be created in it (made if missing), else a private temporary folder."""
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=root, prefix=".probe-", suffix=".tmp")
+        os.close(fd)
+        os.unlink(probe)
+        return root
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+    fallback = Path(tempfile.mkdtemp(prefix="chaplygin-cache-"))
+    atexit.register(shutil.rmtree, fallback, True)
+    named = f"CHAPLYGIN_CACHE={root}" if from_variable else f"the cache folder {root}"
+    warnings.warn(
+        f"{named} cannot be written ({why}); this process uses a private temporary cache, "
+        f"{fallback}, deleted at exit. Set CHAPLYGIN_CACHE to a writable folder to keep "
+        "compiled code and derivations between runs.",
+        ChaplyginWarning,
+        stacklevel=3,
+    )
+    return fallback
 
 
 def directory() -> Path:

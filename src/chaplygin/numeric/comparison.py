@@ -27,7 +27,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, ChaplyginWarning
 from chaplygin.models import registry
-from chaplygin.numeric.simulate import Trajectory, _atomic_write, simulate
+from chaplygin.numeric.simulate import TIME_LIMIT, Trajectory, _atomic_write, simulate
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -320,6 +320,7 @@ def compare(
     step: float | None = None,
     reduction: str = "auto",
     progress: Callable[[float], None] | None = None,
+    time_limit: float | None = TIME_LIMIT,
 ) -> Comparison:
     """Simulate ``models`` from one initial state and compare them with the first.
 
@@ -339,7 +340,7 @@ def compare(
     path : (str, str), optional
         The coordinates whose paths are compared and drawn; by default ``x, y``
         when the system has them, else its first two dependent coordinates.
-    rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction, progress
+    rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction, progress, time_limit
         Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them);
         ``progress(t)`` hears each model's integration in turn.
     """
@@ -355,6 +356,7 @@ def compare(
         "step": step,
         "reduction": reduction,
         "progress": progress,
+        "time_limit": time_limit,
     }
     if not models:
         raise ChaplyginError("models: name at least one model.")

@@ -27,6 +27,8 @@ equally spaced times and at the samples kept.
 
 from __future__ import annotations
 
+import math
+import os
 import time
 from collections.abc import Mapping, Sequence
 from contextlib import suppress
@@ -35,11 +37,19 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from chaplygin.errors import ChaplyginError
+from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
 from chaplygin.numeric._loop import STATUS
 from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
-from chaplygin.numeric.simulate import _initial_multipliers, _vakonomic_setup, monitor, pole_free
+from chaplygin.numeric.simulate import (
+    ESTIMATE_AFTER,
+    TIME_LIMIT,
+    _initial_multipliers,
+    _vakonomic_setup,
+    duration,
+    monitor,
+    pole_free,
+)
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -449,6 +459,7 @@ def simulate_ensemble(
     max_steps: int = 1_000_000,
     threads: int | None = None,
     reduction: str = "auto",
+    time_limit: float | None = TIME_LIMIT,
 ) -> Ensemble:
     """Integrate ``model`` of ``system`` from many initial states.
 
@@ -479,6 +490,12 @@ def simulate_ensemble(
         :attr:`Ensemble.samples`).
     max_steps : int
         A member that needs more steps fails (0: no limit; not for jax).
+    time_limit : float or None
+        Seconds (default :data:`~chaplygin.numeric.simulate.TIME_LIMIT`, one hour; None: no
+        limit).  Before the ensemble starts, the first member is integrated for up to half a
+        second; an ensemble that this says would take longer (its pace, times the members, over
+        the threads) is refused with an :class:`~chaplygin.errors.InputError` that gives the
+        estimate (not for jax).  So is one whose kept samples would not fit in memory.
 
     Returns
     -------
@@ -530,6 +547,10 @@ def simulate_ensemble(
                 f"initial_states: rows {bad[:10].tolist()} violate the constraints (residual up to "
                 f"{resid0[bad].max():.3g}); give states that satisfy them."
             )
+
+    _check_memory(n, 0 if times is None else len(times), len(layout.state))
+    if backend != "jax" and time_limit is not None:
+        _check_time(compiled, (t0, t1), Y0[0], P[0], rtol, atol, max_step, max_steps, n, threads, time_limit)
 
     def integrate(rows: slice, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
         if backend != "jax":
@@ -669,6 +690,81 @@ def _stop_at_poles(
         samples[hit] = np.where(after[:, :, None], np.nan, samples[hit])
         res["observed"][hit] = _observe_all(compiled, res["t"][hit], res["y"][hit], P[hit])
     res["t_pole"] = t_pole
+
+
+def _check_memory(members: int, samples: int, width: int) -> None:
+    """Refuse an ensemble whose arrays (the kept samples, the final states) would not fit in memory."""
+    need = 8.0 * members * (samples + 2) * width
+    try:
+        have = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, ValueError, OSError):  # pragma: no cover - not POSIX
+        return
+    if need > have / 2:
+        raise InputError(
+            f"keep: {members} members × {samples} samples × {width} states need about {need / 2**30:.3g} GiB, "
+            f"more than half of this machine's memory ({have / 2**30:.3g} GiB); keep fewer samples "
+            "or split the ensemble."
+        )
+
+
+def _check_time(
+    compiled: CompiledModel,
+    t_span: tuple[float, float],
+    y0: np.ndarray,
+    p: np.ndarray,
+    rtol: float,
+    atol: Any,
+    max_step: float,
+    max_steps: int,
+    members: int,
+    threads: int | None,
+    limit: float,
+) -> None:
+    """Integrate the first member for up to :data:`ESTIMATE_AFTER` seconds (in stretches of
+    steps, the first one, which may compile, not timed) and refuse the ensemble if its pace says
+    the whole would take longer than ``limit`` seconds on ``threads`` threads."""
+    from chaplygin.numeric._loop import default_threads, integrate_dop853
+
+    t0, t1 = t_span
+    t, y, h, stretch, steps = t0, y0, None, 64, 0
+    origin: tuple[float, float, int] | None = None
+    while True:
+        res = integrate_dop853(
+            compiled,
+            (t, t1),
+            y,
+            p,
+            np.empty(0),
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+            first_step=h,
+            max_steps=stretch,
+        )
+        steps += res.n_steps
+        now = time.monotonic()
+        if res.code != 4 or res.y_last is None or (max_steps and steps >= max_steps):
+            return  # the first member ends (or fails) within the probe
+        t, y, h = res.t_last, res.y_last, res.h_next
+        if origin is None:
+            origin = (now, t, steps)
+            continue
+        elapsed = now - origin[0]
+        if elapsed >= ESTIMATE_AFTER:
+            break
+        stretch = min(2 * stretch, 1 << 30)
+    per_member = elapsed * (t1 - t0) / (t - origin[1]) if t > origin[1] else math.inf
+    if max_steps:  # a member stops after max_steps steps
+        per_member = min(per_member, elapsed * max_steps / max(steps - origin[2], 1))
+    workers = max(1, min(members, int(threads) if threads is not None else default_threads()))
+    total = per_member * members / workers
+    if total > limit:
+        raise InputError(
+            f"t_span: this ensemble would take about {duration(total)} ({members} members; the first "
+            f"reached t = {t:.4g} of {t1:g} at its pace over {elapsed:.1f} s, on {workers} thread"
+            f"{'s' if workers > 1 else ''}), beyond the limit of {duration(limit)}; ask for less, or "
+            "pass time_limit=None to run it anyway."
+        )
 
 
 def _compile(

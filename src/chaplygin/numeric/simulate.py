@@ -48,7 +48,17 @@ if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they ar
     from chaplygin.core.system import System
     from chaplygin.numeric._ckernel import CompiledModel
 
-__all__ = ["BACKENDS", "MAX_CONDITION", "MAX_SAMPLES", "METHODS", "Trajectory", "choose_backend", "simulate"]
+__all__ = [
+    "BACKENDS",
+    "MAX_CONDITION",
+    "MAX_SAMPLES",
+    "METHODS",
+    "TIME_LIMIT",
+    "Trajectory",
+    "choose_backend",
+    "duration",
+    "simulate",
+]
 
 #: chaplygin.numeric.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
 SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
@@ -341,10 +351,16 @@ class Trajectory:
 
 
 def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Path:
-    """Write through a temporary file in the same folder, then rename over ``path``."""
+    """Write through a temporary file in the same folder, then rename over ``path``.
+
+    An error creating the folder or the temporary file names ``path`` (not the hidden temporary file).
+    """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror or str(exc), str(target)) from None
     try:
         with os.fdopen(fd, "w", encoding="utf-8") if text else os.fdopen(fd, "wb") as fh:
             write(fh)
@@ -357,6 +373,32 @@ def _atomic_write(path: str | os.PathLike[str], write: Any, *, text: bool) -> Pa
             os.unlink(tmp)
         raise
     return target
+
+
+def check_writable(target: str | os.PathLike[str], *, folder: bool = False) -> None:
+    """Raise :class:`ChaplyginError`, naming ``target``, unless it can be written: a file (or,
+    with ``folder``, a folder) there, and any missing folder above it, can be created.
+
+    Run before the work whose result goes there, so that an unwritable output is found at once.
+    A temporary file is created and deleted in the nearest folder that exists (the one that
+    must accept it): the permission bits do not tell (root, read-only mounts, ACLs).
+    """
+    path = Path(target).absolute()
+    if folder and path.is_dir():
+        existing = path
+    else:
+        existing = next(p for p in path.parents if os.path.lexists(p))
+    if not existing.is_dir():
+        raise ChaplyginError(f"{target}: cannot be written there: {existing} is a file, not a folder.")
+    try:
+        fd, probe = tempfile.mkstemp(dir=existing, prefix=".chaplygin-probe-", suffix=".tmp")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ChaplyginError(
+            f"{target}: cannot be written there: the folder {existing} does not accept new files "
+            f"({exc.strerror or exc})."
+        ) from None
 
 
 # ------------------------------------------------------------------ inputs
@@ -682,6 +724,61 @@ PROGRESS_EVERY = 0.1
 #: ``progress(t)``: told the time an integration has reached (see :func:`simulate`)
 Progress = Callable[[float], None]
 
+#: the default ``time_limit`` of :func:`simulate` and of sweeps, in seconds: a run (or a sweep)
+#: estimated to take longer is refused (``time_limit=None``, ``--time-limit 0``: no limit)
+TIME_LIMIT = 3600.0
+#: seconds of integration after which a run's whole duration is estimated from its pace
+ESTIMATE_AFTER = 0.5
+
+
+def duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s``, ``2 h 07 min``, ``12 days``, ``more than a year``: a time, never
+    a number too long to read."""
+    if not seconds < 365 * 86400:  # (NaN too)
+        return "more than a year"
+    s = round(seconds)
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    if s < 48 * 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    return f"{s // 86400} days"
+
+
+def _budget(progress: Progress | None, t0: float, t1: float, limit: float | None) -> Progress | None:
+    """``progress`` that also, once, estimates the time the run needs from its pace over
+    :data:`ESTIMATE_AFTER` seconds (counted from its first report, so that a compilation in the
+    first stretch does not count) and raises :class:`InputError` if that exceeds ``limit``."""
+    if limit is None:
+        return progress
+    origin: list[float] = []  # (wall time, t) of the first report
+    checked = [False]
+
+    def told(t: float) -> None:
+        if progress is not None:
+            progress(t)
+        if checked[0] or t >= t1:
+            return
+        now = time.monotonic()
+        if not origin:
+            origin.extend((now, t))
+            return
+        elapsed = now - origin[0]
+        if elapsed < ESTIMATE_AFTER:
+            return
+        checked[0] = True
+        left = elapsed * (t1 - t) / (t - origin[1]) if t > origin[1] else math.inf
+        if left > limit:
+            raise InputError(
+                f"t_end = {t1:g}: too long to run: the time left is estimated at {duration(left)} (from "
+                f"t = {origin[1]:.4g} to {t:.4g} in {elapsed:.1f} s), beyond the limit of {duration(limit)}; "
+                "ask for a shorter time, or pass time_limit=None (on the command line --time-limit 0) "
+                "to run it anyway."
+            )
+
+    return told
+
 
 def simulate(
     system: System,
@@ -702,6 +799,7 @@ def simulate(
     step: float | None = None,
     reduction: str = "auto",
     progress: Progress | None = None,
+    time_limit: float | None = TIME_LIMIT,
 ) -> Trajectory:
     """Simulate one model of ``system`` (the front door :func:`chaplygin.numeric.simulate`).
 
@@ -709,7 +807,13 @@ def simulate(
     every :data:`PROGRESS_EVERY` seconds of wall time (the Python steppers after a step, the
     compiled loops of the ``c`` and ``numba`` backends between runs of steps that continue
     exactly where they stopped), and once at the end with the last time reached (``t_end``
-    for a run that succeeds).  Without it nothing is checked or timed.
+    for a run that succeeds).
+
+    ``time_limit`` (seconds, default :data:`TIME_LIMIT`, one hour; None: no limit): after
+    :data:`ESTIMATE_AFTER` seconds of integration, the whole run is estimated from its pace so
+    far, and one estimated to take longer is stopped with an :class:`InputError` that gives the
+    estimate (the symmetric methods: from the steps taken of the steps of the grid; not the
+    ``jax`` backend).
 
     Inputs that cannot give a motion are refused with an :class:`InputError`
     before anything is derived or compiled: a start or end time that is not
@@ -724,6 +828,8 @@ def simulate(
         _finite(t1, "t_span: the end time", "a finite number after the start"),
     )
     _check_options(t0, t1, samples, rtol, atol, max_step)
+    if time_limit is not None and not time_limit > 0:
+        raise InputError(f"time_limit = {time_limit!r}: a positive number of seconds, or None for no limit.")
     if method not in METHODS:
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
     auto = backend == "auto"
@@ -745,6 +851,7 @@ def simulate(
             backend=backend,
             constants=constants,
             multipliers=multipliers,
+            time_limit=time_limit,
         )
         if progress is not None and len(tr.t):
             progress(float(tr.t[-1]))
@@ -793,6 +900,7 @@ def simulate(
         max_step=max_step,
         g=system.g,
         progress=progress,
+        time_limit=time_limit,
     )
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
 
@@ -811,6 +919,7 @@ def _simulate_symmetric(
     backend: str = "numpy",
     constants: Any = None,
     multipliers: Any = None,
+    time_limit: float | None = None,
 ) -> Trajectory:
     """:func:`chaplygin.numeric.simulate.simulate` with a symmetric fixed-step method.
 
@@ -849,7 +958,9 @@ def _simulate_symmetric(
     stepper = compile_model(system, reduced_model, reduced_form, backend)
     p = parameter_vector(stepper.layout, params)
     y0 = np.concatenate([q, qd[list(system._ind)]])
-    res = integrate_symmetric(stepper, (t0, t1), y0, p, method=method, step=h, samples=samples)
+    res = integrate_symmetric(
+        stepper, (t0, t1), y0, p, method=method, step=h, samples=samples, time_limit=time_limit
+    )
     # observed with generated plain-Python code (nothing to compile): the reduced model's
     # own observables, or — for "chetaev" — the multiplier model's (λ among them) at (q, q̇)
     reduced = _tolerant(compile_model(system, reduced_model, reduced_form, "numpy"))
@@ -1254,8 +1365,10 @@ def integrate(
     max_step: float,
     g: int,
     progress: Progress | None = None,
+    time_limit: float | None = None,
 ) -> Trajectory:
-    """Integrate ``compiled.rhs`` from ``y0`` and sample it (``progress``: see :func:`simulate`).
+    """Integrate ``compiled.rhs`` from ``y0`` and sample it (``progress``, ``time_limit``: see
+    :func:`simulate`; the JAX backend neither reports nor estimates).
 
     ``c`` or ``numba`` backend with ``method="DOP853"``: the compiled loop of
     :mod:`chaplygin.numeric._ckernel` or :mod:`chaplygin.numeric._loop` (the whole integration in C or numba).  ``jax``
@@ -1280,17 +1393,18 @@ def integrate(
         if progress is not None and len(res.t):
             progress(float(res.t[-1]))
         return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+    told = _budget(progress, t_span[0], t_span[1], time_limit)  # (the last call below: not checked)
     if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
         if compiled.backend == "numba":
             from chaplygin.numeric._loop import loop_model
 
             compiled = loop_model(compiled)
-        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, progress)
+        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, told)
     elif method == "DOP853" and hasattr(compiled.module, "rhs_list"):
         # the numpy backend's generated code on lists, stepped in plain Python: no SciPy at all
-        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, progress)
+        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, told)
     else:  # the other methods, and a model without a list right-hand side (code of other origin)
-        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, progress)
+        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, told)
     ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
     if progress is not None:
         progress(float(ts[-1]) if len(ts) else t_span[0])
@@ -1329,10 +1443,12 @@ def _loop_attempt(
 ) -> Callable[..., _Attempt]:
     """An attempt of :func:`_pinned` with the compiled DOP853 loop.
 
-    With ``progress``, the loop runs in stretches of steps (``max_steps``), each started where
-    the last one stopped with the step it would have taken next, so the steps and the samples
-    are those of one run; the stretches grow until each takes about :data:`PROGRESS_EVERY`
-    seconds, and ``progress`` is told the time reached after each.
+    The loop runs in stretches of steps (``max_steps``), each started where the last one
+    stopped with the step it would have taken next, so the steps, the samples and the count of
+    right-hand sides are those of one run; the stretches grow until each takes about
+    :data:`PROGRESS_EVERY` seconds, and ``progress``, if given, is told the time reached after
+    each.  Between two stretches Python runs its signal handlers: Ctrl-C (``KeyboardInterrupt``)
+    stops a compiled run within a fraction of a second, whether or not anything is displayed.
     """
     from chaplygin.numeric._loop import integrate_dop853
 
@@ -1354,14 +1470,15 @@ def _loop_attempt(
                 atol=atol,
                 max_step=cap,
                 first_step=first,
-                max_steps=0 if progress is None else stretch,
+                max_steps=stretch,
             )
             t_parts.append(res.t)
             y_parts.append(res.y)
-            n_rhs += res.n_rhs
-            if progress is None or res.code != stopped or res.y_last is None:
+            n_rhs += res.n_rhs - (len(t_parts) > 1)  # a resumed stretch evaluates f(t, y) once more
+            if res.code != stopped or res.y_last is None:
                 break
-            progress(res.t_last)
+            if progress is not None:
+                progress(res.t_last)
             times = times[len(res.t) :]
             t_start, y_start, first = res.t_last, res.y_last, res.h_next
             if time.monotonic() - started < PROGRESS_EVERY / 2:

@@ -318,8 +318,9 @@ def _gl_integrate(m, t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats
     kept from step to step and refreshed when a step needs more than one
     iteration more than the step after the last refresh, or when a step with a
     kept matrix fails to converge (the step is then tried again).  ``stats``
-    (int64, 5) receives the right-hand-side evaluations, the Newton iterations,
-    the most iterations of a step, the Jacobians computed and the steps taken.
+    (int64, 6) receives the right-hand-side evaluations, the Newton iterations,
+    the most iterations of a step, the Jacobians computed and the steps taken; where another
+    thread sets ``stats[5]`` (Ctrl-C), the run stops at its next step with code 10.
     Returns ``(filled, code, t_fail, y_fail)``: ``filled`` rows of ``out``
     were written; ``code`` is 0, or a status code and the point where it arose.
     """
@@ -351,6 +352,8 @@ def _gl_integrate(m, t0, h, per_sample, y0, p, A, bw, c, E, max_iter, out, stats
     for k in range(1, out.shape[0]):
         for _ in range(per_sample):
             t = t0 + step * h
+            if stats[5] != 0:
+                return k, 10, t, y
             while True:
                 if refresh:
                     code = _gl_newton_matrix(m, t, y, p, h, A, f0, f1, J, G, piv, Ys, wM, wb, wV, wO, stats)
@@ -432,7 +435,9 @@ def shared() -> ModuleType:
     """
     lines = [
         f"_GL_EPS = {EPS!r}",
-        *kernel_lines((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS), "@_jit"),
+        "_nogil_jit = njit(cache=True, nogil=True, fastmath=False)",
+        *kernel_lines((_k_pivot, _k_solve, _k_fill, _k_eval, *_GL_KERNELS[:-1]), "@_jit"),
+        *kernel_lines(_GL_KERNELS[-1:], "@_nogil_jit"),  # _gl_integrate: run in a thread (Ctrl-C)
     ]
     return import_shared(shared_source("The Gauss-Legendre kernels", lines), "gauss")
 
@@ -498,6 +503,7 @@ def integrate_symmetric(
     step: float,
     samples: int,
     max_iterations: int = MAX_ITERATIONS,
+    time_limit: float | None = None,
 ) -> SymmetricResult:
     """Integrate a reduced model's ``dy/dt`` with a Gauss–Legendre method at a fixed step.
 
@@ -515,6 +521,10 @@ def integrate_symmetric(
         Equally spaced output times, the ends included.
     max_iterations : int
         Newton iterations per step before the run fails.
+    time_limit : float, optional
+        Seconds: a run whose pace over half a second says that its steps would take longer is
+        stopped with an :class:`~chaplygin.errors.InputError` (see
+        :func:`chaplygin.numeric.simulate.simulate`).
 
     Returns
     -------
@@ -540,11 +550,16 @@ def integrate_symmetric(
     y0 = np.ascontiguousarray(y0, dtype=float)
     p = np.ascontiguousarray(p, dtype=float)
     out = np.empty((samples, y0.size))
-    stats = np.zeros(5, dtype=np.int64)
-    with np.errstate(all="ignore"):  # plain Python (numpy backend): a blow-up is a status
-        filled, code, t_fail, y_fail = kernels._gl_integrate(
-            m, t0, h, per_sample, y0, p, A, b, c, extrapolation(c), int(max_iterations), out, stats
-        )
+    stats = np.zeros(6, dtype=np.int64)
+
+    def run() -> tuple[int, int, float, np.ndarray]:
+        with np.errstate(all="ignore"):  # plain Python (numpy backend): a blow-up is a status
+            return kernels._gl_integrate(
+                m, t0, h, per_sample, y0, p, A, b, c, extrapolation(c), int(max_iterations), out, stats
+            )
+
+    watch = None if time_limit is None else _pace(stats, (samples - 1) * per_sample, h, time_limit)
+    filled, code, t_fail, y_fail = _in_a_thread(run, lambda: stats.__setitem__(5, 1), watch)
     times = np.linspace(t0, t1, samples)[:filled]
     n_steps = int(stats[4])
     if code == 0:
@@ -568,6 +583,62 @@ def integrate_symmetric(
         int(stats[3]),
         int(code),
     )
+
+
+def _in_a_thread(call: Any, halt: Any, watch: Any = None) -> Any:
+    """``call()`` in a worker thread while this one waits, so that Ctrl-C is heard at once (a
+    compiled kernel holds this thread until it returns): on ``KeyboardInterrupt``, ``halt()``
+    asks the kernel to stop, and the interrupt is raised once it has.  ``watch()``, if given,
+    is called every 0.1 s while it runs; what it raises stops the run the same way."""
+    from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import TimeoutError as Waiting
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        future = pool.submit(call)
+        try:
+            while True:
+                try:
+                    return future.result(timeout=None if watch is None else 0.1)
+                except Waiting:
+                    watch()
+        except BaseException:
+            halt()
+            raise
+
+
+def _pace(stats: np.ndarray, total: int, h: float, limit: float) -> Any:
+    """A ``watch`` for :func:`_in_a_thread`: once, :data:`~chaplygin.numeric.simulate.ESTIMATE_AFTER`
+    seconds after the first step (a compilation not counted), the steps left at the pace so
+    far (``stats[4]``: steps taken) against ``limit`` seconds; raises :class:`InputError` beyond."""
+    import time
+
+    from chaplygin.errors import InputError
+    from chaplygin.numeric.simulate import ESTIMATE_AFTER, duration
+
+    origin: list[float] = []
+    checked = [False]
+
+    def watch() -> None:
+        done, now = int(stats[4]), time.monotonic()
+        if checked[0] or not done:
+            return
+        if not origin:
+            origin.extend((now, done))
+            return
+        elapsed = now - origin[0]
+        if elapsed < ESTIMATE_AFTER:
+            return
+        checked[0] = True
+        left = elapsed * (total - done) / (done - origin[1]) if done > origin[1] else math.inf
+        if left > limit:
+            raise InputError(
+                f"step: {total:.3g} steps of h = {h:.3g}: too long to run: the time left is estimated at "
+                f"{duration(left)} ({done - origin[1]} steps in {elapsed:.1f} s), beyond the limit of "
+                f"{duration(limit)}; ask for a shorter time or a larger step, or pass time_limit=None "
+                "(on the command line --time-limit 0) to run it anyway."
+            )
+
+    return watch
 
 
 def _tolerant(compiled: CompiledModel) -> CompiledModel:
