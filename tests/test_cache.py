@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from chaplygin.apps.cli import app
 from chaplygin.numeric import cache
+from unwritable import WAYS, unwritable
 
 runner = CliRunner()
 KNIFE = """
@@ -206,29 +207,13 @@ def test_keys_depend_on_every_part_and_the_version() -> None:
     assert cache._version().startswith("0.") and "+" in cache._version()
 
 
-def _unwritable(tmp_path: Path, how: str) -> Path:
-    """A cache path no file can be created in: under a regular file (so even for root), or a
-    folder of mode 0555 (skipped where this user, root, writes there all the same)."""
-    if how == "under a file":
-        (tmp_path / "file").write_text("")
-        return tmp_path / "file" / "cache"
-    folder = tmp_path / "rocache"
-    folder.mkdir()
-    folder.chmod(0o555)
-    try:
-        (folder / "probe").write_text("")
-    except OSError:
-        return folder
-    pytest.skip("this user (root?) writes into a folder of mode 0555: 'under a file' covers the case")
-
-
-@pytest.mark.parametrize("how", ["under a file", "read-only folder"])
+@pytest.mark.parametrize("how", WAYS)
 def test_unwritable_cache_falls_back_to_a_private_one(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, how: str
 ) -> None:
     """A CHAPLYGIN_CACHE that cannot be written: generated code goes to a private temporary
     cache, with one warning that names the variable (main d1d83f5: 'Permission denied', exit 1)."""
-    root = _unwritable(tmp_path, how)
+    root = unwritable(tmp_path, how)
     monkeypatch.setenv("CHAPLYGIN_CACHE", str(root))
     out = tmp_path / "knife.csv"
     args = ["simulate", "example:knife-edge", "--t-end", "1", "--samples", "5", "--out", str(out)]
@@ -247,7 +232,7 @@ def test_unwritable_cache_falls_back_to_a_private_one(
 def test_unwritable_cache_is_not_an_error_for_derivations(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setenv("CHAPLYGIN_CACHE", str(_unwritable(tmp_path, "under a file")))
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(unwritable(tmp_path, "under a file")))
     f = tmp_path / "knife.toml"
     f.write_text(KNIFE)
     assert "Solved" in derive(f)

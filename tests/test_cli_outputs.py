@@ -14,6 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from chaplygin.apps import cli
+from unwritable import WAYS, unwritable
 
 runner = CliRunner()
 
@@ -57,29 +58,13 @@ COMMANDS = {
 }
 
 
-def _unwritable(tmp_path: Path, how: str) -> Path:
-    """A folder path in which nothing can be created: under a regular file (so even for root),
-    or a folder of mode 0555 (skipped where this user, root, writes there all the same)."""
-    if how == "under a file":
-        (tmp_path / "file").write_text("")
-        return tmp_path / "file" / "sub"
-    folder = tmp_path / "ro"
-    folder.mkdir()
-    folder.chmod(0o555)
-    try:
-        (folder / "probe").write_text("")
-    except OSError:
-        return folder
-    pytest.skip("this user (root?) writes into a folder of mode 0555: 'under a file' covers the case")
-
-
-@pytest.mark.parametrize("how", ["under a file", "read-only folder"])
+@pytest.mark.parametrize("how", WAYS)
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_an_unwritable_output_is_refused_before_the_work(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: str, how: str
 ) -> None:
     args, work = COMMANDS[command]
-    bad = _unwritable(tmp_path, how)
+    bad = unwritable(tmp_path, how)
     called: list[str] = []
     module, name = work.rsplit(".", 1)
     monkeypatch.setattr(f"{module}.{name}", lambda *a, **k: called.append(name))
@@ -97,7 +82,7 @@ def test_a_read_only_folder_is_named_by_trajectory_writes(tmp_path: Path) -> Non
     import chaplygin
     from chaplygin import examples
 
-    bad = _unwritable(tmp_path, "read-only folder")
+    bad = unwritable(tmp_path, "read-only folder")
     entry = examples.get("knife-edge")
     tr = chaplygin.simulate(entry.constructor(), "chaplygin", 0.1, entry.initial, entry.parameters, samples=3)
     with pytest.raises(PermissionError) as caught:

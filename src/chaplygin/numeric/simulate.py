@@ -746,36 +746,59 @@ def duration(seconds: float) -> str:
     return f"{s // 86400} days"
 
 
-def _budget(progress: Progress | None, t0: float, t1: float, limit: float | None) -> Progress | None:
-    """``progress`` that also, once, estimates the time the run needs from its pace over
-    :data:`ESTIMATE_AFTER` seconds (counted from its first report, so that a compilation in the
-    first stretch does not count) and raises :class:`InputError` if that exceeds ``limit``."""
-    if limit is None:
-        return progress
-    origin: list[float] = []  # (wall time, t) of the first report
+def pace_check(total: float, limit: float, refusal: Callable[[str, str], str]) -> Callable[[float], None]:
+    """A callback told the progress ``done`` of a run (a time reached, steps taken) towards
+    ``total``: once, :data:`ESTIMATE_AFTER` seconds after its first call (counted from there, so
+    that a compilation in the first stretch does not count), it estimates the time left from the
+    pace so far and raises :class:`InputError` beyond ``limit`` seconds, with the message
+    ``refusal(estimate, pace)``; ``pace`` says how far the run went in how long."""
+    origin: list[float] = []  # (wall time, done) of the first call
     checked = [False]
 
-    def told(t: float) -> None:
-        if progress is not None:
-            progress(t)
-        if checked[0] or t >= t1:
+    def told(done: float) -> None:
+        if checked[0] or done >= total:
             return
         now = time.monotonic()
         if not origin:
-            origin.extend((now, t))
+            origin.extend((now, done))
             return
         elapsed = now - origin[0]
         if elapsed < ESTIMATE_AFTER:
             return
         checked[0] = True
-        left = elapsed * (t1 - t) / (t - origin[1]) if t > origin[1] else math.inf
+        left = elapsed * (total - done) / (done - origin[1]) if done > origin[1] else math.inf
         if left > limit:
+            pace = f"from {origin[1]:.4g} to {done:.4g} in {elapsed:.1f} s"
             raise InputError(
-                f"t_end = {t1:g}: too long to run: the time left is estimated at {duration(left)} (from "
-                f"t = {origin[1]:.4g} to {t:.4g} in {elapsed:.1f} s), beyond the limit of {duration(limit)}; "
-                "ask for a shorter time, or pass time_limit=None (on the command line --time-limit 0) "
-                "to run it anyway."
+                f"{refusal(duration(left), pace)}, beyond the limit of {duration(limit)}; "
+                f"{_NO_LIMIT} to run it anyway."
             )
+
+    return told
+
+
+#: how a refusal by :func:`pace_check` says that the limit can be lifted
+_NO_LIMIT = "pass time_limit=None (on the command line --time-limit 0)"
+
+
+def _budget(progress: Progress | None, t1: float, limit: float | None) -> Progress | None:
+    """``progress`` that also, once, refuses a run whose pace says it needs more than ``limit``
+    seconds to reach ``t1`` (:func:`pace_check`)."""
+    if limit is None:
+        return progress
+    check = pace_check(
+        t1,
+        limit,
+        lambda left, pace: (
+            f"t_end = {t1:g}: too long to run: the time left is estimated at {left} "
+            f"(t {pace}); ask for a shorter time, or"
+        ),
+    )
+
+    def told(t: float) -> None:
+        if progress is not None:
+            progress(t)
+        check(t)
 
     return told
 
@@ -1393,7 +1416,7 @@ def integrate(
         if progress is not None and len(res.t):
             progress(float(res.t[-1]))
         return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
-    told = _budget(progress, t_span[0], t_span[1], time_limit)  # (the last call below: not checked)
+    told = _budget(progress, t_span[1], time_limit)  # (the last call below: not checked)
     if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
         if compiled.backend == "numba":
             from chaplygin.numeric._loop import loop_model

@@ -607,36 +607,23 @@ def _in_a_thread(call: Any, halt: Any, watch: Any = None) -> Any:
 
 
 def _pace(stats: np.ndarray, total: int, h: float, limit: float) -> Any:
-    """A ``watch`` for :func:`_in_a_thread`: once, :data:`~chaplygin.numeric.simulate.ESTIMATE_AFTER`
-    seconds after the first step (a compilation not counted), the steps left at the pace so
-    far (``stats[4]``: steps taken) against ``limit`` seconds; raises :class:`InputError` beyond."""
-    import time
+    """A ``watch`` for :func:`_in_a_thread`: refuses a run whose pace says it needs more than
+    ``limit`` seconds (:func:`~chaplygin.numeric.simulate.pace_check`, told ``stats[4]``: the
+    steps taken, from the first on, so that a compilation does not count)."""
+    from chaplygin.numeric.simulate import pace_check
 
-    from chaplygin.errors import InputError
-    from chaplygin.numeric.simulate import ESTIMATE_AFTER, duration
-
-    origin: list[float] = []
-    checked = [False]
+    check = pace_check(
+        total,
+        limit,
+        lambda left, pace: (
+            f"step: {total:.3g} steps of h = {h:.3g}: too long to run: the time left is "
+            f"estimated at {left} (steps {pace}); ask for a shorter time or a larger step, or"
+        ),
+    )
 
     def watch() -> None:
-        done, now = int(stats[4]), time.monotonic()
-        if checked[0] or not done:
-            return
-        if not origin:
-            origin.extend((now, done))
-            return
-        elapsed = now - origin[0]
-        if elapsed < ESTIMATE_AFTER:
-            return
-        checked[0] = True
-        left = elapsed * (total - done) / (done - origin[1]) if done > origin[1] else math.inf
-        if left > limit:
-            raise InputError(
-                f"step: {total:.3g} steps of h = {h:.3g}: too long to run: the time left is estimated at "
-                f"{duration(left)} ({done - origin[1]} steps in {elapsed:.1f} s), beyond the limit of "
-                f"{duration(limit)}; ask for a shorter time or a larger step, or pass time_limit=None "
-                "(on the command line --time-limit 0) to run it anyway."
-            )
+        if stats[4]:
+            check(int(stats[4]))
 
     return watch
 
