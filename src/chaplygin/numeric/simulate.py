@@ -925,7 +925,12 @@ def simulate(
         progress=progress,
         time_limit=time_limit,
     )
-    return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p)
+    pole = None
+    if entry.reduced and system.g and not pole_free(system):
+        pole = _pole_between_samples(
+            system, compiled, tr, (t0, t1), samples, np.array(y0), p, params, rtol, atol, method, max_step
+        )
+    return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p, pole=pole)
 
 
 def _simulate_symmetric(
@@ -1000,6 +1005,54 @@ def _simulate_symmetric(
 
 
 # ------------------------------------------------------------------ checks along a run
+#: at most this many points (:func:`_pole_between_samples`) check a run for poles between samples
+POLE_CHECK_POINTS = 200_001
+
+
+def _pole_between_samples(
+    system: System,
+    compiled: CompiledModel,
+    tr: Trajectory,
+    t_span: tuple[float, float],
+    samples: int,
+    y0: np.ndarray,
+    p: np.ndarray,
+    params: Mapping[str, float],
+    *options: Any,
+) -> tuple[float, str] | None:
+    """A pole of the solved constraints that ``tr``'s samples do not show: ``(t, message)``, the
+    first time checked at or past it and what it is, or None (``t_span``, ``samples``: those
+    ``tr`` was asked for; ``options``: ``rtol, atol, method, max_step`` of its integration).
+
+    The samples see a pole where the sign of the solved constraints' determinant changes between
+    two of them; a motion that crosses a pole and crosses back between two samples (few samples,
+    a long run) shows none.  Where the integrator took more steps than there are samples, the run
+    is integrated again (the same steps: only the dense output differs) with a sample at least
+    every step on average (each right-hand side evaluation bounds a sixth of a step from above),
+    up to :data:`POLE_CHECK_POINTS` points, and checked there by :func:`_pole`.
+    """
+    wanted = min(POLE_CHECK_POINTS, tr.rhs_evaluations // 6 + 1)
+    if wanted <= samples:
+        return None
+    per = -(-(wanted - 1) // (samples - 1))  # the samples stay among the points checked
+    rtol, atol, method, max_step = options
+    dense = integrate(
+        compiled,
+        t_span,
+        y0,
+        p,
+        dict(params),
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        max_step=max_step,
+        samples=(samples - 1) * per + 1,
+        g=system.g,
+    )
+    k, why = _pole(system, dense, params, len(dense.t))
+    return (float(dense.t[k]), why) if k < len(dense.t) else None
+
+
 def _watch(
     system: System,
     tr: Trajectory,
@@ -1008,6 +1061,7 @@ def _watch(
     reduced: bool,
     compiled: CompiledModel | None = None,
     p: np.ndarray | None = None,
+    pole: tuple[float, str] | None = None,
 ) -> Trajectory:
     """``tr`` cut at the first sample where the motion stops making sense, with status
     ``"failed"`` and a message that says where and along which coordinate.
@@ -1036,11 +1090,16 @@ def _watch(
         k, found = _pole(system, tr, params, k_bad)
         if k < k_bad:
             k_bad, why, kind = k, found, "pole"
+    between = False  # a pole found between samples (:func:`_pole_between_samples`): cut at the time past it
+    if pole is not None and (k := int(np.searchsorted(tr.t, pole[0]))) <= k_bad:
+        # (also past the last sample of a failed run: the pole is why the integrator failed)
+        if k < k_bad or (k == len(tr.t) and not tr.success):
+            k_bad, why, kind, between = k, pole[1], "pole", True
     if reduced and compiled is not None and p is not None and k_bad > 0:
         k, found = _lost_definiteness(compiled, tr, p, k_bad)
         if k < k_bad:
-            k_bad, why, kind = k, found, "mass"
-    if k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1):
+            k_bad, why, kind, between = k, found, "mass", False
+    if not between and (k_bad == len(tr.t) or (not tr.success and k_bad == len(tr.t) - 1)):
         if not tr.success and tr.message.startswith("a pole at"):  # the integrator met it (code 9)
             tr.failure = "pole"
         return tr  # (the last sample of a failed run: its own message says why)
