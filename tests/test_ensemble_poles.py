@@ -119,3 +119,18 @@ def test_a_velocity_that_stops_being_finite_is_a_pole_in_simulate_and_ensembles(
     assert ens.failure[0] == "pole", ens.messages
     run = simulate(edge, "chaplygin", 1.0, start, {}, samples=11, backend=backend)
     assert run.failure == "pole" and "y'" in run.message, run.message
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pole_crossed_and_back_between_checked_times_stops_the_member(backend: str) -> None:
+    """φ = 0.3 ± t to t = 200π: the 101 times checked are 2π apart, where cos φ has the same sign,
+    though φ meets ±π/2 every π (first at t = π/2 ∓ 0.3). A member that stepped more often than
+    the times checked is checked again as often as it stepped (on 1300154: 'success' for all)."""
+    starts = [{"x": 0.0, "y": 0.0, "phi": 0.3, "x'": 1.0, "phi'": w} for w in (1.0, -1.0, 0.0)]
+    ens = simulate_ensemble(
+        examples.knife_edge(), "chaplygin", (0.0, 200 * math.pi), starts, KNIFE_P, backend=backend
+    )
+    assert list(ens.failure) == ["pole", "pole", ""]
+    for k, first in enumerate((math.pi / 2 - 0.3, math.pi / 2 + 0.3)):
+        assert ens.t[k] < first <= ens.t_pole[k] < first + 1.0  # (not past a second pole)
+    assert ens.t[2] == pytest.approx(200 * math.pi)

@@ -22,7 +22,8 @@ too many steps) does not stop the others: its status says so and its state is
 the last one reached.  A member of a reduced model whose solved constraints meet
 a pole stops there, as :func:`~chaplygin.numeric.simulate.simulate` does (code 9,
 ``failure`` ``"pole"``): it is checked, by the same tests, at :data:`POLE_CHECKS`
-equally spaced times and at the samples kept.
+equally spaced times and at the samples kept, and a member that stepped more often than that
+again as often as it stepped (up to ``POLE_CHECK_POINTS``).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from chaplygin.numeric._loop import STATUS
 from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
 from chaplygin.numeric.simulate import (
     ESTIMATE_AFTER,
+    POLE_CHECK_POINTS,
     TIME_LIMIT,
     _initial_multipliers,
     _vakonomic_setup,
@@ -552,7 +554,7 @@ def simulate_ensemble(
     if backend != "jax" and time_limit is not None:
         _check_time(compiled, (t0, t1), Y0[0], P[0], rtol, atol, max_step, max_steps, n, threads, time_limit)
 
-    def integrate(rows: slice, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
+    def integrate(rows: slice | np.ndarray, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
         if backend != "jax":
             from chaplygin.numeric._loop import ensemble_dop853
 
@@ -587,19 +589,32 @@ def simulate_ensemble(
     # a reduced model's solved constraints may meet a pole (pole_free: not where A_dep is fixed)
     watch = registry.get(layout.model).reduced and not pole_free(system)
     if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
-        grid = np.linspace(t0, t1, POLE_CHECKS)
-        checks = grid if times is None else np.union1d(grid, times)
-        block = max(1, _BLOCK_VALUES // (len(checks) * Y0.shape[1]))
-        parts = []
-        for i in range(0, n, block):
-            rows = slice(i, min(i + block, n))
-            part = integrate(rows, checks)
-            _stop_at_poles(system, compiled, part, Y0[rows], P[rows], checks, t0)
-            checked = part.pop("samples")
-            if times is not None:  # the kept times among the checked ones
-                part["samples"] = checked[:, np.searchsorted(checks, times)]
-            parts.append(part)
-        res = {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+        def checked(members: np.ndarray, points: int) -> dict[str, np.ndarray]:
+            grid = np.linspace(t0, t1, points)
+            checks = grid if times is None else np.union1d(grid, times)
+            block = max(1, _BLOCK_VALUES // (len(checks) * Y0.shape[1]))
+            parts = []
+            for i in range(0, len(members), block):
+                rows = members[i : i + block]
+                part = integrate(rows, checks)
+                _stop_at_poles(system, compiled, part, Y0[rows], P[rows], checks, t0)
+                kept = part.pop("samples")
+                if times is not None:  # the kept times among the checked ones
+                    part["samples"] = kept[:, np.searchsorted(checks, times)]
+                parts.append(part)
+            return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+        res = checked(np.arange(n), POLE_CHECKS)
+        # a member that took more steps than the times checked (each right-hand side bounds a
+        # sixth of a step from above) may have crossed a pole and back between two of them: it is
+        # integrated again (the same steps) and checked at least as often as it stepped
+        need = np.minimum(POLE_CHECK_POINTS, np.asarray(res["n_rhs"]) // 6 + 1)
+        again = np.flatnonzero(need > POLE_CHECKS + (0 if times is None else len(times)))
+        if again.size:
+            redone = checked(again, int(need[again].max()))
+            for key, value in redone.items():
+                res[key][again] = value
     else:
         res = integrate(slice(None), times)
     wall = time.perf_counter() - start
