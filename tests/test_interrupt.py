@@ -152,3 +152,19 @@ def _line(child: subprocess.Popen, timeout: float) -> str:
     assert child.stdout is not None
     ready, _, _ = select.select([child.stdout], [], [], timeout)
     return child.stdout.readline().strip() if ready else ""
+
+
+def test_an_interrupt_that_numba_turned_into_a_system_error_is_an_interrupt() -> None:
+    """Ctrl-C inside a numba call from the main thread (numba runs Python to box its results)
+    comes out as a ``SystemError`` whose context is the ``KeyboardInterrupt``: the command line
+    still says "interrupted" with exit 130 (on main 1300154: "unexpected SystemError", exit 1)."""
+    import typer
+
+    from chaplygin.apps import cli
+
+    with pytest.raises(typer.Exit) as caught, cli._errors():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("CPUDispatcher(<function f>) returned a result with an exception set") from None
+    assert caught.value.exit_code == 130
