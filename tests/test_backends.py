@@ -326,7 +326,9 @@ def test_ensemble_dict_errors_name_the_member_and_key(disk):
     assert error([DISK_0, DISK_0, lacking]).startswith(
         "initial_states[2]: missing theta'; give every coordinate"
     )
-    assert error([DISK_0, {**DISK_0, "x": "east"}]) == "initial_states[1]: 'x' = 'east' is not a number."
+    assert error([DISK_0, {**DISK_0, "x": "east"}]) == (
+        "initial_states[1]: x = 'east' is not a number; give a finite number."
+    )
     assert error([DISK_0, {**DISK_0, "x'": 3.0}]).startswith(
         "initial_states[1]: x' = 3 violates the constraints"
     )

@@ -57,9 +57,16 @@ def _interrupt_when_busy(child: subprocess.Popen, beyond: float, wait: bool = Tr
             pytest.fail(f"still running {STOPPING:g} s after SIGINT")
 
 
-def test_ctrl_c_stops_a_piped_simulate(tmp_path: Path) -> None:
+@pytest.mark.parametrize("backend", ["default", "numba"])
+def test_ctrl_c_stops_a_piped_simulate(tmp_path: Path, backend: str) -> None:
+    """The default backend, and numba (on main 1300154 its loop turned the interrupt into
+    ``SystemError: CPUDispatcher(...) returned a result with an exception set``, exit 1)."""
+    if backend == "numba":
+        pytest.importorskip("numba")
     out = tmp_path / "disk.csv"
     command = [sys.executable, "-m", "chaplygin", "simulate", "example:rolling-disk", "--out", str(out)]
+    if backend != "default":
+        command += ["--backend", backend]
     before = os.times()
     warm = subprocess.run(
         [*command, "--t-end", "1"],
@@ -79,7 +86,7 @@ def test_ctrl_c_stops_a_piped_simulate(tmp_path: Path) -> None:
             [*command, "--t-end", "1e8", "--time-limit", "0"], stdout=fh, stderr=fh, env=_environment()
         )
         _interrupt_when_busy(child, startup)
-    assert child.returncode == 130
+    assert child.returncode == 130, log.read_text()
     assert "interrupted" in log.read_text()
     assert not out.exists() and list(tmp_path.iterdir()) == [log]  # no output, not even a temporary one
 
@@ -145,3 +152,19 @@ def _line(child: subprocess.Popen, timeout: float) -> str:
     assert child.stdout is not None
     ready, _, _ = select.select([child.stdout], [], [], timeout)
     return child.stdout.readline().strip() if ready else ""
+
+
+def test_an_interrupt_that_numba_turned_into_a_system_error_is_an_interrupt() -> None:
+    """Ctrl-C inside a numba call from the main thread (numba runs Python to box its results)
+    comes out as a ``SystemError`` whose context is the ``KeyboardInterrupt``: the command line
+    still says "interrupted" with exit 130 (on main 1300154: "unexpected SystemError", exit 1)."""
+    import typer
+
+    from chaplygin.apps import cli
+
+    with pytest.raises(typer.Exit) as caught, cli._errors():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("CPUDispatcher(<function f>) returned a result with an exception set") from None
+    assert caught.value.exit_code == 130

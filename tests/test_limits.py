@@ -120,3 +120,35 @@ def test_an_ensemble_whose_samples_would_not_fit_in_memory_is_refused() -> None:
     _check_memory(1000, 100, 8)  # 6 MB
     with pytest.raises(InputError, match=r"keep: 1000000 members × \d+ samples × 8 states need about"):
         _check_memory(10**6, memory // (8 * 8 * 10**6) + 1, 8)  # just above the machine's memory
+
+
+@pytest.mark.parametrize(
+    ("options", "said"),
+    [
+        ({"time_limit": "abc"}, "time_limit = 'abc': give a positive number of seconds, or None"),
+        ({"time_limit": -1}, "time_limit = -1: give a positive number of seconds, or None"),
+        ({"t_span": float("nan")}, "t_span: the end time = nan is not finite"),
+        ({"phi": float("nan")}, "initial_states[0]: phi = nan is not finite; give a finite number"),
+        ({"threads": 0}, "threads = 0: give a whole number of threads, 1 or more"),
+        ({"threads": -2}, "threads = -2: give a whole number of threads, 1 or more"),
+        ({"threads": 1.5}, "threads = 1.5: give a whole number of threads, 1 or more"),
+    ],
+)
+def test_an_ensemble_refuses_options_no_run_can_honour(options: dict, said: str) -> None:
+    """On main 1300154 the time limits and thread counts ran without a word, ``t_span = nan``
+    said "must be after the start", and ``phi = nan`` said "missing phi"."""
+    from chaplygin.numeric.ensemble import simulate_ensemble
+
+    initial = {**DISK.initial, "phi": options.pop("phi", DISK.initial["phi"])}
+    t_span = options.pop("t_span", 0.01)
+    with pytest.raises(InputError) as caught:
+        simulate_ensemble(DISK.constructor(), "voronets", t_span, [initial] * 2, DISK.parameters, **options)
+    assert said in str(caught.value)
+
+
+def test_simulate_names_a_time_limit_that_is_not_a_number() -> None:
+    """On main 1300154: a bare ``TypeError: '>' not supported between instances of 'str' and 'int'``."""
+    with pytest.raises(InputError, match=r"time_limit = 'abc': give a positive number of seconds, or None"):
+        numeric_simulate.simulate(
+            DISK.constructor(), "voronets", 0.01, DISK.initial, DISK.parameters, time_limit="abc"
+        )

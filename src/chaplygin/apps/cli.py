@@ -329,6 +329,10 @@ def _errors() -> Iterator[None]:
         _stderr().print(f"error: {where}{exc.strerror or exc}", markup=False)
         raise typer.Exit(1) from None
     except Exception as exc:
+        if isinstance(exc, SystemError) and isinstance(exc.__context__, KeyboardInterrupt):
+            # Ctrl-C inside numba's own Python code (a compiled call from the main thread)
+            _stderr().print("interrupted: no output was left half-written.", markup=False)
+            raise typer.Exit(130) from None
         if os.environ.get("CHAPLYGIN_DEBUG"):
             raise
         _stderr().print(

@@ -84,6 +84,7 @@ __all__ = [
     "default_threads",
     "ensemble_dop853",
     "import_shared",
+    "in_a_thread",
     "integrate_dop853",
     "kernel_lines",
     "loop_model",
@@ -684,8 +685,32 @@ class LoopResult(NamedTuple):
 
 _tolerances = _dop853.tolerances
 
-#: the ``halt`` flag of a single run, never set (simulate stops it between stretches instead)
-_NO_HALT = np.zeros(1, dtype=np.int64)
+
+def in_a_thread(call: Any, halt: Any, watch: Any = None) -> Any:
+    """``call()`` in a worker thread while this one waits, so that Ctrl-C is heard at once (a
+    compiled kernel holds this thread until it returns): on ``KeyboardInterrupt``, ``halt()``
+    asks the kernel to stop, and the interrupt is raised once it has.  ``watch()``, if given,
+    is called every 0.1 s while it runs; what it raises stops the run the same way.
+
+    It also keeps Ctrl-C out of numba's calls: a jitted function that returns arrays runs Python
+    code (numba's ``_numba_unpickle``) to box them, and a ``KeyboardInterrupt`` raised there, in
+    the main thread, comes out as ``SystemError: CPUDispatcher(...) returned a result with an
+    exception set``; only the main thread runs signal handlers, so in a worker it cannot happen.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+    from concurrent.futures import TimeoutError as Waiting
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        future = pool.submit(call)
+        try:
+            while True:
+                try:
+                    return future.result(timeout=None if watch is None else 0.1)
+                except Waiting:
+                    watch()
+        except BaseException:
+            halt()
+            raise
 
 
 def _message(
@@ -793,21 +818,12 @@ def integrate_dop853(
             res.y_fail,
             res.h_next,
         )
-    else:
-        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail, h_next = shared()._k_dop853(
-            model.module.MODEL,
-            t0,
-            t1,
-            y0,
-            p,
-            times,
-            rtol,
-            atol_v,
-            float(max_step),
-            float(first_step or 0.0),
-            int(max_steps),
-            out,
-            _NO_HALT,
+    else:  # in a worker thread: see in_a_thread (why: its docstring)
+        kernel, halt = shared()._k_dop853, np.zeros(1, dtype=np.int64)
+        args: tuple[Any, ...] = (model.module.MODEL, t0, t1, y0, p, times, rtol, atol_v, float(max_step))
+        args += (float(first_step or 0.0), int(max_steps), out, halt)
+        filled, code, t, y, n_rhs, n_steps, t_fail, y_fail, h_next = in_a_thread(
+            lambda: kernel(*args), lambda: halt.__setitem__(0, 1)
         )
     message = _message(model.module, code, t, t_fail, y_fail, p, max_steps, model.layout.coordinates)
     status = "success" if code == 0 else "failed"

@@ -46,11 +46,14 @@ from chaplygin.numeric.simulate import (
     ESTIMATE_AFTER,
     POLE_CHECK_POINTS,
     TIME_LIMIT,
+    _finite,
     _initial_multipliers,
     _vakonomic_setup,
+    check_time_limit,
     duration,
     monitor,
     pole_free,
+    time_span,
 )
 
 if TYPE_CHECKING:
@@ -335,14 +338,10 @@ def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, n
                     ) from None
                 with suppress(TypeError):
                     where[key] = kind, i
-            try:
-                (Q if kind == "q" else QD)[k, i] = float(value)
-            except (TypeError, ValueError):
-                from chaplygin.core._symbols import describe
-
-                raise ChaplyginError(
-                    f"initial_states[{k}]: {describe(key)} = {describe(value)} is not a number."
-                ) from None
+            label = system.coordinates[i].func.__name__ + ("'" if kind == "v" else "")
+            (Q if kind == "q" else QD)[k, i] = _finite(
+                value, f"initial_states[{k}]: {label}", "a finite number"
+            )
     names = [c.func.__name__ for c in system.coordinates]
     needed = np.concatenate([np.isnan(Q), np.isnan(QD[:, list(system._ind)])], axis=1)
     if needed.any():
@@ -503,9 +502,16 @@ def simulate_ensemble(
     -------
     Ensemble
     """
-    t0, t1 = (0.0, float(t_span)) if np.isscalar(t_span) else map(float, t_span)  # type: ignore[arg-type]
+    t0, t1 = time_span(t_span)
     if not t1 > t0:
-        raise ChaplyginError(f"t_span: the end time {t1:g} must be after the start {t0:g}.")
+        raise InputError(f"t_span: the end time {t1:g} must be after the start {t0:g}.")
+    time_limit = check_time_limit(time_limit)
+    if threads is not None and (
+        isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1
+    ):
+        raise InputError(
+            f"threads = {threads!r}: give a whole number of threads, 1 or more (None: every core)."
+        )
     if backend not in ENSEMBLE_BACKENDS:
         raise ChaplyginError(
             f"backend {backend!r}: ensembles run on {', '.join(map(repr, ENSEMBLE_BACKENDS))}."

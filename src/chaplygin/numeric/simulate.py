@@ -494,6 +494,30 @@ def _finite(value: Any, what: str, accepted: str) -> float:
     return number
 
 
+def time_span(t_span: Any) -> tuple[float, float]:
+    """``(t0, t1)`` from ``t_span`` (a number: the end, from 0), both finite, or an :class:`InputError`."""
+    t0, t1 = (0.0, t_span) if np.isscalar(t_span) else t_span
+    return (
+        _finite(t0, "t_span: the start time", "a finite number"),
+        _finite(t1, "t_span: the end time", "a finite number after the start"),
+    )
+
+
+def check_time_limit(time_limit: Any) -> float | None:
+    """``time_limit`` in seconds (None: no limit), or an :class:`InputError` saying what is accepted."""
+    if time_limit is None:
+        return None
+    try:
+        seconds = math.nan if isinstance(time_limit, (bool, str)) else float(time_limit)
+    except (TypeError, ValueError):
+        seconds = math.nan
+    if not seconds > 0:  # NaN fails too
+        raise InputError(
+            f"time_limit = {time_limit!r}: give a positive number of seconds, or None for no limit."
+        )
+    return seconds
+
+
 def _solvable(a: np.ndarray, dep: Sequence[int]) -> bool:
     """Whether ``A`` (numbers, g × n) can be solved for the velocities ``dep``: its rows scaled
     to largest entry 1, the dependent block must be finite and of full rank (smallest singular
@@ -845,14 +869,9 @@ def simulate(
     start on a pole of the solved constraints, and a reduced mass matrix that is
     not positive definite or whose condition number exceeds :data:`MAX_CONDITION`.
     """
-    t0, t1 = (0.0, t_span) if np.isscalar(t_span) else t_span  # type: ignore[misc]
-    t0, t1 = (
-        _finite(t0, "t_span: the start time", "a finite number"),
-        _finite(t1, "t_span: the end time", "a finite number after the start"),
-    )
+    t0, t1 = time_span(t_span)
     _check_options(t0, t1, samples, rtol, atol, max_step)
-    if time_limit is not None and not time_limit > 0:
-        raise InputError(f"time_limit = {time_limit!r}: a positive number of seconds, or None for no limit.")
+    time_limit = check_time_limit(time_limit)
     if method not in METHODS:
         raise ChaplyginError(f"method {method!r} is not one of {', '.join(METHODS)}.")
     auto = backend == "auto"

@@ -108,6 +108,9 @@ from chaplygin.numeric._loop import (
     shared_source,
 )
 from chaplygin.numeric._loop import STATUS as _LOOP_STATUS
+from chaplygin.numeric._loop import (
+    in_a_thread as _in_a_thread,
+)
 from chaplygin.numeric.cache import import_source
 from chaplygin.numeric.codegen import CompiledModel
 
@@ -583,27 +586,6 @@ def integrate_symmetric(
         int(stats[3]),
         int(code),
     )
-
-
-def _in_a_thread(call: Any, halt: Any, watch: Any = None) -> Any:
-    """``call()`` in a worker thread while this one waits, so that Ctrl-C is heard at once (a
-    compiled kernel holds this thread until it returns): on ``KeyboardInterrupt``, ``halt()``
-    asks the kernel to stop, and the interrupt is raised once it has.  ``watch()``, if given,
-    is called every 0.1 s while it runs; what it raises stops the run the same way."""
-    from concurrent.futures import ThreadPoolExecutor
-    from concurrent.futures import TimeoutError as Waiting
-
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        future = pool.submit(call)
-        try:
-            while True:
-                try:
-                    return future.result(timeout=None if watch is None else 0.1)
-                except Waiting:
-                    watch()
-        except BaseException:
-            halt()
-            raise
 
 
 def _pace(stats: np.ndarray, total: int, h: float, limit: float) -> Any:
