@@ -299,6 +299,25 @@ def test_snakeboard_float_parameters_every_form(float_board: System, model: str,
         assert err.max() <= TOL, (model, form, vals[phi], err)
 
 
+@pytest.mark.parametrize("model", ["chaplygin", "voronets"])
+def test_snakeboard_classic_forcing_that_vanishes_is_zero(
+    board: System, float_board: System, model: str
+) -> None:
+    """Review defect 2, the simulation: the compiled right-hand sides solve ``M·x = F`` in float64,
+    and the classic forms' φ row of F (0 exactly: 2J₁φ̈ = 0) was a nested sum that cancels only
+    exactly — ``simulate(form="classic")`` took 8 s (symbolic parameters) and ended with
+    φ̇ = 3·10⁻⁸ from φ̇ = 0, t = 0.01.  Now 0 in float64, with the mass matrix's row 2J₁φ̈."""
+    vals = {t: 0.3, x: 0.1, y: 0.2, theta: 1.5773129029984254, psi: 1.7384858247705797, phi: 0.001}
+    vals.update({theta.diff(t): -0.584852088633586, psi.diff(t): 1.9239062922885064, phi.diff(t): 1.85})
+    for system, pars in ((board, dict(zip(SNAKEBOARD_PARAMETERS, REVIEWED))), (float_board, {})):
+        eq = system.equations(model, "classic")
+        state = admissible(system, {**vals, **pars})
+        row = list(eq.unknowns).index(phi.diff(t, 2))
+        assert abs(exact([eq.forcing[row]], state)[0]) < 1e-30  # the premise: 0 (to 50 digits)
+        got = sp.lambdify(list(state), eq.forcing[row], "numpy")(*state.values())
+        assert got == 0.0, (system.name, got)
+
+
 # ---------------------------------------------------------------- the gallery
 GALLERY = {
     "knife edge": lambda: examples.knife_edge(),

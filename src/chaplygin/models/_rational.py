@@ -49,7 +49,7 @@ from sympy.polys.rings import PolyElement
 
 from chaplygin.errors import ModelError
 
-__all__ = ["Algebra", "TooLarge", "decimal", "normal_all", "simplified", "solve_linear"]
+__all__ = ["Algebra", "TooLarge", "decimal", "normal_all", "simplified", "solve_linear", "zero_if_vanishing"]
 
 #: the largest polynomial (in terms) that normal forms are computed for; beyond it an
 #: expanded result would be unreadable and its cancellation slow (see :class:`TooLarge`)
@@ -426,10 +426,10 @@ def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> lis
     except ZeroDivisionError:
         raise ModelError(f"{what} do not determine their unknowns: the mass matrix is singular.") from None
     except TooLarge:
-        return list(M.LUsolve(F.applyfunc(_zero_if_vanishing)))
+        return list(M.LUsolve(F.applyfunc(zero_if_vanishing)))
 
 
-def _zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
+def zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
     """0 for an expression that vanishes identically (in normal form), else ``expr`` as it is.
 
     For the nested solve: such a forcing term is otherwise a sum of large terms that cancel
