@@ -30,7 +30,7 @@ from sympy.physics.mechanics import dynamicsymbols
 from chaplygin import System, examples
 from chaplygin.models.equations import Equations
 from chaplygin.models.registry import MODELS
-from randomsystems import Spec, systems, t
+from randomsystems import Spec, seeded_system, systems, t
 
 TOL = 1e-10
 DPS = 50
@@ -290,10 +290,7 @@ def test_snakeboard_float_parameters_every_form(float_board: System, model: str,
             phi.diff(t): 1.847603751592903,
         }
     )
-    states = [
-        admissible(float_board, vals),
-        *(snakeboard_state(float_board, eq, rng, a) for a in (0.05, 0.1)),
-    ]
+    states = [admissible(float_board, vals), snakeboard_state(float_board, eq, rng, 0.05)]
     for vals in states:
         err = float_errors(eq, vals)
         assert err.max() <= TOL, (model, form, vals[phi], err)
@@ -356,15 +353,22 @@ def test_gallery_accelerations_in_float64(name: str) -> None:
 @given(spec=systems().filter(lambda spec: spec.system.n <= 3), seed=st.integers(0, 2**32 - 1))
 def test_random_systems_accelerations_in_float64(spec: Spec, seed: int) -> None:
     """Random T, constraints (form A or B, affine, time-dependent), forces; every model and form.
-    For an odd seed, the parameters and numbers written into the System as Floats
-    (:func:`with_floats`; the parameters with 17 significant digits).
 
     Up to 3 coordinates: a 4-coordinate system's nested solutions (300,000 characters) take 2 s
     each to evaluate at 50 digits."""
     rng = np.random.default_rng(seed)
-    system = spec.system
-    if seed % 2:
-        system = with_floats(system, {p: float(10 ** rng.uniform(-2, 2)) for p in system.parameters})
+    for model, form in applicable(spec.system):
+        assert_accurate(spec.system, model, form, rng, coordinates=(-1.5, 1.5))
+
+
+@pytest.mark.parametrize("seed", [11])
+def test_random_systems_written_with_floats(seed: int) -> None:
+    """Seeded random systems with coefficients of 15–17 significant digits, written into the
+    System as Floats, the parameter too (:func:`with_floats`): every model and form.  (Seed 19,
+    3 coordinates, took 88 s to derive and check before Floats were read as decimals, 3.9 s now.)"""
+    system = seeded_system(seed, floats=True).system
+    system = with_floats(system, {p: 3.7 for p in system.parameters})
+    rng = np.random.default_rng(seed)
     for model, form in applicable(system):
         assert_accurate(system, model, form, rng, coordinates=(-1.5, 1.5))
 
