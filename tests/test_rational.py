@@ -65,7 +65,8 @@ def test_the_identity_is_applied_and_factors_cancel() -> None:
 
 
 def test_floats_stay_floats() -> None:
-    """A Float is a kernel: it is not turned into a rational (0.1 is not 3602879701896397/2**55)."""
+    """A Float comes out a Float: not the rational of its binary value (0.1 is not
+    3602879701896397/2**55)."""
     f = sp.Float("0.1")
     (got,) = solve_linear(sp.Matrix([[3 * a]]), sp.Matrix([[f * a * b]]))
     assert got.atoms(sp.Float) and not any(r.q > 3 for r in got.atoms(sp.Rational))

@@ -25,8 +25,14 @@ stays available on request (:func:`simplified`).
 Expressions enter the field through :meth:`Algebra.convert`, which walks the
 expression tree once and multiplies out in sparse polynomial arithmetic (much
 faster than SymPy's ``expand``).  A rational power ``b**(p/q)`` is the kernel
-``b**(1/q)`` to the power ``p``; Floats are kernels too, so user-given values
-are never re-rounded.
+``b**(1/q)`` to the power ``p``.  A Float is the exact rational of the decimal
+it was written as (:func:`decimal`: 17.9 is 179/10), so that the numbers of a
+system written with Float parameters cancel as exactly as symbols would
+(``44.8·x − 44.8·x``, ``2·8.95 − 17.9``); the results then show their numbers as
+Floats again, rounded once, at the input's precision.  (As independent kernels,
+each Float, its negative, 1.0 and 2.0 were unrelated variables: nothing
+cancelled, the expanded solve grew too large, and the nested solution lost
+every digit in float64.)
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ import math
 from collections.abc import Iterable, Sequence
 
 import sympy as sp
+from mpmath.libmp import from_str, prec_to_dps, repr_dps, round_nearest, to_str
 from sympy.polys.fields import FracElement, FracField
 from sympy.polys.matrices import DomainMatrix
 from sympy.polys.matrices.exceptions import DMNonInvertibleMatrixError
@@ -42,7 +49,7 @@ from sympy.polys.rings import PolyElement
 
 from chaplygin.errors import ModelError
 
-__all__ = ["Algebra", "TooLarge", "normal_all", "simplified", "solve_linear"]
+__all__ = ["Algebra", "TooLarge", "decimal", "normal_all", "simplified", "solve_linear", "zero_if_vanishing"]
 
 #: the largest polynomial (in terms) that normal forms are computed for; beyond it an
 #: expanded result would be unreadable and its cancellation slow (see :class:`TooLarge`)
@@ -78,10 +85,27 @@ def _split_power(expr: sp.Expr) -> tuple[sp.Expr, int] | None:
     return None
 
 
-def _kernels(exprs: Iterable[sp.Expr]) -> list[sp.Expr]:
-    """The kernels of ``exprs``: what is neither a rational number nor +, ·, or a rational power."""
+def decimal(number: sp.Float) -> sp.Rational:
+    """The exact rational of the shortest decimal that rounds to ``number`` at its precision.
+
+    The number as it was written: ``Float(17.9)`` is 179/10, not the binary value
+    17.89999999999999857891452847979962825775146484375, so that 2 × 8.95 is 17.9 and
+    17.9 × 44.8 is 801.92, exactly, as the Floats SymPy computed from them round to.
+    """
+    mpf, prec = number._mpf_, number._prec
+    for digits in range(prec_to_dps(prec), repr_dps(prec) + 1):
+        text = to_str(mpf, digits)
+        if from_str(text, prec, round_nearest) == mpf:
+            return sp.Rational(text)
+    return sp.Rational(number)  # pragma: no cover - repr_dps digits always round-trip
+
+
+def _kernels(exprs: Iterable[sp.Expr]) -> tuple[list[sp.Expr], int | None]:
+    """The kernels of ``exprs`` (what is neither a number nor +, ·, or a rational power), and
+    the largest precision of the Floats among the numbers (None without Floats)."""
     found: dict[sp.Expr, None] = {}
     seen: set[sp.Expr] = set()
+    prec: int | None = None
     stack = list(exprs)
     while stack:
         e = stack.pop()
@@ -89,6 +113,9 @@ def _kernels(exprs: Iterable[sp.Expr]) -> list[sp.Expr]:
             continue
         seen.add(e)
         if e.is_Rational:
+            continue
+        if e.is_Float:
+            prec = max(prec or 0, e._prec)
             continue
         if e.is_Add or e.is_Mul:
             stack.extend(e.args)
@@ -100,7 +127,7 @@ def _kernels(exprs: Iterable[sp.Expr]) -> list[sp.Expr]:
                 stack.append(base)
         else:
             found[e] = None
-    return sorted(found, key=sp.default_sort_key)
+    return sorted(found, key=sp.default_sort_key), prec
 
 
 class Algebra:
@@ -112,7 +139,10 @@ class Algebra:
     """
 
     def __init__(self, exprs: Iterable[sp.Expr]) -> None:
-        kernels = _kernels(exprs) or [sp.Dummy("one")]
+        kernels, prec = _kernels(exprs)
+        kernels = kernels or [sp.Dummy("one")]
+        #: the precision of the Floats in the input: the results' numbers are Floats of it
+        self.prec = prec
         self.field = FracField(kernels, sp.QQ)
         self.ring = self.field.ring
         self._gen = dict(zip(kernels, self.ring.gens))
@@ -136,8 +166,9 @@ class Algebra:
         if expr in memo:
             return memo[expr]
         ring = self.ring
-        if expr.is_Rational:
-            out = (ring.ground_new(sp.QQ(int(expr.p), int(expr.q))), ring.one)
+        if expr.is_Rational or expr.is_Float:
+            value = decimal(expr) if expr.is_Float else expr
+            out = (ring.ground_new(sp.QQ(int(value.p), int(value.q))), ring.one)
         elif expr.is_Add:
             out = _sum([self.convert(a) for a in expr.args])
         elif expr.is_Mul:
@@ -159,16 +190,17 @@ class Algebra:
         return out
 
     def to_expr(self, frac: FracElement) -> sp.Expr:
-        """A field element back as a SymPy expression, common monomials and contents pulled out."""
+        """A field element back as a SymPy expression, common monomials and contents pulled out;
+        where the input had Floats, its numbers are Floats again (:func:`_floated`)."""
         numer, denom = frac.numer, frac.denom
         if denom.LC < 0:
             numer, denom = -numer, -denom
-        top = self._poly_expr(numer)
-        if denom == 1:
-            return top
-        if denom not in self._bottoms:  # solutions often share their denominator
-            self._bottoms[denom] = self._bottom(denom)
-        return top / self._bottoms[denom]
+        out = self._poly_expr(numer)
+        if denom != 1:
+            if denom not in self._bottoms:  # solutions often share their denominator
+                self._bottoms[denom] = self._bottom(denom)
+            out = out / self._bottoms[denom]
+        return out if self.prec is None else _floated(out, self.prec)
 
     def _bottom(self, denom: PolyElement) -> sp.Expr:
         """A denominator as an expression: factored where it is small."""
@@ -312,6 +344,21 @@ class Algebra:
         return [self.reduce((N[i, 0].element, d)) for i in range(N.shape[0])]
 
 
+def _floated(expr: sp.Expr, prec: int) -> sp.Expr:
+    """``expr`` with its numbers as Floats of ``prec`` bits, as SymPy's arithmetic on the input's
+    Floats would show them: every number but the exponents, and the integers a double holds
+    exactly (``sin a·cos b + 2·x``, not ``1.0·sin a·cos b + 2.0·x``); the kernels as they are."""
+    if expr.is_Rational:
+        if expr.is_Integer and abs(expr) <= 2**53:
+            return expr
+        return sp.Float(expr, precision=prec)
+    if expr.is_Add or expr.is_Mul:
+        return expr.func(*(_floated(a, prec) for a in expr.args))
+    if expr.is_Pow:
+        return expr.func(_floated(expr.base, prec), expr.exp)
+    return expr
+
+
 def _length(frac: Fraction) -> tuple[int, int]:
     n, d = frac
     return len(n) + len(d), sum(c < 0 for c in n.itercoeffs()) + sum(c < 0 for c in d.itercoeffs())
@@ -379,10 +426,10 @@ def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> lis
     except ZeroDivisionError:
         raise ModelError(f"{what} do not determine their unknowns: the mass matrix is singular.") from None
     except TooLarge:
-        return list(M.LUsolve(F.applyfunc(_zero_if_vanishing)))
+        return list(M.LUsolve(F.applyfunc(zero_if_vanishing)))
 
 
-def _zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
+def zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
     """0 for an expression that vanishes identically (in normal form), else ``expr`` as it is.
 
     For the nested solve: such a forcing term is otherwise a sum of large terms that cancel

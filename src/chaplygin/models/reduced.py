@@ -29,7 +29,7 @@ import sympy as sp
 
 from chaplygin.core._fast import gradient, jacobian
 from chaplygin.core._symbols import TIME, total_derivative
-from chaplygin.models._rational import solve_linear
+from chaplygin.models._rational import solve_linear, zero_if_vanishing
 from chaplygin.models.equations import Equations
 
 if TYPE_CHECKING:
@@ -178,7 +178,9 @@ def reduced_system(
     """
     res = sp.Matrix(residuals)
     M = jacobian(res, r.ind_xdd) if mass is None else mass
-    F = -res.xreplace({a: 0 for a in r.ind_xdd})
+    # a forcing term that vanishes identically is 0, not a sum that cancels only exactly: the
+    # compiled right-hand sides solve M·x = F numerically (the snakeboard's classic φ row)
+    F = (-res.xreplace({a: 0 for a in r.ind_xdd})).applyfunc(zero_if_vanishing)
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
         return dict(zip(r.ind_xdd, solve_linear(M, F, f"the {model} equations")))
