@@ -121,6 +121,20 @@ def test_every_command_that_simulates_says_a_run_stopped_early_with_status_3(tmp
     assert read_results(tmp_path / "s.parquet", ["status"]).column("status").to_pylist() == ["failed"]
 
 
+def test_compare_says_each_pole_once_in_the_summary_and_once_in_its_stopped_early_line(
+    tmp_path: Path,
+) -> None:
+    """The note of a run that stopped at a pole is in the summary printed on stdout, and in the
+    exit-3 line on stderr (1300154 repeated it as a 'warning:' line too); the warning that another
+    model is shown instead of the true motion's stays, once."""
+    result = runner.invoke(cli.app, ["compare", *POLE, "-o", str(tmp_path / "cmp")])
+    assert result.exit_code == 3
+    assert "note: lindelof stops at a pole" in result.stdout
+    assert result.stderr.count("stopped early: lindelof: a pole") == 1
+    assert "lindelof stops at" not in result.stderr, result.stderr  # (the note's own words)
+    assert result.stderr.count("warning: chaplygin: a pole") == 1, result.stderr
+
+
 def test_a_run_that_reaches_the_end_exits_0(tmp_path: Path) -> None:
     result = runner.invoke(
         cli.app, ["compare", "example:knife-edge", "-t", "1", "-n", "11", "-o", str(tmp_path)]

@@ -1105,19 +1105,28 @@ def compare(
             runs, notes = {}, []
             for label in chosen:
                 steps.step(f"simulating {label}")
-                part = run_compare(
-                    system,
-                    [label],
-                    t_end,
-                    start,
-                    params,
-                    samples=samples,
-                    backend=backend.value,
-                    rtol=rtol,
-                    atol=atol,
-                    progress=steps.clock(f"simulating {label}", 0.0, t_end),
-                    time_limit=_limit(time_limit),
-                )
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    part = run_compare(
+                        system,
+                        [label],
+                        t_end,
+                        start,
+                        params,
+                        samples=samples,
+                        backend=backend.value,
+                        rtol=rtol,
+                        atol=atol,
+                        progress=steps.clock(f"simulating {label}", 0.0, t_end),
+                        time_limit=_limit(time_limit),
+                    )
+                # the note of a run that stopped early (a pole, no multiplier form) is printed with
+                # the summary and in its 'stopped early:' line, not a third time as a warning; a
+                # model shown instead of another, and any other warning, is passed on
+                stopped = not all(tr.success for tr in part.trajectories.values())
+                for w in caught:
+                    if not (stopped and str(w.message) in part.notes):
+                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
                 runs.update(part.trajectories)
                 notes += part.notes
             comparison = Comparison(system.name, runs, chosen[0], part.path, notes)
