@@ -947,7 +947,18 @@ def simulate(
     pole = None
     if entry.reduced and system.g and not pole_free(system):
         pole = _pole_between_samples(
-            system, compiled, tr, (t0, t1), samples, np.array(y0), p, params, rtol, atol, method, max_step
+            system,
+            compiled,
+            tr,
+            (t0, t1),
+            samples,
+            np.array(y0),
+            p,
+            params,
+            rtol=rtol,
+            atol=atol,
+            method=method,
+            max_step=max_step,
         )
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p, pole=pole)
 
@@ -1037,11 +1048,11 @@ def _pole_between_samples(
     y0: np.ndarray,
     p: np.ndarray,
     params: Mapping[str, float],
-    *options: Any,
+    **options: Any,
 ) -> tuple[float, str] | None:
     """A pole of the solved constraints that ``tr``'s samples do not show: ``(t, message)``, the
     first time checked at or past it and what it is, or None (``t_span``, ``samples``: those
-    ``tr`` was asked for; ``options``: ``rtol, atol, method, max_step`` of its integration).
+    ``tr`` was asked for; ``options``: the other arguments of its :func:`integrate`).
 
     The samples see a pole where the sign of the solved constraints' determinant changes between
     two of them; a motion that crosses a pole and crosses back between two samples (few samples,
@@ -1054,19 +1065,8 @@ def _pole_between_samples(
     if wanted <= samples:
         return None
     per = -(-(wanted - 1) // (samples - 1))  # the samples stay among the points checked
-    rtol, atol, method, max_step = options
     dense = integrate(
-        compiled,
-        t_span,
-        y0,
-        p,
-        dict(params),
-        rtol=rtol,
-        atol=atol,
-        method=method,
-        max_step=max_step,
-        samples=(samples - 1) * per + 1,
-        g=system.g,
+        compiled, t_span, y0, p, dict(params), samples=(samples - 1) * per + 1, g=system.g, **options
     )
     k, why = _pole(system, dense, params, len(dense.t))
     return (float(dense.t[k]), why) if k < len(dense.t) else None
