@@ -1,4 +1,4 @@
-"""The exact solver behind every solved form (chaplygin.models._rational), against numeric oracles."""
+"""The exact solver behind every solved form (chaplygin.core._rational), against numeric oracles."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from chaplygin import ModelError
-from chaplygin.models._rational import TERMS, TooLarge, normal_all, solve_linear
+from chaplygin.core._rational import TERMS, TooLarge, normal_all, solve_linear
 from randomsystems import number
 
 a, b, k = sp.symbols("a b k", positive=True)
@@ -91,7 +91,7 @@ def test_large_systems_fall_back_to_nested_lu() -> None:
 
     M = sp.Matrix(4, 4, lambda i, j: big() + (40 if i == j else 0))
     F = sp.Matrix(4, 1, lambda i, j: big())
-    from chaplygin.models._rational import Algebra
+    from chaplygin.core._rational import Algebra
 
     with pytest.raises(TooLarge):  # the premise: this system is past the budget
         alg = Algebra([*M, *F])

@@ -36,9 +36,9 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 from chaplygin import _html
 from chaplygin.core._brief import brief
 from chaplygin.core._fast import derivative
+from chaplygin.core._rational import normal_all
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import TIME, simplify_small
-from chaplygin.models._rational import normal_all
 from chaplygin.models.reduced import Reduction
 
 if TYPE_CHECKING:
@@ -55,7 +55,7 @@ def shown(expr: sp.Expr, tidy: Callable[[sp.Expr], sp.Expr]) -> sp.Expr:
 
     ``tidy`` (general cancellation, trigsimp) costs seconds on the expressions
     of a rolling body; a large one is put in the fraction-free normal form of
-    :func:`~chaplygin.models._rational.normal_all`, or left as it is where that
+    :func:`~chaplygin.core._rational.normal_all`, or left as it is where that
     normal form is too large to compute.
     """
     return tidy(expr) if sp.count_ops(expr) <= SHOWN_OPS else normal_all([expr])[0]

@@ -446,7 +446,7 @@ def _names(items: Sequence[Any]) -> list[str]:
 
 
 def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[str, Any]:
-    """The JSON document of ``chaplygin derive --format json`` (schema ``chaplygin.derive/1``)."""
+    """The JSON document of ``chaplygin derive --format json`` (schema ``chaplygin.derive/2``)."""
     return _Derivation.of(eqs, accelerations).json_doc()
 
 
@@ -544,9 +544,9 @@ class _Derivation:
     def json_doc(self) -> dict[str, Any]:
         acc = self.accelerations
         return {
-            "schema": "chaplygin.derive/1",
+            "schema": "chaplygin.derive/2",
             **self.head,
-            "equations": [file_syntax(e.lhs) for e in self.equations],
+            "equations": [{"lhs": file_syntax(e.lhs), "rhs": file_syntax(e.rhs)} for e in self.equations],
             "accelerations": None
             if acc is None
             else {file_syntax(k): file_syntax(v) for k, v in acc.items()},
@@ -598,7 +598,7 @@ class _Derivation:
                 text += f"\n\n{_UNSOLVED.format(', '.join(head['unknowns']))}:\n\nM = {pretty(sp.Matrix(M))}\n\nF = {pretty(sp.Matrix(F))}"
             return text
         lines = [f"{head['title']} - {head['system']}"]
-        lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
+        lines += [f"  {file_syntax(e.lhs)} = {file_syntax(e.rhs)}" for e in self.equations]
         if acc is not None:
             lines.append("Solved:")
             lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]

@@ -513,8 +513,8 @@ def paper_table(classify_sets: bool = True) -> PaperTable:
     sp_, cp = sp.sin(psi), sp.cos(psi)
     R = sp.Rational
 
-    lagrange = [e.lhs for e in free.equations("lindelof").equations]  # E_σ(T̃)
-    chaplygin_free = [e.lhs for e in free.equations("chaplygin").equations]
+    lagrange = free.equations("lindelof").residuals  # E_σ(T̃)
+    chaplygin_free = free.equations("chaplygin").residuals
     # The forces enter only F of M·x = F: −Q̃_σ = −(F_forced − F_free).  (Displaying the forced
     # equations themselves would cost seconds of tidying for the same expressions.)
     minus_forces = [

@@ -32,6 +32,7 @@ from chaplygin.core._fast import (
 )
 from chaplygin.core._native import is_quadratic, linear_split, momenta
 from chaplygin.core._operations import operation
+from chaplygin.core._rational import exact_numbers, floated, solve_columns
 from chaplygin.core._symbols import (
     TIME,
     Vars,
@@ -135,6 +136,8 @@ class System:
         self.name = name or "system"
         self.coordinates: tuple[sp.Expr, ...] = self._check_coordinates(coordinates)
         self.n = len(self.coordinates)
+        #: the precision of the Floats the system was written with (None: none); inside, exact
+        self._float_prec: int | None = None
         self._vars = Vars(self.coordinates)
         self._to_sym = self._vars.to_symbols()
         self._to_fun = {value: key for key, value in self._to_sym.items()}
@@ -251,9 +254,17 @@ class System:
                 )
         if not replace:
             return expr
-        out = expr.xreplace(self._to_sym)
+        out = self._exact(expr).xreplace(self._to_sym)
         if not allow_velocities and out.has(*self._vars.xd):
             raise SystemDefinitionError(f"{what} must not depend on the velocities.")
+        return out
+
+    def _exact(self, expr: sp.Expr) -> sp.Expr:
+        """``expr`` with its Floats as the exact rationals written (:func:`exact_numbers`): every
+        derivation is exact; :meth:`to_user` shows the numbers as Floats again."""
+        out, prec = exact_numbers(expr)
+        if prec is not None:
+            self._float_prec = max(prec, self._float_prec or 0)
         return out
 
     def _check_kinetic_energy(self) -> None:
@@ -428,8 +439,12 @@ class System:
         return self._solve_dependent(self._A0)
 
     def _solve_dependent(self, rhs: sp.Matrix) -> sp.Matrix:
+        """``−A_dep⁻¹·rhs``, each entry one cancelled fraction in normal form where that is small
+        (trigonometric functions of angle sums expanded, ``sin² + cos² = 1``:
+        :func:`~chaplygin.core._rational.solve_columns`), so that every reduced form starts from
+        the shortest ``B``."""
         a_dep = self._A.extract(list(range(self.g)), list(self._dep))
-        return (-a_dep.LUsolve(rhs)).applyfunc(sp.cancel)
+        return solve_columns(a_dep, -rhs, "the constraints")
 
     def _dependent_velocity_index(self, key: Any) -> int:
         if isinstance(key, sp.Derivative) and key.variables == (TIME,) and key.expr in self.coordinates:
@@ -558,12 +573,12 @@ class System:
     @cached_property
     def _T(self) -> sp.Expr:
         """The kinetic energy in internal symbols."""
-        return self.kinetic_energy.xreplace(self._to_sym)
+        return self._exact(self.kinetic_energy).xreplace(self._to_sym)
 
     def _internal_native(self, exprs: Sequence[sp.Expr]) -> list[Any] | None:
         """User expressions in internal symbols, in SymEngine (converted as they are and substituted
         there: SymPy's substitution costs more); None if SymEngine cannot represent them."""
-        fast = native([*exprs, *self._to_sym, *self._to_sym.values()])
+        fast = native([*map(self._exact, exprs), *self._to_sym, *self._to_sym.values()])
         if fast is None:
             return None
         k, m = len(exprs), len(self._to_sym)
@@ -627,8 +642,9 @@ class System:
         return [du + q for du, q in zip(gradient(self._U, self._vars.x), self._Qnp)]
 
     def to_user(self, expr: Any) -> Any:
-        """Convert an internal expression (plain symbols) to dynamicsymbols."""
-        return expr.xreplace(self._to_fun)
+        """Convert an internal expression (plain symbols, exact numbers) to dynamicsymbols, with
+        the numbers of a system written with Floats shown as Floats."""
+        return floated(expr.xreplace(self._to_fun), self._float_prec)
 
     # ------------------------------------------------------------------ public views
     @property

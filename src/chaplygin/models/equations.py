@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING
@@ -10,10 +11,9 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
-from chaplygin.core._fast import gradient
+from chaplygin.core._rational import floated, linear_forms, normal_all, simplified
 from chaplygin.core._symbols import TIME, pretty, replace_shared
-from chaplygin.errors import ModelError
-from chaplygin.models._rational import normal_all, simplified
+from chaplygin.errors import ChaplyginWarning, ModelError
 from chaplygin.models.registry import MODELS
 
 if TYPE_CHECKING:
@@ -22,20 +22,11 @@ if TYPE_CHECKING:
 __all__ = ["Equations"]
 
 
-def readable(residuals: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol]) -> list[sp.Expr]:
-    """Each residual as ``Σ c_j x_j + c_0`` in the unknowns, every ``c`` in normal form (for display).
-
-    The residuals are affine in the unknowns; a residual that is not (a velocity
-    constraint of a multiplier model has no unknowns) is shown as a whole.
-    """
-    rows = [(gradient(r, list(unknowns)), r.xreplace({x: 0 for x in unknowns})) for r in residuals]
-    parts = normal_all([c for grad, rest in rows for c in (*grad, rest)])
-    out, k = [], 0
-    for grad, _ in rows:
-        coeffs, rest = parts[k : k + len(grad)], parts[k + len(grad)]
-        k += len(grad) + 1
-        out.append(sp.Add(*(c * x for c, x in zip(coeffs, unknowns)), rest))
-    return out
+def readable(
+    residuals: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol], velocities: Sequence[sp.Symbol]
+) -> list[tuple[sp.Expr, sp.Expr]]:
+    """Each residual as ``M_i·x = F_i`` for display (:func:`~chaplygin.core._rational.linear_forms`)."""
+    return linear_forms(residuals, unknowns, velocities)
 
 
 class Equations:
@@ -101,12 +92,32 @@ class Equations:
         return MODELS[self.model].title(self.form)
 
     def _user(self, expr: sp.Expr) -> sp.Expr:
-        return replace_shared(expr, self._to_fun)
+        return floated(replace_shared(expr, self._to_fun), self.system._float_prec)
 
     @cached_property
     def equations(self) -> list[sp.Eq]:
-        """The equations of motion, each as ``sympy.Eq(expression, 0)``."""
-        return [sp.Eq(self._user(r), 0, evaluate=False) for r in readable(self._residuals, self._unknowns)]
+        """The equations of motion as a mechanics text writes them: ``sympy.Eq(M_i·x, F_i)``.
+
+        The unknowns :attr:`unknowns` (accelerations, multipliers) on the left, each
+        coefficient one cancelled fraction (trigonometric functions of angle sums expanded,
+        ``sin² + cos² = 1`` applied), the row cleared of the left side's denominators; on the
+        right the velocity-quadratic terms, collected by products of velocities, and the
+        forces.  A velocity constraint of a multiplier model reads ``Eq(expression, 0)``.
+        Each equation is the model's residual times a factor that vanishes nowhere it is
+        defined: ``eq.lhs - eq.rhs`` is 0 exactly where the residual is
+        (:attr:`mass_matrix` and :attr:`forcing` are the unscaled ``M·x = F``).
+        """
+        velocities = [*self.system._vars.xd, *self._state]
+        return [
+            sp.Eq(self._user(lhs), self._user(rhs), evaluate=False)
+            for lhs, rhs in readable(self._residuals, self._unknowns, velocities)
+        ]
+
+    @cached_property
+    def residuals(self) -> list[sp.Expr]:
+        """``M·x − F`` row by row, as derived and unscaled, each one cancelled fraction where that
+        is small: the expressions that vanish along a motion (:attr:`equations` shows them tidied)."""
+        return [self._user(r) for r in normal_all(self._residuals)]
 
     @property
     def unknowns(self) -> tuple[sp.Expr, ...]:
@@ -137,7 +148,7 @@ class Equations:
         Computed on first access, exactly and without general simplification:
         the small linear system is solved fraction-free and each solution is one
         cancelled fraction, with ``sin² + cos² = 1`` applied
-        (:mod:`chaplygin.models._rational`).  Where that normal form would be very large
+        (:mod:`chaplygin.core._rational`).  Where that normal form would be very large
         the solution is left nested, as ``KanesMethod.rhs()`` gives it.  See
         :meth:`solve` for heavier simplification.
         """
@@ -150,12 +161,23 @@ class Equations:
         ----------
         simplify : bool
             Also pass each solution through ``sympy.simplify``, keeping the
-            result where it is shorter.  Slow (seconds to minutes on larger
-            systems); the default normal form is exact already.
+            result where it is shorter, within a budget of size and time
+            (:func:`~chaplygin.core._rational.simplified`): a solution beyond it
+            stays in its normal form, with a :class:`~chaplygin.errors.ChaplyginWarning`
+            naming it.  The default normal form is exact already.
         """
         out = {self._user(k): self._user(v) for k, v in self._accelerations.items()}
         if simplify:
-            out = {k: simplified(v) for k, v in out.items()}
+            values, skipped = simplified(list(out.values()))
+            if skipped:
+                names = ", ".join(vsstrrepr(list(out)[k]) for k in skipped)
+                warnings.warn(
+                    f"not simplified (too large for sympy.simplify within its budget): {names}; "
+                    "shown in their exact, cancelled normal form",
+                    ChaplyginWarning,
+                    stacklevel=2,
+                )
+            out = dict(zip(out, values))
         return out
 
     # -------------------------------------------------------------- constraint forces
@@ -202,7 +224,7 @@ class Equations:
     # -------------------------------------------------------------- printing
     def __str__(self) -> str:
         lines = [self._heading()]
-        lines += [f"  {vsstrrepr(e.lhs)} = 0" for e in self.equations]
+        lines += [f"  {vsstrrepr(e.lhs)} = {vsstrrepr(e.rhs)}" for e in self.equations]
         return "\n".join(lines)
 
     def pretty(self) -> str:

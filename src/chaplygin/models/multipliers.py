@@ -16,9 +16,9 @@ import sympy as sp
 from sympy.polys.matrices import DomainMatrix
 
 from chaplygin.core._fast import gradient, jacobian
+from chaplygin.core._rational import Algebra, TooLarge
 from chaplygin.core._symbols import total_derivative
 from chaplygin.errors import ModelError
-from chaplygin.models._rational import Algebra, TooLarge
 from chaplygin.models.equations import Equations
 
 if TYPE_CHECKING:
@@ -101,7 +101,7 @@ def _solve_by_reduction(
     ε × ε system; the multiplier unknowns follow from the rows of the dependent
     coordinates.  This is the solution at every state, admissible or not.  All
     of it is exact arithmetic in one field of rational functions
-    (:mod:`chaplygin.models._rational`).
+    (:mod:`chaplygin.core._rational`).
     """
     v = system._vars
     n, g = system.n, system.g
@@ -152,7 +152,7 @@ def _solve_nested(system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol])
     """The reduction of :func:`_solve_by_reduction` by LU on SymPy expressions, unexpanded.
 
     For systems whose expanded normal forms are too large to read or to cancel
-    (:class:`~chaplygin.models._rational.TooLarge`): the result is nested, like
+    (:class:`~chaplygin.core._rational.TooLarge`): the result is nested, like
     ``KanesMethod.rhs()``.
     """
     v = system._vars

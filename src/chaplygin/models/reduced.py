@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING
 import sympy as sp
 
 from chaplygin.core._fast import gradient, jacobian
+from chaplygin.core._rational import solve_linear, zero_if_vanishing
 from chaplygin.core._symbols import TIME, total_derivative
-from chaplygin.models._rational import solve_linear, zero_if_vanishing
 from chaplygin.models.equations import Equations
 
 if TYPE_CHECKING:

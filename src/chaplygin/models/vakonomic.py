@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING, Any
 import sympy as sp
 
 from chaplygin.core._fast import gradient
+from chaplygin.core._rational import solve_linear
 from chaplygin.core._symbols import total_derivative
 from chaplygin.errors import ModelError
 from chaplygin.models import registry
-from chaplygin.models._rational import solve_linear
 from chaplygin.models.equations import Equations
 from chaplygin.models.multipliers import (
     lagrange_operator,

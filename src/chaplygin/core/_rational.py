@@ -38,7 +38,9 @@ every digit in float64.)
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import sympy as sp
 from mpmath.libmp import from_str, prec_to_dps, repr_dps, round_nearest, to_str
@@ -47,9 +49,23 @@ from sympy.polys.matrices import DomainMatrix
 from sympy.polys.matrices.exceptions import DMNonInvertibleMatrixError
 from sympy.polys.rings import PolyElement
 
+from chaplygin.core._angles import angle_rewrites
+from chaplygin.core._fast import gradient
 from chaplygin.errors import ModelError
 
-__all__ = ["Algebra", "TooLarge", "decimal", "normal_all", "simplified", "solve_linear", "zero_if_vanishing"]
+__all__ = [
+    "Algebra",
+    "TooLarge",
+    "decimal",
+    "exact_numbers",
+    "floated",
+    "linear_forms",
+    "normal_all",
+    "simplified",
+    "solve_columns",
+    "solve_linear",
+    "zero_if_vanishing",
+]
 
 #: the largest polynomial (in terms) that normal forms are computed for; beyond it an
 #: expanded result would be unreadable and its cancellation slow (see :class:`TooLarge`)
@@ -58,6 +74,9 @@ TERMS = 400
 
 #: the most terms an intermediate product or power may have before it is formed
 _WORK = 50 * TERMS
+#: the most terms an expression's parts may have as they are converted: its normal form
+#: (:data:`TERMS`) is often much shorter, the identity and cancellation applied
+_CONVERT = 8 * TERMS
 #: denominators up to this many terms are shown factored
 _FACTOR_TERMS = 40
 
@@ -66,8 +85,8 @@ class TooLarge(Exception):
     """Expanded normal forms would be too large: the caller solves with nested expressions."""
 
 
-def _check(*polys: PolyElement) -> None:
-    if any(len(p) > TERMS for p in polys):
+def _check(*polys: PolyElement, limit: int = TERMS) -> None:
+    if any(len(p) > limit for p in polys):
         raise TooLarge
 
 
@@ -100,9 +119,10 @@ def decimal(number: sp.Float) -> sp.Rational:
     return sp.Rational(number)  # pragma: no cover - repr_dps digits always round-trip
 
 
-def _kernels(exprs: Iterable[sp.Expr]) -> tuple[list[sp.Expr], int | None]:
+def _kernels(exprs: Iterable[sp.Expr], rewrites: dict[sp.Expr, sp.Expr]) -> tuple[list[sp.Expr], int | None]:
     """The kernels of ``exprs`` (what is neither a number nor +, ·, or a rational power), and
-    the largest precision of the Floats among the numbers (None without Floats)."""
+    the largest precision of the Floats among the numbers (None without Floats); a function
+    with a rewrite (:func:`~chaplygin.core._angles.angle_rewrites`) is looked into as rewritten."""
     found: dict[sp.Expr, None] = {}
     seen: set[sp.Expr] = set()
     prec: int | None = None
@@ -119,6 +139,8 @@ def _kernels(exprs: Iterable[sp.Expr]) -> tuple[list[sp.Expr], int | None]:
             continue
         if e.is_Add or e.is_Mul:
             stack.extend(e.args)
+        elif e in rewrites:
+            stack.append(rewrites[e])
         elif e.is_Pow and (split := _split_power(e)) is not None:
             base, _ = split
             if base.is_Pow:  # b**(1/q): a kernel of its own
@@ -139,7 +161,10 @@ class Algebra:
     """
 
     def __init__(self, exprs: Iterable[sp.Expr]) -> None:
-        kernels, prec = _kernels(exprs)
+        exprs = list(exprs)
+        #: trigonometric functions in the sines and cosines of base angles
+        self._rewrites = angle_rewrites(exprs)
+        kernels, prec = _kernels(exprs, self._rewrites)
         kernels = kernels or [sp.Dummy("one")]
         #: the precision of the Floats in the input: the results' numbers are Floats of it
         self.prec = prec
@@ -175,17 +200,19 @@ class Algebra:
             out = _product([self.convert(a) for a in expr.args])
         elif expr in self._gen:
             out = (self._gen[expr], ring.one)
+        elif expr in self._rewrites:
+            out = self.convert(self._rewrites[expr])
         elif expr.is_Pow and (split := _split_power(expr)) is not None:
             base, k = split
             n, d = (self._gen[base], ring.one) if base in self._gen else self.convert(base)
             if max(math.comb(len(n) + abs(k) - 1, abs(k)), math.comb(len(d) + abs(k) - 1, abs(k))) > _WORK:
                 raise TooLarge  # a power of a sum with too many terms to expand
             out = (n**k, d**k) if k >= 0 else (d ** (-k), n ** (-k))
-            if k < 0 and len(n) > 1:
-                self._divisors[n] = None
+            if k < 0 and len(n) > 1 and not _eliminate(n, self.pairs).is_ground:
+                self._divisors[n] = None  # (sin² + cos², which is 1, is none)
         else:  # pragma: no cover - every other expression is a kernel
             raise KeyError(expr)
-        _check(*out)
+        _check(*out, limit=_CONVERT)
         memo[expr] = out
         return out
 
@@ -246,7 +273,8 @@ class Algebra:
                 if any(not n.div(v)[1] for n, v in zip(rewritten, views)):
                     break
                 denom = split[0]
-                kept.append(f)
+                # the factor as written, but with sin² + cos² = 1 applied (its shortest view)
+                kept.append(min(views, key=lambda v: _length((v, self.ring.one))))
         _check(numer, denom)
         candidates = []
         best = numer, denom
@@ -261,8 +289,14 @@ class Algebra:
             candidates.append((numer, denom))  # a polynomial may read best as it was written
         # the fewest terms; on a tie the fewest minus signs (sin²θ + 2/5 rather than 7/5 − cos²θ)
         numer, denom = min(candidates, key=_length)
+        # numerator and denominator are each exact in any of their views: each in its shortest
+        # (cos²θ below the line rather than 1 − sin²θ, whichever way the numerator reads best)
+        numer, denom = (
+            min([p, *(_eliminate(p, pairs) for pairs in self._directions())], key=_size)
+            for p in (numer, denom)
+        )
         if kept:
-            shown = self._bottom(denom) * sp.Mul(*(self._poly_expr(f) for f in kept))
+            shown = self._bottom(denom) * sp.Mul(*(self._bottom(f) for f in kept))
             for f in kept:
                 denom = denom * f
             if denom.LC < 0:  # to_expr shows the denominator with a positive leading coefficient
@@ -347,16 +381,43 @@ class Algebra:
 def _floated(expr: sp.Expr, prec: int) -> sp.Expr:
     """``expr`` with its numbers as Floats of ``prec`` bits, as SymPy's arithmetic on the input's
     Floats would show them: every number but the exponents, and the integers a double holds
-    exactly (``sin a·cos b + 2·x``, not ``1.0·sin a·cos b + 2.0·x``); the kernels as they are."""
+    exactly (``sin a·cos b + 2·x``, not ``1.0·sin a·cos b + 2.0·x``)."""
     if expr.is_Rational:
         if expr.is_Integer and abs(expr) <= 2**53:
             return expr
         return sp.Float(expr, precision=prec)
-    if expr.is_Add or expr.is_Mul:
-        return expr.func(*(_floated(a, prec) for a in expr.args))
+    if expr.is_Atom or isinstance(expr, sp.Derivative):
+        return expr
     if expr.is_Pow:
         return expr.func(_floated(expr.base, prec), expr.exp)
-    return expr
+    return expr.func(*(_floated(a, prec) for a in expr.args))
+
+
+def exact_numbers(expr: sp.Expr) -> tuple[sp.Expr, int | None]:
+    """``expr`` with each Float replaced by the exact rational it was written as (:func:`decimal`),
+    and the largest precision among them (None without Floats).
+
+    SymPy's Float arithmetic rounds at every step: ``17.9·44.8`` is not the double nearest
+    801.92, and a derivation's terms that cancel exactly in the numbers as written leave a
+    residue of 10⁻¹² (the snakeboard's φ row).  Derived in exact rationals, they cancel.
+    """
+    floats = expr.atoms(sp.Float)
+    if not floats:
+        return expr, None
+    return expr.xreplace({f: decimal(f) for f in floats}), max(f._prec for f in floats)
+
+
+def floated(expr: Any, prec: int | None) -> Any:
+    """An expression or matrix with its numbers shown as Floats of ``prec`` bits (as it is for None)."""
+    if prec is None:
+        return expr
+    if isinstance(expr, sp.MatrixBase):
+        return expr.applyfunc(lambda e: _floated(e, prec))
+    return _floated(expr, prec)
+
+
+def _size(p: PolyElement) -> tuple[int, int]:
+    return len(p), sum(c < 0 for c in p.itercoeffs())
 
 
 def _length(frac: Fraction) -> tuple[int, int]:
@@ -371,8 +432,10 @@ def _sum(parts: list[Fraction]) -> Fraction:
         groups[d] = groups.get(d, ring.zero) + n
     items = list(groups.items())
     d_out, n_out = items[0]
-    for d, n in items[1:]:
-        n_out, d_out = n_out * d + n * d_out, d_out * d
+    for d, n in items[1:]:  # over the least common multiple: D² + D³ is over D³, not D⁵
+        common = d_out.lcm(d)
+        n_out = n_out * common.exquo(d_out) + n * common.exquo(d)
+        d_out = common
     return n_out, d_out
 
 
@@ -429,6 +492,12 @@ def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> lis
         return list(M.LUsolve(F.applyfunc(zero_if_vanishing)))
 
 
+def solve_columns(M: sp.Matrix, F: sp.Matrix, what: str) -> sp.Matrix:
+    """``M⁻¹·F`` for a matrix ``F``, one column at a time by :func:`solve_linear`."""
+    cols = [solve_linear(M, F[:, j], what) for j in range(F.cols)]
+    return sp.Matrix(M.rows, F.cols, lambda i, j: cols[j][i])
+
+
 def zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
     """0 for an expression that vanishes identically (in normal form), else ``expr`` as it is.
 
@@ -446,6 +515,68 @@ def zero_if_vanishing(expr: sp.Expr) -> sp.Expr:
     return sp.S.Zero if not _eliminate(numer, alg.pairs) else expr
 
 
+def linear_forms(
+    residuals: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol], velocities: Sequence[sp.Symbol]
+) -> list[tuple[sp.Expr, sp.Expr]]:
+    """Each residual ``r``, affine in ``unknowns``, as ``(Σ_j M_j x_j, F)`` with ``r = Σ M_j x_j − F``.
+
+    As a mechanics text writes an equation of motion: the accelerations (and multipliers)
+    on the left, each coefficient one cancelled fraction in normal form; the row multiplied
+    by the least common multiple of the left side's denominators, so that they are gone; the
+    right side collected by products of the ``velocities`` (the velocity-quadratic terms,
+    then the forces), each coefficient cancelled.  Every coefficient is exact: the row is
+    the residual times a factor that vanishes nowhere the residual is defined.  A residual
+    without unknowns (a velocity constraint) is ``(r, 0)``; one whose normal form would be
+    too large is ``(Σ_j M_j x_j, −rest)`` with each part in normal form where that is small.
+    """
+    alg = Algebra(residuals)
+    gens = alg.ring.gens
+    picked = [i for i, g in enumerate(gens) if alg.ring.symbols[i] in {*unknowns, *velocities}]
+    left = [gens.index(alg._gen[x]) if x in alg._gen else None for x in unknowns]
+    out = []
+    for row, r in enumerate(residuals):
+        try:
+            out.append(_linear_form(alg, alg.reduce(alg.convert(r)), picked, left, row))
+        except (TooLarge, ZeroDivisionError):
+            grad = gradient(r, list(unknowns))
+            parts = normal_all([*grad, r.xreplace({x: 0 for x in unknowns})])
+            out.append((sp.Add(*(c * x for c, x in zip(parts, unknowns))), -parts[-1]))
+    return out
+
+
+def _linear_form(
+    alg: Algebra, frac: FracElement, picked: list[int], left: list[int | None], row: int
+) -> tuple[sp.Expr, sp.Expr]:
+    """:func:`linear_forms` of one residual in normal form: its terms grouped by the powers of
+    the ``picked`` kernels (unknowns and velocities); the groups with an unknown (``left``) on
+    the left, the coefficient of the row's own unknown (the ``row``-th) with more + than − signs."""
+    ring = alg.ring
+    groups: dict[tuple[int, ...], PolyElement] = {}
+    for monom, coeff in frac.numer.iterterms():
+        key = tuple(monom[i] for i in picked)
+        rest = tuple(0 if i in picked else e for i, e in enumerate(monom))
+        groups[key] = groups.get(key, ring.zero) + ring({rest: coeff})
+    unknown_at = [picked.index(i) for i in left if i is not None]
+    on_left = [key for key in groups if any(key[k] for k in unknown_at)]
+    if not on_left:
+        return alg.to_expr(frac), sp.S.Zero
+    coeffs = {key: alg.reduce((p, frac.denom)) for key, p in groups.items()}
+    scale = ring.one
+    for key in on_left:
+        scale = scale.lcm(coeffs[key].denom)
+    scaled = {key: alg.reduce((c.numer * scale, c.denom)) for key, c in coeffs.items()}
+    own = left[row] if row < len(left) else None
+    lead = next((key for key in on_left if own is not None and key[picked.index(own)]), min(on_left))
+    signs = [c > 0 for c in scaled[lead].numer.itercoeffs()]  # read with more + than − signs
+    sign = 1 if 2 * sum(signs) > len(signs) or (2 * sum(signs) == len(signs) and signs[0]) else -1
+    sides: tuple[list[sp.Expr], list[sp.Expr]] = ([], [])
+    for key, c in scaled.items():
+        monomial = sp.Mul(*(ring.symbols[picked[k]] ** e for k, e in enumerate(key)))
+        on = key in on_left
+        sides[0 if on else 1].append((sign if on else -sign) * alg.to_expr(c) * monomial)
+    return sp.Add(*sides[0]), sp.Add(*sides[1])
+
+
 def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:
     """Each expression as one cancelled fraction in normal form modulo sin² + cos² = 1.
 
@@ -461,10 +592,32 @@ def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:
     return out
 
 
-def simplified(expr: sp.Expr) -> sp.Expr:
-    """Heavy simplification (``sympy.simplify``), kept only where it is shorter.
+#: the largest expression (in operations) given to ``sympy.simplify``; a larger one, already in
+#: normal form, rarely gets shorter and may take minutes (the roller racer's: 460 operations, 7 s,
+#: 1 % shorter)
+SIMPLIFY_OPS = 150
+#: seconds ``sympy.simplify`` may spend on one set of results before the rest are left as they are
+SIMPLIFY_SECONDS = 3.0
 
-    Slow on large expressions: used only on request (``simplify=True``).
+
+def simplified(exprs: Sequence[sp.Expr]) -> tuple[list[sp.Expr], list[int]]:
+    """Heavy simplification (``sympy.simplify``) within a budget, each result kept where shorter.
+
+    Only expressions of at most :data:`SIMPLIFY_OPS` operations are simplified, and only until
+    :data:`SIMPLIFY_SECONDS` have passed; the others stay in their (exact, cancelled) normal form.
+
+    Returns
+    -------
+    (results, skipped) : the expressions, and the indices of those not simplified
     """
-    candidate = sp.simplify(expr)
-    return candidate if sp.count_ops(candidate) < sp.count_ops(expr) else expr
+    start = time.monotonic()
+    out, skipped = [], []
+    for k, expr in enumerate(exprs):
+        ops = sp.count_ops(expr)
+        if ops > SIMPLIFY_OPS or time.monotonic() - start > SIMPLIFY_SECONDS:
+            out.append(expr)
+            skipped.append(k)
+            continue
+        candidate = sp.simplify(expr)
+        out.append(candidate if sp.count_ops(candidate) < ops else expr)
+    return out, skipped
