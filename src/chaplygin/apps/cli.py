@@ -31,6 +31,7 @@ import typer
 from rich.console import Console
 from typer.core import TyperCommand, TyperGroup
 
+from chaplygin.apps._wording import cli_wording
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
 
@@ -288,7 +289,8 @@ def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str]) -> None
     failed = {label: tr for label, tr in runs.items() if not tr.success}
     for label, tr in failed.items():
         _stderr().print(
-            f"stopped early: {label}: {tr.message}; {where(label)} holds the run up to there.", markup=False
+            f"stopped early: {label}: {cli_wording(str(tr.message))}; {where(label)} holds the run up to there.",
+            markup=False,
         )
     if failed:
         raise typer.Exit(STOPPED_EARLY)
@@ -297,7 +299,8 @@ def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str]) -> None
 @contextmanager
 def _failures() -> Iterator[None]:
     """Turn errors into a message on stderr and exit status 1 (no traceback); warnings are
-    printed on stderr as ``warning: …`` lines, each once."""
+    printed on stderr as ``warning: …`` lines, each once; both in the command line's wording
+    (:func:`~chaplygin.apps._wording.cli_wording`: ``--model voronets``, not ``model='voronets'``)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -306,7 +309,7 @@ def _failures() -> Iterator[None]:
         finally:
             seen: set[str] = set()
             for w in caught:
-                text = str(w.message)
+                text = cli_wording(str(w.message))
                 if text not in seen:
                     seen.add(text)
                     _stderr().print(f"warning: {text}", markup=False)
@@ -322,7 +325,7 @@ def _errors() -> Iterator[None]:
         _stderr().print("interrupted: no output was left half-written.", markup=False)
         raise typer.Exit(130) from None
     except ChaplyginError as exc:
-        _stderr().print(f"error: {exc}", markup=False)
+        _stderr().print(f"error: {cli_wording(str(exc))}", markup=False)
         raise typer.Exit(1) from None
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
@@ -778,6 +781,8 @@ def check(
         loaded = _load(file)
         with _Steps(1, "checking"):
             doc, comparison = _checked(loaded.system)
+        if doc["comparison_unavailable"] is not None:
+            doc["comparison_unavailable"] = cli_wording(doc["comparison_unavailable"])
         if fmt is CheckFormat.json:
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
             return
@@ -1320,7 +1325,7 @@ def sweep(
             _stderr().print(
                 f"stopped early: {result.failed} run{'s' if result.failed > 1 else ''} (status 'failed' "
                 f"in {out}, with the state reached), e.g.:\n"
-                + "\n".join(f"  run {r['run_id']}: {r['message']}" for r in first),
+                + "\n".join(f"  run {r['run_id']}: {cli_wording(r['message'])}" for r in first),
                 markup=False,
             )
             raise typer.Exit(STOPPED_EARLY)

@@ -1130,8 +1130,8 @@ def sweep(
     missing += [q for q in initial_names if q not in start and q not in swept]
     if missing:
         raise ChaplyginError(
-            f"no value for {', '.join(missing)}: give each as --param/--initial (parameters=, initial=) "
-            "or sweep it with --grid."
+            f"no value for {', '.join(missing)}: give each a value (parameters=, initial=) "
+            "or sweep it (grid=)."
         )
     unknown = [q for q in start if q not in initial_names]
     if unknown:
@@ -1334,7 +1334,7 @@ def _serial(
                     f"{plan.runs} runs: the {left} left would take about {duration(rest)} (at "
                     f"{sum(took[1:]) / (len(took) - 1):.3g} s a run{f' on {_cores()} cores' if watch else ''}), "
                     f"beyond the limit of {duration(limit)}; the {count} runs done are kept: pass "
-                    "time_limit=None (--time-limit 0) with resume=True (--resume) to finish, or sweep fewer points."
+                    "time_limit=None with resume=True to finish, or sweep fewer points."
                 )
             limit = None  # estimated once
         if watch and left and len(took) > 1 and sum(took[1:]) / (len(took) - 1) * left > AUTO_CLUSTER_SECONDS:
