@@ -1166,6 +1166,8 @@ def _write_comparison(comparison: Comparison, directory: Path) -> None:
 
 # ====================================================================== sweep
 class SweepBackend(str, Enum):
+    auto = "auto"
+    c = "c"
     numba = "numba"
     numpy = "numpy"
 
@@ -1218,11 +1220,12 @@ def sweep(
     ),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time of every run (from t = 0)."),
     out: Path = typer.Option(
-        ..., "--out", "-o", help="The results: a Parquet dataset directory, e.g. results.parquet."
+        ...,
+        "--out",
+        "-o",
+        help="The results: a Parquet dataset, a directory named NAME.parquet or NAME (no other suffix).",
     ),
-    model: str = typer.Option(
-        "chetaev", "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate."
-    ),
+    model: str | None = _model_option("simulate"),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(
         201,
@@ -1232,7 +1235,10 @@ def sweep(
         help="Samples per run, where the energy drift and the constraint residual are measured.",
     ),
     backend: SweepBackend = typer.Option(
-        SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."
+        SweepBackend.auto,
+        "--backend",
+        "-b",
+        help=BACKEND_HELP,
     ),
     constants: str | None = typer.Option(
         None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
@@ -1265,8 +1271,11 @@ def sweep(
     Small sweeps run in this process; long ones, or when asked (--scheduler, --workers), on Dask.
     The summary says where the runs ran.
     """
-    from chaplygin.apps.sweep import parse_grid
+    from chaplygin.apps.sweep import _out_problem, parse_grid
 
+    wrong = _out_problem(out)
+    if wrong is not None:
+        raise typer.BadParameter(f"{out}: {wrong}", param_hint="--out")
     axes: dict[str, Any] = {}
     for item in grid:
         try:
@@ -1288,9 +1297,11 @@ def sweep(
 
         _check_writable(out, folder=True)
 
-        label = model if form is Form.classic else f"{model}/{form.value}"
+        def named(name: str) -> str:
+            return name if form is Form.classic else f"{name}/{form.value}"
+
         try:
-            with _run_counter(f"sweeping {label} [{backend.value}]") as progress:
+            with _run_counter(f"sweeping {named(model or 'the true motion')} [{backend.value}]") as progress:
                 result = run_sweep(
                     file,
                     axes,
@@ -1310,6 +1321,7 @@ def sweep(
                     chunk_size=chunk_size,
                     progress=progress,
                     time_limit=_limit(time_limit),
+                    notice=lambda words: _stderr().print(words, markup=False),
                 )
         except KeyboardInterrupt:
             _stderr().print(
@@ -1318,7 +1330,8 @@ def sweep(
                 markup=False,
             )
             raise typer.Exit(130) from None
-        _emit(f"{label}, t = 0 … {t_end:g}: {result.summary()}")
+        auto = "auto: " if backend is SweepBackend.auto else ""
+        _emit(f"{named(result.model)} [{auto}{result.backend}], t = 0 … {t_end:g}: {result.summary()}")
         if result.failed:
             table = read_results(out, ["status", "message"]).to_pylist()
             first = [r for r in table if r["status"] != "success"][:3]
