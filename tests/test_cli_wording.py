@@ -122,6 +122,25 @@ def test_the_time_limit_refusals_name_one_form_each(tmp_path: Path) -> None:
     assert "--" not in str(refused.value)
 
 
+def test_a_sweep_names_the_options_on_the_command_line_and_keywords_in_python(tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    from chaplygin.apps.sweep import sweep
+
+    held = tmp_path / "held.parquet"
+    held.mkdir()
+    (held / "_sweep.json").write_text("{}")
+    common = ["example:knife-edge", "--grid", "x'=0.1,0.2", "-b", "numpy", "-n", "3"]
+    text = said("sweep", *common, "-t", "1", "-o", str(held))
+    assert "already holds a chaplygin sweep; pass --resume to finish it or --force to replace it." in text
+    assert said("sweep", *common, "-t", "-1", "-o", str(tmp_path / "new")).startswith(
+        "error: --t-end -1: the end time must be a positive number."
+    )
+    with pytest.raises(ChaplyginError, match="pass resume=True to finish it or force=True to replace it"):
+        sweep("example:knife-edge", {"x'": [0.1, 0.2]}, t_end=1.0, out=held, backend="numpy", samples=3)
+    with pytest.raises(ChaplyginError, match="t_end = -1: the end time must be a positive number"):
+        sweep("example:knife-edge", {"x'": [0.1, 0.2]}, t_end=-1.0, out=tmp_path / "new", samples=3)
+
+
 @pytest.mark.parametrize(
     ("python", "command_line"),
     [

@@ -313,7 +313,7 @@ def test_resume_runs_only_the_missing_runs(client, tmp_path: Path) -> None:
     (out / ".part-000009.parquet.abc.tmp").write_bytes(b"a write cut short")  # a crash mid-write
 
     again = sweep(DISK, grid, t_end=2.0, out=tmp_path / "other", scheduler="serial", **FAST)
-    with pytest.raises(SweepOutputExists, match="pass --resume to finish it or --force"):
+    with pytest.raises(SweepOutputExists, match="pass resume=True to finish it or force=True"):
         sweep(DISK, grid, t_end=2.0, out=out, scheduler="serial", **FAST)
     with pytest.raises(SweepOutputExists, match="holds a different sweep .*t_end 2.0 there, 3.0 now"):
         sweep(DISK, grid, t_end=3.0, out=out, scheduler="serial", resume=True, **FAST)

@@ -35,6 +35,8 @@ CLI_OPTIONS = {
     "resume": "--resume",
     "force": "--force",
     "workers": "--workers",
+    "chunk_size": "--chunk-size",
+    "out": "--out",
     "scheduler": "--scheduler",
     "to": "--to",
     "prefix": "--prefix",

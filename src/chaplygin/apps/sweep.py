@@ -738,7 +738,7 @@ def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: 
     check_writable(directory, folder=True)  # (it, or the folder above that will hold it)
     if directory.exists() and not directory.is_dir():
         if not force:
-            raise SweepOutputExists(f"{directory} already exists (a file); pass --force to replace it.")
+            raise SweepOutputExists(f"{directory} already exists (a file); pass force=True to replace it.")
         directory.unlink()
     elif directory.is_dir() and any(p.name != LOCK_FILE for p in directory.iterdir()):
         if not (directory / META_FILE).is_file():
@@ -755,13 +755,13 @@ def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: 
             if differences:
                 raise SweepOutputExists(
                     f"{directory} holds a different sweep ({'; '.join(differences)}); resume it with "
-                    "the same settings, or give another --out (or --force to replace it)."
+                    "the same settings, or give another out= path (or force=True to replace it)."
                 )
             return "resume"
         if not force:
             raise SweepOutputExists(
-                f"{directory} already holds a chaplygin sweep; pass --resume to finish it or --force "
-                "to replace it."
+                f"{directory} already holds a chaplygin sweep; pass resume=True to finish it or "
+                "force=True to replace it."
             )
         return "replace"
     directory.mkdir(parents=True, exist_ok=True)
@@ -971,9 +971,9 @@ def _client(scheduler: Any, workers: int | None) -> tuple[Any, list[Any]]:
             client = distributed.Client(scheduler)  # timeout: dask's distributed.comm.timeouts.connect
         except (OSError, TimeoutError, ValueError) as exc:
             raise ChaplyginError(
-                f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc}); give the "
+                f"scheduler={scheduler!r}: cannot reach a Dask scheduler there ({exc}); give the "
                 "address the scheduler prints (tcp://HOST:8786), 'local' for a LocalCluster, 'serial' for "
-                "this process, or nothing."
+                "this process, or none."
             ) from None
         return client, [client]
     raise ChaplyginError(
@@ -1129,13 +1129,13 @@ def sweep(
         )
     t_end = float(t_end)
     if not (math.isfinite(t_end) and t_end > 0):
-        raise ChaplyginError(f"--t-end {t_end:g}: the end time must be a positive number.")
+        raise ChaplyginError(f"t_end = {t_end:g}: the end time must be a positive number.")
     if samples < 2:
-        raise ChaplyginError(f"--samples {samples}: at least 2 (the start and the end).")
+        raise ChaplyginError(f"samples = {samples}: at least 2 (the start and the end).")
     if chunk_size is not None and chunk_size < 1:
-        raise ChaplyginError(f"--chunk-size {chunk_size}: at least 1 run per task.")
+        raise ChaplyginError(f"chunk_size = {chunk_size}: at least 1 run per task.")
     if workers is not None and workers < 1:
-        raise ChaplyginError(f"--workers {workers}: at least 1.")
+        raise ChaplyginError(f"workers = {workers}: at least 1.")
     if resume and force:
         raise ChaplyginError(
             "resume and force exclude each other: resume keeps the runs there, force deletes them."
