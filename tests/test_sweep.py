@@ -122,7 +122,7 @@ def test_grid_names_are_checked(tmp_path: Path) -> None:
     )
     assert "follows from the constraints" in error({"y'": "0:1:2"})
     assert "also given a fixed value" in error({"m": "1:2:2"}, parameters={"m": 3})
-    assert "sweeps run on 'numba', 'numpy'" in error({"m": "1:2:2"}, backend="jax")
+    assert "sweeps run on 'auto', 'c', 'numba', 'numpy'" in error({"m": "1:2:2"}, backend="jax")
     assert not (tmp_path / "r").exists()  # nothing written for a refused sweep
 
 
@@ -313,7 +313,7 @@ def test_resume_runs_only_the_missing_runs(client, tmp_path: Path) -> None:
     (out / ".part-000009.parquet.abc.tmp").write_bytes(b"a write cut short")  # a crash mid-write
 
     again = sweep(DISK, grid, t_end=2.0, out=tmp_path / "other", scheduler="serial", **FAST)
-    with pytest.raises(SweepOutputExists, match="pass --resume to finish it or --force"):
+    with pytest.raises(SweepOutputExists, match="pass resume=True to finish it or force=True"):
         sweep(DISK, grid, t_end=2.0, out=out, scheduler="serial", **FAST)
     with pytest.raises(SweepOutputExists, match="holds a different sweep .*t_end 2.0 there, 3.0 now"):
         sweep(DISK, grid, t_end=3.0, out=out, scheduler="serial", resume=True, **FAST)
@@ -395,7 +395,7 @@ def test_command_line(client, tmp_path: Path) -> None:
     ]
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
-    assert done.stdout.startswith("chaplygin, t = 0 … 1: 4 runs: 4 run now; 0 failed;")
+    assert done.stdout.startswith("chaplygin [numpy], t = 0 … 1: 4 runs: 4 run now; 0 failed;")
     assert f" s on the Dask cluster at {client.scheduler.address} (" in done.stdout  # (N worker processes)
     table = read_results(out)
     assert table.column("grid.x'").to_pylist() == [0.5, 0.5, 1.0, 1.0]
@@ -520,7 +520,7 @@ def test_small_grids_run_in_this_process_by_default(tmp_path: Path, monkeypatch:
     ]
     done = runner.invoke(app, args)
     assert done.exit_code == 0, done.output
-    assert done.stdout.startswith("chaplygin, t = 0 … 1: 2 runs: 2 run now; 0 failed; ")
+    assert done.stdout.startswith("chaplygin [numpy], t = 0 … 1: 2 runs: 2 run now; 0 failed; ")
     assert " s in this process -> " in done.stdout
     again = runner.invoke(app, [*args, "--resume"])  # nothing to run: nowhere to say
     assert again.exit_code == 0 and "0 run now, 2 already there; 0 failed; " in again.stdout

@@ -99,7 +99,7 @@ def _require_family(system: System) -> None:
         raise ModelError(
             f"{system.name} has no Lindelöf equations or reduced vakonomic family ("
             + "; ".join(problems)
-            + "); compare the multiplier forms, model='chetaev' and model='vakonomic'."
+            + "); compare the multiplier forms instead, with models=['chetaev', 'vakonomic']."
         )
 
 

@@ -31,6 +31,7 @@ import typer
 from rich.console import Console
 from typer.core import TyperCommand, TyperGroup
 
+from chaplygin.apps._wording import cli_wording
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
 
@@ -288,7 +289,8 @@ def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str]) -> None
     failed = {label: tr for label, tr in runs.items() if not tr.success}
     for label, tr in failed.items():
         _stderr().print(
-            f"stopped early: {label}: {tr.message}; {where(label)} holds the run up to there.", markup=False
+            f"stopped early: {label}: {cli_wording(str(tr.message))}; {where(label)} holds the run up to there.",
+            markup=False,
         )
     if failed:
         raise typer.Exit(STOPPED_EARLY)
@@ -297,7 +299,8 @@ def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str]) -> None
 @contextmanager
 def _failures() -> Iterator[None]:
     """Turn errors into a message on stderr and exit status 1 (no traceback); warnings are
-    printed on stderr as ``warning: …`` lines, each once."""
+    printed on stderr as ``warning: …`` lines, each once; both in the command line's wording
+    (:func:`~chaplygin.apps._wording.cli_wording`: ``--model voronets``, not ``model='voronets'``)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -306,7 +309,7 @@ def _failures() -> Iterator[None]:
         finally:
             seen: set[str] = set()
             for w in caught:
-                text = str(w.message)
+                text = cli_wording(str(w.message))
                 if text not in seen:
                     seen.add(text)
                     _stderr().print(f"warning: {text}", markup=False)
@@ -322,7 +325,7 @@ def _errors() -> Iterator[None]:
         _stderr().print("interrupted: no output was left half-written.", markup=False)
         raise typer.Exit(130) from None
     except ChaplyginError as exc:
-        _stderr().print(f"error: {exc}", markup=False)
+        _stderr().print(f"error: {cli_wording(str(exc))}", markup=False)
         raise typer.Exit(1) from None
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
@@ -778,6 +781,8 @@ def check(
         loaded = _load(file)
         with _Steps(1, "checking"):
             doc, comparison = _checked(loaded.system)
+        if doc["comparison_unavailable"] is not None:
+            doc["comparison_unavailable"] = cli_wording(doc["comparison_unavailable"])
         if fmt is CheckFormat.json:
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
             return
@@ -1161,6 +1166,8 @@ def _write_comparison(comparison: Comparison, directory: Path) -> None:
 
 # ====================================================================== sweep
 class SweepBackend(str, Enum):
+    auto = "auto"
+    c = "c"
     numba = "numba"
     numpy = "numpy"
 
@@ -1213,11 +1220,12 @@ def sweep(
     ),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time of every run (from t = 0)."),
     out: Path = typer.Option(
-        ..., "--out", "-o", help="The results: a Parquet dataset directory, e.g. results.parquet."
+        ...,
+        "--out",
+        "-o",
+        help="The results: a Parquet dataset, a directory named NAME.parquet or NAME (no other suffix).",
     ),
-    model: str = typer.Option(
-        "chetaev", "--model", "-m", parser=_model_name, metavar="MODEL", help="The model to simulate."
-    ),
+    model: str | None = _model_option("simulate"),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(
         201,
@@ -1227,7 +1235,10 @@ def sweep(
         help="Samples per run, where the energy drift and the constraint residual are measured.",
     ),
     backend: SweepBackend = typer.Option(
-        SweepBackend.numba, "--backend", "-b", help="Generated-code backend of the runs."
+        SweepBackend.auto,
+        "--backend",
+        "-b",
+        help=BACKEND_HELP,
     ),
     constants: str | None = typer.Option(
         None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
@@ -1260,8 +1271,11 @@ def sweep(
     Small sweeps run in this process; long ones, or when asked (--scheduler, --workers), on Dask.
     The summary says where the runs ran.
     """
-    from chaplygin.apps.sweep import parse_grid
+    from chaplygin.apps.sweep import _out_problem, parse_grid
 
+    wrong = _out_problem(out)
+    if wrong is not None:
+        raise typer.BadParameter(f"{out}: {wrong}", param_hint="--out")
     axes: dict[str, Any] = {}
     for item in grid:
         try:
@@ -1283,9 +1297,11 @@ def sweep(
 
         _check_writable(out, folder=True)
 
-        label = model if form is Form.classic else f"{model}/{form.value}"
+        def named(name: str) -> str:
+            return name if form is Form.classic else f"{name}/{form.value}"
+
         try:
-            with _run_counter(f"sweeping {label} [{backend.value}]") as progress:
+            with _run_counter(f"sweeping {named(model or 'the true motion')} [{backend.value}]") as progress:
                 result = run_sweep(
                     file,
                     axes,
@@ -1305,6 +1321,7 @@ def sweep(
                     chunk_size=chunk_size,
                     progress=progress,
                     time_limit=_limit(time_limit),
+                    notice=lambda words: _stderr().print(words, markup=False),
                 )
         except KeyboardInterrupt:
             _stderr().print(
@@ -1313,14 +1330,15 @@ def sweep(
                 markup=False,
             )
             raise typer.Exit(130) from None
-        _emit(f"{label}, t = 0 … {t_end:g}: {result.summary()}")
+        auto = "auto: " if backend is SweepBackend.auto else ""
+        _emit(f"{named(result.model)} [{auto}{result.backend}], t = 0 … {t_end:g}: {result.summary()}")
         if result.failed:
             table = read_results(out, ["status", "message"]).to_pylist()
             first = [r for r in table if r["status"] != "success"][:3]
             _stderr().print(
                 f"stopped early: {result.failed} run{'s' if result.failed > 1 else ''} (status 'failed' "
                 f"in {out}, with the state reached), e.g.:\n"
-                + "\n".join(f"  run {r['run_id']}: {r['message']}" for r in first),
+                + "\n".join(f"  run {r['run_id']}: {cli_wording(r['message'])}" for r in first),
                 markup=False,
             )
             raise typer.Exit(STOPPED_EARLY)

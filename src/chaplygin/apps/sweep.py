@@ -82,7 +82,13 @@ __all__ = [
 ]
 
 SCHEMA = "chaplygin.apps.sweep/1"
-SWEEP_BACKENDS = ("numba", "numpy")
+#: what ``backend=`` accepts: "auto" (the default) is what :func:`chaplygin.numeric.simulate`
+#: runs: "c" where a C compiler is found, else "numpy" (:func:`~chaplygin.numeric.simulate.choose_backend`)
+SWEEP_BACKENDS = ("auto", "c", "numba", "numpy")
+#: what a backend compiles before the first run of a model, and about how long that takes when
+#: nothing is cached (2 busy cores: the C loop and a model's fill 1-2 s, numba's about 19 s);
+#: ``notice`` of :func:`sweep` is told so then, and not when the compiled model is cached
+FIRST_COMPILE = {"c": ("the C kernel", 2), "numba": ("numba's code", 20)}
 META_FILE = "_sweep.json"
 LOCK_FILE = "_sweep.lock"
 PART_PATTERN = re.compile(r"part-(\d{6,})\.parquet\Z")
@@ -98,7 +104,8 @@ EXTRA_HINT = "pip install 'chaplygin[sweep]' (dask[distributed] and pyarrow)"
 #: machine), which only work of this order can win back, and only with more than one core.
 AUTO_CLUSTER_SECONDS = 30.0
 
-#: columns every sweep has, after the inputs (``grid.*``, ``param.*``, ``initial.*``)
+#: columns every sweep has, after the inputs (``grid.*``, ``param.*``, ``initial.*``: every
+#: coordinate and every velocity, a dependent one as the constraints give it at the start)
 OUTCOME_COLUMNS = ("status", "message", "t_end", "t_reached")
 INVARIANT_COLUMNS = (
     "energy_initial",
@@ -410,7 +417,8 @@ class _Plan:
             "run_id",
             *(f"grid.{a.name}" for a in self.axes),
             *(f"param.{p}" for p in self.parameter_names),
-            *(f"initial.{q}" for q in self.initial_names),
+            *(f"initial.{q}" for q in self.coordinates),
+            *(f"initial.{q}'" for q in self.coordinates),
             *OUTCOME_COLUMNS,
             *(f"final.{q}" for q in self.coordinates),
             *(f"final.{q}'" for q in self.coordinates),
@@ -424,6 +432,7 @@ def _inputs(plan: _Plan, run_id: int) -> tuple[dict[str, Any], dict[str, float],
     row: dict[str, Any] = {"run_id": run_id}
     row.update({f"grid.{a.name}": v for a, v in zip(plan.axes, values)})
     row.update({f"param.{p}": params[p] for p in plan.parameter_names})
+    row.update({f"initial.{q}'": math.nan for q in plan.coordinates})  # a dependent one: from the run
     row.update({f"initial.{q}": initial[q] for q in plan.initial_names})
     return row, params, initial
 
@@ -467,6 +476,8 @@ def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
         if len(tr.t):
             outcome["t_reached"] = float(tr.t[-1])
             for q in plan.coordinates:
+                if q + "'" not in plan.initial_names:  # a dependent velocity, from the constraints
+                    row[f"initial.{q}'"] = float(tr.velocities[q + "'"][0])
                 outcome[f"final.{q}"] = float(tr.coordinates[q][-1])
                 outcome[f"final.{q}'"] = float(tr.velocities[q + "'"][-1])
             outcome["energy_initial"] = float(tr.energy[0])
@@ -727,7 +738,7 @@ def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: 
     check_writable(directory, folder=True)  # (it, or the folder above that will hold it)
     if directory.exists() and not directory.is_dir():
         if not force:
-            raise SweepOutputExists(f"{directory} already exists (a file); pass --force to replace it.")
+            raise SweepOutputExists(f"{directory} already exists (a file); pass force=True to replace it.")
         directory.unlink()
     elif directory.is_dir() and any(p.name != LOCK_FILE for p in directory.iterdir()):
         if not (directory / META_FILE).is_file():
@@ -744,13 +755,13 @@ def _prepare_output(directory: Path, meta: dict[str, Any], resume: bool, force: 
             if differences:
                 raise SweepOutputExists(
                     f"{directory} holds a different sweep ({'; '.join(differences)}); resume it with "
-                    "the same settings, or give another --out (or --force to replace it)."
+                    "the same settings, or give another out= path (or force=True to replace it)."
                 )
             return "resume"
         if not force:
             raise SweepOutputExists(
-                f"{directory} already holds a chaplygin sweep; pass --resume to finish it or --force "
-                "to replace it."
+                f"{directory} already holds a chaplygin sweep; pass resume=True to finish it or "
+                "force=True to replace it."
             )
         return "replace"
     directory.mkdir(parents=True, exist_ok=True)
@@ -822,6 +833,10 @@ class SweepResult:
         Where the runs of this call ran: ``"in this process"``, ``"on a LocalCluster of 2
         worker processes"``, ``"on the Dask cluster at tcp://…"``, or ``"3 in this process,
         then 97 on a LocalCluster …"``; ``""`` when nothing ran.
+    model : str
+        The model simulated (the true motion when none was asked for).
+    backend : str
+        The backend the runs used (``"c"`` or ``"numpy"`` for ``"auto"``).
     """
 
     path: Path
@@ -831,6 +846,8 @@ class SweepResult:
     failed: int
     seconds: float
     where: str = ""
+    model: str = ""
+    backend: str = ""
 
     def table(self, columns: Sequence[str] | None = None) -> pa.Table:
         """The rows (see :func:`read_results`)."""
@@ -954,9 +971,9 @@ def _client(scheduler: Any, workers: int | None) -> tuple[Any, list[Any]]:
             client = distributed.Client(scheduler)  # timeout: dask's distributed.comm.timeouts.connect
         except (OSError, TimeoutError, ValueError) as exc:
             raise ChaplyginError(
-                f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc}); give the "
+                f"scheduler={scheduler!r}: cannot reach a Dask scheduler there ({exc}); give the "
                 "address the scheduler prints (tcp://HOST:8786), 'local' for a LocalCluster, 'serial' for "
-                "this process, or nothing."
+                "this process, or none."
             ) from None
         return client, [client]
     raise ChaplyginError(
@@ -987,7 +1004,7 @@ def sweep(
     *,
     t_end: float,
     out: str | os.PathLike[str],
-    model: str = "chetaev",
+    model: str | None = None,
     form: str = "classic",
     parameters: Mapping[Any, float] | None = None,
     initial: Mapping[Any, float] | None = None,
@@ -995,7 +1012,7 @@ def sweep(
     workers: int | None = None,
     resume: bool = False,
     force: bool = False,
-    backend: str = "numba",
+    backend: str = "auto",
     samples: int = 201,
     rtol: float = 1e-10,
     atol: float = 1e-12,
@@ -1006,6 +1023,7 @@ def sweep(
     compact: bool = True,
     progress: Callable[[int, int], None] | None = None,
     time_limit: float | None = TIME_LIMIT,
+    notice: Callable[[str], None] | None = None,
 ) -> SweepResult:
     """Simulate ``model`` at every point of ``grid``; one row per run in a Parquet dataset.
 
@@ -1025,7 +1043,11 @@ def sweep(
         Every run goes from ``t = 0`` to ``t_end``.
     out : path
         The output directory (``results.parquet``).
-    model, form, constants :
+    model : str, optional
+        The model to simulate; default: the true motion, as the command line's ``simulate``
+        (:func:`chaplygin.models.registry.true_motion`: Chaplygin's equations for a Chaplygin
+        system, else Voronets').
+    form, constants :
         As for :func:`chaplygin.numeric.simulate`.
     parameters, initial : mapping, optional
         Fixed values over the file's (or example's) defaults; a ``System``
@@ -1048,9 +1070,11 @@ def sweep(
         refused, unless ``force``.
     force : bool
         Replace an existing sweep (or file) at ``out``.
-    backend : {"numba", "numpy"}
-        Generated code of each run: compiled (numba, fast, compiled once per
-        worker and cached on disk) or plain NumPy (no compile step).
+    backend : {"auto", "c", "numba", "numpy"}
+        Generated code of each run, as for :func:`chaplygin.numeric.simulate`: ``"auto"`` (the
+        default) is ``"c"`` (the model and the DOP853 loop in C, built in a second or two and
+        cached on disk) where a C compiler is found, else ``"numpy"`` (no compile step);
+        ``"numba"`` compiles for about 20 s the first time.  The sweep records the one chosen.
     samples : int
         Samples per run, over which the energy drift and the constraint
         residual are measured.
@@ -1075,6 +1099,10 @@ def sweep(
         row), and a sweep in this process whose first runs say that the rest would take longer
         (over the cores a LocalCluster would use) stops with a :class:`ChaplyginError` that gives
         the estimate; the runs done are kept (``resume=True`` goes on).
+    notice : callable(str), optional
+        Told, before the runs start, about a long first step: ``"compiling the C kernel for
+        NAME (first run, about 2 s; cached afterwards)"`` where the compiled model is not in
+        the disk cache yet (the command line prints it on stderr).
 
     Returns
     -------
@@ -1087,6 +1115,9 @@ def sweep(
         a missing optional dependency, or workers that cannot run chaplygin.
     """
     started = time.perf_counter()
+    wrong = _out_problem(out)
+    if wrong is not None:
+        raise ChaplyginError(f"out={os.fspath(out)!r}: {wrong}")
     _require("pyarrow.parquet")
     runner = _runner(scheduler, workers)
     if runner == "cluster":
@@ -1098,19 +1129,24 @@ def sweep(
         )
     t_end = float(t_end)
     if not (math.isfinite(t_end) and t_end > 0):
-        raise ChaplyginError(f"--t-end {t_end:g}: the end time must be a positive number.")
+        raise ChaplyginError(f"t_end = {t_end:g}: the end time must be a positive number.")
     if samples < 2:
-        raise ChaplyginError(f"--samples {samples}: at least 2 (the start and the end).")
+        raise ChaplyginError(f"samples = {samples}: at least 2 (the start and the end).")
     if chunk_size is not None and chunk_size < 1:
-        raise ChaplyginError(f"--chunk-size {chunk_size}: at least 1 run per task.")
+        raise ChaplyginError(f"chunk_size = {chunk_size}: at least 1 run per task.")
     if workers is not None and workers < 1:
-        raise ChaplyginError(f"--workers {workers}: at least 1.")
+        raise ChaplyginError(f"workers = {workers}: at least 1.")
     if resume and force:
         raise ChaplyginError(
             "resume and force exclude each other: resume keeps the runs there, force deletes them."
         )
 
+    from chaplygin.numeric.simulate import choose_backend
+
+    backend = choose_backend(backend)
     sys_, recipe, base_params, base_initial, label = _resolve(system, runner != "cluster")
+    if model is None:
+        model = registry.true_motion(sys_)  # as simulate on the command line
     params = {**_names(sys_, base_params, "parameters"), **_names(sys_, parameters, "parameters")}
     start = {**_names(sys_, base_initial, "initial"), **_names(sys_, initial, "initial")}
     axes = _axes(sys_, grid)
@@ -1130,8 +1166,8 @@ def sweep(
     missing += [q for q in initial_names if q not in start and q not in swept]
     if missing:
         raise ChaplyginError(
-            f"no value for {', '.join(missing)}: give each as --param/--initial (parameters=, initial=) "
-            "or sweep it with --grid."
+            f"no value for {', '.join(missing)}: give each a value (parameters=, initial=) "
+            "or sweep it (grid=)."
         )
     unknown = [q for q in start if q not in initial_names]
     if unknown:
@@ -1214,6 +1250,10 @@ def sweep(
             done[ids] = True
         todo = np.flatnonzero(~done)
         resumed = total - len(todo)
+        if notice is not None and len(todo):
+            words = _first_compile(sys_, plan)
+            if words is not None:
+                notice(words)
         report = (lambda n: progress(n, total)) if progress is not None else (lambda n: None)
         writer = _Writer(directory, _schema(plan, meta), flush_seconds, (parts[-1][0] + 1) if parts else 0)
         where = ""
@@ -1265,6 +1305,49 @@ def sweep(
         failed_before + writer.failed,
         time.perf_counter() - started,
         where,
+        model,
+        backend,
+    )
+
+
+def _first_compile(system: System, plan: _Plan) -> str | None:
+    """Words for a first compile of the sweep's model (:data:`FIRST_COMPILE`), or None: cached,
+    nothing to compile, or constants of each run's own (``"match"``)."""
+    if plan.backend not in FIRST_COMPILE:
+        return None
+    from chaplygin.numeric.codegen import is_compiled
+    from chaplygin.numeric.simulate import _vakonomic_setup
+
+    try:
+        constants, _ = _vakonomic_setup(system, plan.model, plan.constants, None)
+    except ChaplyginError:  # each run says what is wrong
+        return None
+    if isinstance(constants, str) or is_compiled(
+        system, plan.model, plan.form, plan.backend, constants=constants
+    ):
+        return None
+    what, seconds = FIRST_COMPILE[plan.backend]
+    return f"compiling {what} for {system.name} (first run, about {seconds} s; cached afterwards)"
+
+
+#: the names a sweep's output may have: a Parquet dataset is a folder, ``results.parquet`` or ``results``
+OUT_SUFFIXES = (".parquet", "")
+
+
+def _out_problem(out: str | os.PathLike[str]) -> str | None:
+    """Why ``out`` cannot hold a sweep, by its name (``x.csv`` says another format), or None.
+
+    A sweep writes a Parquet dataset, a folder: its name ends in ``.parquet`` or has no suffix
+    (:data:`OUT_SUFFIXES`); an existing folder of any name is taken as it is.
+    """
+    path = Path(out)
+    if path.suffix.lower() in OUT_SUFFIXES or path.is_dir():
+        return None
+    return (
+        f"a sweep writes a Parquet dataset (a folder of part files that survives a crash and can "
+        f"be resumed), not a {path.suffix} file; name it {path.stem}.parquet, or {path.stem} "
+        f"without a suffix; pandas.read_parquet('{path.stem}.parquet').to_csv('{path.name}') "
+        "then gives CSV."
     )
 
 
@@ -1334,7 +1417,7 @@ def _serial(
                     f"{plan.runs} runs: the {left} left would take about {duration(rest)} (at "
                     f"{sum(took[1:]) / (len(took) - 1):.3g} s a run{f' on {_cores()} cores' if watch else ''}), "
                     f"beyond the limit of {duration(limit)}; the {count} runs done are kept: pass "
-                    "time_limit=None (--time-limit 0) with resume=True (--resume) to finish, or sweep fewer points."
+                    "time_limit=None with resume=True to finish, or sweep fewer points."
                 )
             limit = None  # estimated once
         if watch and left and len(took) > 1 and sum(took[1:]) / (len(took) - 1) * left > AUTO_CLUSTER_SECONDS:

@@ -109,6 +109,11 @@ def _ensemble_columns(ens: Ensemble) -> dict[str, np.ndarray]:
     columns: dict[str, np.ndarray] = {
         f"param.{k}": np.asarray(v, dtype=float) for k, v in ens.parameters.items()
     }
+    if ens.y_initial is not None:
+        state = layout.state
+        columns.update({f"initial.{q}": ens.y_initial[:, state.index(q)] for q in layout.coordinates})
+        columns.update({f"initial.{q}'": ens.velocities_initial[q + "'"] for q in layout.coordinates})
+        columns.update({f"initial.{m}": ens.y_initial[:, state.index(m)] for m in layout.multipliers})
     columns["status"] = np.asarray(ens.status, dtype=object)
     columns["message"] = np.asarray(ens.messages, dtype=object)
     columns["t_reached"] = np.asarray(ens.t, dtype=float)

@@ -650,6 +650,34 @@ def compile_model(
     What is compiled is also stored on disk (:mod:`chaplygin.numeric._modelcache`), so another
     process that compiles the same model of an equal system loads it and derives nothing.
     """
+    key, numeric = _model_key(system, model, form, backend, constants, reduction)
+    found = _modelcache.load_model(key)
+    if found is None:
+        found = _compile_model(system, model, form, backend, constants, numeric)
+        _modelcache.store_model(key, found)
+    return found
+
+
+def is_compiled(
+    system: System,
+    model: str,
+    form: str = "classic",
+    backend: str = "numpy",
+    *,
+    constants: Any = None,
+    reduction: str = "auto",
+) -> bool:
+    """Whether :func:`compile_model` would load this model from the disk cache (derive and
+    compile nothing); False where the cache is off or cannot hold it."""
+    key, _ = _model_key(system, model, form, backend, constants, reduction)
+    return _modelcache.load_model(key) is not None
+
+
+def _model_key(
+    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
+) -> tuple[str | None, bool]:
+    """The disk-cache key of a compiled model (None: not cached), and whether it is the numeric
+    reduction; an unknown model, form, backend or reduction is refused here."""
     if reduction not in REDUCTIONS:
         raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
     entry = registry.get(model, form)  # refuses an unknown model or form before anything is looked up
@@ -661,12 +689,7 @@ def compile_model(
         and (reduction == "numeric" or (reduction == "auto" and system.n >= NUMERIC_REDUCTION_FROM))
     )
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
-    key = _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT)
-    found = _modelcache.load_model(key)
-    if found is None:
-        found = _compile_model(system, model, form, backend, constants, numeric)
-        _modelcache.store_model(key, found)
-    return found
+    return _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT), numeric
 
 
 def _compile_model(

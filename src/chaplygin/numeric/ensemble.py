@@ -87,6 +87,10 @@ class Ensemble:
     coordinates, velocities : dict of str → ndarray (N,)
         Every coordinate and every velocity (``"x'"``, dependent ones
         included) at :attr:`t`.
+    y_initial : ndarray, shape (N, len(layout.state)), or None
+        Each member's initial state (the multipliers of the vakonomic model included).
+    velocities_initial : dict of str → ndarray (N,)
+        Every velocity at the start, dependent ones included (from the constraints).
     energy, energy_initial : ndarray (N,)
         The monitored quantity at :attr:`t` and at the start: ``E = T − U``, or Jacobi's
         integral ``h = T₂ − T₀ − U`` where :attr:`energy_column` is ``"jacobi_integral"``
@@ -127,6 +131,8 @@ class Ensemble:
     t_pole: np.ndarray | None = None
     #: what :attr:`energy` holds: ``"energy"`` or ``"jacobi_integral"``
     energy_column: str = "energy"
+    y_initial: np.ndarray | None = None
+    velocities_initial: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -211,8 +217,10 @@ class Ensemble:
         """One row per member as a ``pandas.DataFrame`` indexed by ``run`` (0 … N−1).
 
         Columns named like a sweep's (:mod:`chaplygin.apps.sweep`): ``param.NAME`` (each member's
-        parameters), ``status``, ``message``, ``t_reached``, ``final.q`` and ``final.q'`` for
-        every coordinate (and ``final.mu_β`` of the vakonomic model), ``energy_initial``,
+        parameters), ``initial.q`` and ``initial.q'`` for every coordinate (the member's start,
+        dependent velocities included; and ``initial.mu_β`` of the vakonomic model), ``status``,
+        ``message``, ``t_reached``, ``final.q`` and ``final.q'`` likewise at the end (and
+        ``final.mu_β``), ``energy_initial``,
         ``energy_final``, ``energy_drift``, ``final.constraint_residual``,
         ``rhs_evaluations``; ``attrs``: ``model``, ``form``, ``backend``, ``members``,
         ``failed``, ``wall_time``.  The kept samples are in :meth:`to_xarray`.  Needs pandas
@@ -627,6 +635,7 @@ def simulate_ensemble(
 
     obs = res["observed"]
     velocities = obs[:, obs.shape[1] - n_coords :]
+    velocities0 = obs0[:, obs0.shape[1] - n_coords :]
     residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g else np.zeros(n)
     return Ensemble(
         model=layout.model,
@@ -648,6 +657,8 @@ def simulate_ensemble(
         wall_time=wall,
         parameters=param_columns,
         t_pole=res.get("t_pole", np.full(n, np.nan)),
+        y_initial=Y0,
+        velocities_initial={name + "'": velocities0[:, i] for i, name in enumerate(layout.coordinates)},
     )
 
 

@@ -756,10 +756,12 @@ ESTIMATE_AFTER = 0.5
 
 
 def duration(seconds: float) -> str:
-    """``42 s``, ``3 min 05 s``, ``2 h 07 min``, ``12 days``, ``more than a year``: a time, never
-    a number too long to read."""
+    """``0.25 s``, ``42 s``, ``3 min 05 s``, ``2 h 07 min``, ``12 days``, ``more than a year``: a
+    time, never a number too long to read (nor a limit of 0.01 s read as ``0 s``)."""
     if not seconds < 365 * 86400:  # (NaN too)
         return "more than a year"
+    if seconds < 0.95:
+        return f"{seconds:.2g} s"
     s = round(seconds)
     if s < 60:
         return f"{s} s"
@@ -770,12 +772,15 @@ def duration(seconds: float) -> str:
     return f"{s // 86400} days"
 
 
-def pace_check(total: float, limit: float, refusal: Callable[[str, str], str]) -> Callable[[float], None]:
+def pace_check(
+    total: float, limit: float, refusal: Callable[[str, str], str], instead: str
+) -> Callable[[float], None]:
     """A callback told the progress ``done`` of a run (a time reached, steps taken) towards
     ``total``: once, :data:`ESTIMATE_AFTER` seconds after its first call (counted from there, so
     that a compilation in the first stretch does not count), it estimates the time left from the
     pace so far and raises :class:`InputError` beyond ``limit`` seconds, with the message
-    ``refusal(estimate, pace)``; ``pace`` says how far the run went in how long."""
+    ``refusal(estimate, pace)``, the limit, and the advice ``instead`` (``"ask for a shorter
+    time"``) or how to lift the limit; ``pace`` says how far the run went in how long."""
     origin: list[float] = []  # (wall time, done) of the first call
     checked = [False]
 
@@ -795,14 +800,15 @@ def pace_check(total: float, limit: float, refusal: Callable[[str, str], str]) -
             pace = f"from {origin[1]:.4g} to {done:.4g} in {elapsed:.1f} s"
             raise InputError(
                 f"{refusal(duration(left), pace)}, beyond the limit of {duration(limit)}; "
-                f"{_NO_LIMIT} to run it anyway."
+                f"{instead}, or {_NO_LIMIT} to run it anyway."
             )
 
     return told
 
 
-#: how a refusal by :func:`pace_check` says that the limit can be lifted
-_NO_LIMIT = "pass time_limit=None (on the command line --time-limit 0)"
+#: how a refusal by :func:`pace_check` says that the limit can be lifted (the command line says
+#: ``--time-limit 0``: :mod:`chaplygin.apps._wording`)
+_NO_LIMIT = "pass time_limit=None"
 
 
 def _budget(progress: Progress | None, t1: float, limit: float | None) -> Progress | None:
@@ -814,9 +820,9 @@ def _budget(progress: Progress | None, t1: float, limit: float | None) -> Progre
         t1,
         limit,
         lambda left, pace: (
-            f"t_end = {t1:g}: too long to run: the time left is estimated at {left} "
-            f"(t {pace}); ask for a shorter time, or"
+            f"t_end = {t1:g}: too long to run: the time left is estimated at {left} (t {pace})"
         ),
+        "ask for a shorter time",
     )
 
     def told(t: float) -> None:
@@ -1445,8 +1451,8 @@ def _initial_multipliers(
         raise ChaplyginError(
             f"initial multipliers: for {system.name} μ(0) does not follow from constants c ("
             + "; ".join(problems)
-            + "); give multipliers=[μ(0), ...], or "
-            "constants='match' to start with μ(0) = 0."
+            + "); give constants='match' to start with μ(0) = 0 (or the initial multipliers "
+            "themselves, multipliers=[...])."
         )
     exprs = system.integrated_multipliers(c)
     return np.array([_evaluate(system, exprs[m].xreplace(system._to_sym), q, qd, params, t0) for m in names])

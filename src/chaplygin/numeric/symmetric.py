@@ -599,8 +599,9 @@ def _pace(stats: np.ndarray, total: int, h: float, limit: float) -> Any:
         limit,
         lambda left, pace: (
             f"step: {total:.3g} steps of h = {h:.3g}: too long to run: the time left is "
-            f"estimated at {left} (steps {pace}); ask for a shorter time or a larger step, or"
+            f"estimated at {left} (steps {pace})"
         ),
+        "ask for a shorter time or a larger step",
     )
 
     def watch() -> None:
