@@ -1148,7 +1148,7 @@ def compare(
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
     time_limit: float = _time_limit_option(),
 ) -> None:
-    """Simulate several models from one initial state: summary table, trajectories and figures.
+    """Simulate several models from one initial state: a summary table; with --out, trajectories and figures.
 
     The constants go to the vakonomic models only; two names of one motion are noted. A reduced
     model whose solved constraints have a pole on the path is replaced by the same motion with
