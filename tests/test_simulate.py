@@ -222,7 +222,11 @@ KNIFE_P = {"m": 1.0, "J": 0.5}
         ("vakonomic", {"multipliers": [0.1], "constants": [0.2]}, r"give one of them"),
         ("vakonomic", {"constants": "foo"}, r"constants = 'foo': give c_β .*'match'"),
         ("vakonomic_family", {"constants": ["foo"]}, r"constants\[0\] = 'foo' is not a number"),
-        ("vakonomic_family", {"constants": {"c_2": 1.0}}, r"constants: unknown key 'c_2'; use c_1"),
+        (
+            "vakonomic_family",
+            {"constants": {"c_2": 1.0}},
+            r"constants: unknown key 'c_2'; the keys are 'c_1'",
+        ),
         ("vakonomic_family", {"multipliers": [0.5]}, r"takes the constants c_β .*not μ\(0\)"),
     ],
 )

@@ -16,6 +16,7 @@ previous file intact.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import time
@@ -283,13 +284,16 @@ def _duration(seconds: float) -> str:
 STOPPED_EARLY = 3
 
 
-def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str]) -> None:
+def _stopped_early(runs: Mapping[str, Any], where: Callable[[str], str | None]) -> None:
     """Exit with :data:`STOPPED_EARLY` if any of ``runs`` (label → trajectory) did not succeed,
-    saying on stderr, for each, why and that ``where(label)`` holds it up to there."""
+    saying on stderr, for each, why and that ``where(label)`` holds it up to there (where it is
+    not None: a file was written)."""
     failed = {label: tr for label, tr in runs.items() if not tr.success}
     for label, tr in failed.items():
+        held = where(label)
         _stderr().print(
-            f"stopped early: {label}: {cli_wording(str(tr.message))}; {where(label)} holds the run up to there.",
+            f"stopped early: {label}: {cli_wording(str(tr.message))}"
+            + (f"; {held} holds the run up to there." if held is not None else "."),
             markup=False,
         )
     if failed:
@@ -838,17 +842,75 @@ def _model_spec(text: str) -> tuple[str, str]:
     return name, form
 
 
+#: what ``--constants`` takes, in the command line's own words
+CONSTANTS_SYNTAX = (
+    "give match (μ(0) = 0: the vakonomic motion starts with the accelerations of the true one), "
+    "zero (every c_β = 0), or one number per constraint, by name (c_1=0.5,c_2=-1) or in order (0.5,-1)"
+)
+CONSTANTS_HELP = (
+    "Vakonomic models: the constants c_β, the momenta of the dependent coordinates: match (μ(0) = 0), "
+    "zero, or numbers by name (c_1=0.5,c_2=-1) or in order (0.5,-1)."
+)
+
+
 def _constants(text: str | None) -> Any:
+    """``--constants`` as written: ``"match"``, ``"zero"``, numbers in order (a list) or by name
+    (a dict); anything else is a :class:`typer.BadParameter` in the command line's syntax."""
     if text is None:
         return None
-    if text.strip() == "match":
-        return "match"
-    try:
-        return [float(c) for c in text.split(",")]
-    except ValueError:
+    if text.strip() in ("match", "zero"):
+        return text.strip()
+    items = [item.strip() for item in text.split(",")]
+    named = ["=" in item for item in items]
+    if any(named) and not all(named):
         raise typer.BadParameter(
-            f"{text!r}: expected numbers separated by commas, or 'match'.", param_hint="--constants"
-        ) from None
+            f"{text!r}: give every constant by name or none; {CONSTANTS_SYNTAX}.", param_hint="--constants"
+        )
+    values: dict[str, float] = {}
+    for k, item in enumerate(items, 1):
+        name, _, value = item.rpartition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not math.isfinite(number) or (named[0] and not name.strip()):
+            raise typer.BadParameter(
+                f"{item!r} is not {'NAME=NUMBER' if named[0] else 'a finite number'}; {CONSTANTS_SYNTAX}.",
+                param_hint="--constants",
+            )
+        key = name.strip() if named[0] else str(k)
+        if key in values:
+            raise typer.BadParameter(f"{key} is given twice; {CONSTANTS_SYNTAX}.", param_hint="--constants")
+        values[key] = number
+    return values if named[0] else list(values.values())
+
+
+def _check_constants(c: Any, system: Any) -> None:
+    """``--constants`` (from :func:`_constants`) against ``system``: one value per constraint,
+    names among its constants; else a :class:`typer.BadParameter` naming them."""
+    from chaplygin.models.vakonomic import constant_symbols
+
+    if c is None or isinstance(c, str):
+        return
+    names = [x.name for x in constant_symbols(system)]
+    plural = "s" if len(names) > 1 else ""
+    accepted = (
+        f"give match, zero, or {','.join(f'{name}=NUMBER' for name in names)} "
+        f"(or {len(names)} number{plural} in order)"
+    )
+    what = f"{system.name} has {len(names)} constraint{plural}, so {len(names)} constant{plural} c_β"
+    if isinstance(c, dict):
+        unknown = [key for key in c if key not in names]
+        missing = [name for name in names if name not in c]
+        if unknown or missing:
+            problem = f"no constant {unknown[0]}" if unknown else f"no value for {', '.join(missing)}"
+            raise typer.BadParameter(
+                f"{problem}: {what} ({', '.join(names)}); {accepted}.", param_hint="--constants"
+            )
+    elif len(c) != len(names):
+        raise typer.BadParameter(
+            f"{len(c)} number{'s' if len(c) > 1 else ''} given: {what}; {accepted}.", param_hint="--constants"
+        )
 
 
 def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
@@ -870,9 +932,7 @@ def simulate(
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
-    constants: str | None = typer.Option(
-        None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
-    ),
+    constants: str | None = typer.Option(None, "--constants", help=CONSTANTS_HELP),
     param: list[str] | None = _param_option(),
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),
@@ -946,6 +1006,7 @@ def simulate(
                 loaded = _load(file)
                 params, start = _numbers(loaded, param, initial)
                 system = loaded.system
+                _check_constants(c, system)
                 model = model or registry.true_motion(system)
                 if not registry.get(model).constants:  # (the family is derived with its constants)
                     system.equations(model, form.value)
@@ -1064,12 +1125,20 @@ def _print_comparison(comparison: Comparison) -> None:
 def compare(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     t_end: float = typer.Option(..., "--t-end", "-t", help="End time (the runs start at t = 0)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output directory (created if missing)."),
+    out: Path | None = typer.Option(
+        None,
+        "--out",
+        "-o",
+        help="Output directory (created if missing) for the summary, one CSV per model and the figures; without it only the table is printed.",
+    ),
     models: str | None = typer.Option(
         None,
         "--models",
         "-m",
-        help="Comma-separated models (model or model/form), the reference first; default: the true motion and Lindelöf's.",
+        help="Comma-separated models (model or model/form), the reference first; default: the true motion, the vakonomic motion from the same state and, on a Chaplygin system, Lindelöf's.",
+    ),
+    constants: str | None = typer.Option(
+        None, "--constants", help=CONSTANTS_HELP.replace("match (μ(0) = 0)", "match (the default: μ(0) = 0)")
     ),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
@@ -1083,31 +1152,51 @@ def compare(
     atol: float = typer.Option(1e-12, "--atol", help="Absolute tolerance of the integrator (positive)."),
     time_limit: float = _time_limit_option(),
 ) -> None:
-    """Simulate several models from one initial state: summary table, trajectories and figures.
+    """Simulate several models from one initial state: a summary table; with --out, trajectories and figures.
 
-    A reduced model whose solved constraints have a pole on the path is replaced by the
-    same motion with multipliers (chetaev; vakonomic for the family), with a warning and a note.
+    The constants go to the vakonomic models only; two names of one motion are noted. A reduced
+    model whose solved constraints have a pole on the path is replaced by the same motion with
+    multipliers (chetaev; vakonomic for the family), with a warning and a note.
     """
     specs = [_model_spec(m) for m in models.split(",")] if models else None
+    c = _constants(constants)
     rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
     _overrides(param, "--param"), _overrides(initial, "--initial")
     with _failures():
-        if out.exists() and not out.is_dir():
+        if out is not None and out.exists() and not out.is_dir():
             raise OutputExists(f"{out} exists and is not a directory.")
-        _check_writable(out, folder=True)
+        if out is not None:
+            _check_writable(out, folder=True)
         loaded = _load(file)
         params, start = _numbers(loaded, param, initial)
         system = loaded.system
-        from chaplygin.apps.report import default_models
-        from chaplygin.numeric.comparison import Comparison, _default_path
+        from chaplygin.numeric.comparison import (
+            Comparison,
+            _default_path,
+            _takes_constants,
+            default_models,
+            motion_notes,
+        )
         from chaplygin.numeric.comparison import compare as run_compare
 
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else default_models(system)
-        _refuse_existing(
-            _comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None), force
-        )
-        with _Steps(len(chosen) + 2, "comparing") as steps:
-            runs, notes = {}, []
+        vakonomic = [label for label in chosen if _takes_constants(label.partition("/")[0])]
+        if c is not None and not vakonomic:
+            raise typer.BadParameter(
+                f"none of the models {','.join(chosen)} takes constants; they are for the vakonomic "
+                "models vakonomic and vakonomic_family (lindelof is the one with every c_β = 0).",
+                param_hint="--constants",
+            )
+        _check_constants(c, system)
+        c = "match" if c is None else c
+        if out is not None:
+            _refuse_existing(
+                _comparison_outputs(out, chosen, figure_format.value, _default_path(system) is not None),
+                force,
+            )
+        notes = motion_notes(system, chosen, t_end, start, params, constants=c)
+        with _Steps(len(chosen) + (2 if out is not None else 0), "comparing") as steps:
+            runs = {}
             for label in chosen:
                 steps.step(f"simulating {label}")
                 with warnings.catch_warnings(record=True) as caught:
@@ -1124,6 +1213,7 @@ def compare(
                         atol=atol,
                         progress=steps.clock(f"simulating {label}", 0.0, t_end),
                         time_limit=_limit(time_limit),
+                        constants=c if label in vakonomic else None,
                     )
                 # the note of a run that stopped early (a pole, no multiplier form) is printed with
                 # the summary and in its 'stopped early:' line, not a third time as a warning; a
@@ -1133,14 +1223,18 @@ def compare(
                     if not (stopped and str(w.message) in part.notes):
                         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
                 runs.update(part.trajectories)
-                notes += part.notes
+                notes += [note for note in part.notes if note not in notes]
             comparison = Comparison(system.name, runs, chosen[0], part.path, notes)
-            steps.step("writing trajectories and summary")
-            created = _created(out / "summary.txt")
-            _write_comparison(comparison, out)
-            steps.step("drawing figures")
-            written = comparison.save_figures(out, fmt=figure_format.value)
+            if out is not None:
+                steps.step("writing trajectories and summary")
+                created = _created(out / "summary.txt")
+                _write_comparison(comparison, out)
+                steps.step("drawing figures")
+                written = comparison.save_figures(out, fmt=figure_format.value)
         _print_comparison(comparison)
+        if out is None:
+            _stopped_early(runs, lambda label: None)
+            return
         _emit(
             f"wrote {out}/: summary.txt, summary.json, "
             + ", ".join(f"{_safe(k)}.csv" for k in runs)
@@ -1240,9 +1334,7 @@ def sweep(
         "-b",
         help=BACKEND_HELP,
     ),
-    constants: str | None = typer.Option(
-        None, "--constants", help="Vakonomic models: c_1,c_2,… (or 'match' for model vakonomic)."
-    ),
+    constants: str | None = typer.Option(None, "--constants", help=CONSTANTS_HELP),
     param: list[str] | None = _param_option("Fix"),
     initial: list[str] | None = _initial_option("Fix"),
     scheduler: str | None = typer.Option(

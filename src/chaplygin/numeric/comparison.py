@@ -13,6 +13,12 @@ the path (a knife edge whose ``ẏ = tan φ ẋ`` meets φ = π/2) its run stops
 there.  :func:`compare` then warns and simulates the multiplier form of the same
 motion (``chetaev``; ``vakonomic`` for the family), which has no such pole, under
 the same label; :attr:`Comparison.notes` says so.
+
+By default (:func:`default_models`) it compares the paper's pair: the true motion with the
+vakonomic motion from the same state (μ(0) = 0, ``constants="match"``), and with Lindelöf's
+where it exists (a Chaplygin system).  The constants ``c_β`` go to the vakonomic models only,
+and two names of one motion (``voronets`` and ``chetaev``, a model and another form of it) are
+compared only with a note that their distance is integration error.
 """
 
 from __future__ import annotations
@@ -27,14 +33,21 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, ChaplyginWarning
 from chaplygin.models import registry
-from chaplygin.numeric.simulate import TIME_LIMIT, Trajectory, _atomic_write, simulate
+from chaplygin.numeric.simulate import (
+    TIME_LIMIT,
+    Trajectory,
+    _atomic_write,
+    simulate,
+    time_span,
+    vakonomic_constants,
+)
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from chaplygin.core.system import System
 
-__all__ = ["Comparison", "coincide", "compare"]
+__all__ = ["Comparison", "coincide", "compare", "default_models", "motion_notes"]
 
 FIGURES = ("paths", "coordinates", "invariants")
 #: line style and marker of each model, in order: models whose curves coincide stay visible (the
@@ -301,9 +314,86 @@ def _default_path(system: System) -> tuple[str, str] | None:
     return (dep[0], dep[1]) if len(dep) >= 2 else None
 
 
-def compare(
+def default_models(system: System) -> list[str]:
+    """The paper's comparison: the true motion (Chaplygin's equations, else Voronets'), the
+    vakonomic motion from the same state, and Lindelöf's equations where they exist."""
+    models = [registry.true_motion(system), "vakonomic"]
+    return [*models, "lindelof"] if registry.MODELS["lindelof"].obstruction(system) is None else models
+
+
+def _takes_constants(name: str) -> bool:
+    entry = registry.get(name)
+    return entry.constants or entry.multipliers_in_state
+
+
+def _numbers(values: Sequence[float]) -> str:
+    return ", ".join(f"c_{k} = {x:.6g}" for k, x in enumerate(values, 1))
+
+
+def motion_notes(
     system: System,
     models: Sequence[str | tuple[str, str]],
+    t_span: tuple[float, float] | float,
+    initial: Mapping[Any, float],
+    parameters: Mapping[Any, float] | None = None,
+    *,
+    constants: Any = "match",
+    multipliers: Any = None,
+) -> list[str]:
+    """What a reader of a comparison of ``models`` must know about the motions themselves.
+
+    The constants c_β of the vakonomic models (what ``constants`` or ``multipliers`` give them,
+    as numbers), and every set of two or more names of one motion: the true motion under any of
+    its names and forms, or the vakonomic motion with the same constants (Lindelöf's is the one
+    with every c_β = 0) — their distance in the table is integration error, not a difference of
+    models.
+    """
+    labels = {_parse(m)[2]: _parse(m)[0] for m in models}
+    motions: dict[str, list[str]] = {}
+    notes: list[str] = []
+    c: list[float] | None = None
+    if any(_takes_constants(name) for name in labels.values()):
+        c = vakonomic_constants(system, constants, multipliers, initial, parameters, time_span(t_span)[0])
+        what = (
+            "from the given μ(0)"
+            if multipliers is not None
+            else "'match': μ(0) = 0, so it starts with the accelerations of the true motion"
+            if isinstance(constants, str) and constants == "match"
+            else "'zero'"
+            if constants is None or (isinstance(constants, str) and constants == "zero")
+            else "given"
+        )
+        dependent = ", ".join(q.func.__name__ for q in system.dependent)
+        kept = (
+            "conserved along the motion"
+            if not registry.family_obstructions(system)
+            else f"not conserved on {system.name}: these are their values at t = {time_span(t_span)[0]:g}"
+        )
+        taking = [label for label, name in labels.items() if _takes_constants(name)]
+        notes.append(
+            f"{', '.join(taking)}: {_numbers(c)} ({what}); c_β are the momenta ∂L_v/∂q̇ of the "
+            f"dependent coordinates {dependent}, {kept}"
+        )
+    for label, name in labels.items():
+        if registry.get(name).is_true_motion:
+            motion = "the true motion"
+        elif name == "lindelof" or (c is not None and np.allclose(c, 0.0, rtol=0.0, atol=1e-12)):
+            motion = "the vakonomic motion with every c_β = 0"
+        else:
+            motion = "the vakonomic motion with these constants"
+        motions.setdefault(motion, []).append(label)
+    for motion, same in motions.items():
+        if len(same) > 1:
+            notes.append(
+                f"{' and '.join([', '.join(same[:-1]), same[-1]])} are the same motion ({motion}): "
+                "their distance in the table is integration error, not a difference of models"
+            )
+    return notes
+
+
+def compare(
+    system: System,
+    models: Sequence[str | tuple[str, str]] | None,
     t_span: tuple[float, float] | float,
     initial: Mapping[Any, float],
     parameters: Mapping[Any, float] | None = None,
@@ -327,9 +417,11 @@ def compare(
     Parameters
     ----------
     system : System
-    models : sequence
+    models : sequence or None
         Model names, optionally with a form: ``["chaplygin", "lindelof/new"]``
-        or ``[("chaplygin", "new")]``.  The first is the reference.
+        or ``[("chaplygin", "new")]``.  The first is the reference.  None: the paper's
+        comparison (:func:`default_models`): the true motion, the vakonomic motion from the
+        same state and, on a Chaplygin system, Lindelöf's.
     t_span, initial, parameters
         As for :func:`chaplygin.numeric.simulate`.
         A reduced model whose solved constraints have a pole on the path is
@@ -340,9 +432,22 @@ def compare(
     path : (str, str), optional
         The coordinates whose paths are compared and drawn; by default ``x, y``
         when the system has them, else its first two dependent coordinates.
-    rtol, atol, method, samples, backend, constants, multipliers, max_step, step, reduction, progress, time_limit
+    constants : "match", "zero", sequence or mapping, optional
+        The constants c_β of the vakonomic models (``vakonomic``, ``vakonomic_family``), the
+        momenta ``∂L_v/∂q̇_{ε+β}`` of the dependent coordinates at the start: ``"match"`` (the
+        default: μ(0) = 0, so that the vakonomic motion starts with the accelerations of the
+        true one), ``"zero"`` (every c_β = 0: on a Chaplygin system, Lindelöf's motion), or one
+        number per constraint (``[0.5, 1.0]``, ``{"c_1": 0.5, "c_2": 1.0}``).  On a Chaplygin
+        system without forces along the dependent coordinates they are constant; elsewhere
+        they fix the start only.  The other models take none.
+    multipliers : sequence or mapping, optional
+        μ(0) of the model ``vakonomic`` instead of the constants.
+    rtol, atol, method, samples, backend, max_step, step, reduction, progress, time_limit
         Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them);
         ``progress(t)`` hears each model's integration in turn.
+
+    :attr:`Comparison.notes` gives the constants used (as numbers), and says which labels are
+    names of one motion (:func:`motion_notes`).
     """
     options: dict[str, Any] = {
         "rtol": rtol,
@@ -350,24 +455,34 @@ def compare(
         "method": method,
         "samples": samples,
         "backend": backend,
-        "constants": constants,
-        "multipliers": multipliers,
         "max_step": max_step,
         "step": step,
         "reduction": reduction,
         "progress": progress,
         "time_limit": time_limit,
     }
+    models = default_models(system) if models is None else models
     if not models:
         raise ChaplyginError("models: name at least one model.")
     names = [q.func.__name__ for q in system.coordinates]
     if path is not None and any(c not in names for c in path):
         raise ChaplyginError(f"path: {path} are not both coordinates of {system.name} ({', '.join(names)}).")
+    parsed = [_parse(model) for model in models]
+    for name, form, _ in parsed:
+        registry.get(name, form)
+    given = constants is not None or multipliers is not None
+    if given and not any(_takes_constants(name) for name, _, _ in parsed):
+        raise ChaplyginError(
+            f"constants/multipliers: none of the models {', '.join(label for _, _, label in parsed)} "
+            "takes them; they are for the vakonomic models 'vakonomic' and 'vakonomic_family' "
+            "(Lindelöf's equations are the member with every c_β = 0)."
+        )
+    vakonomic = {"constants": "match" if not given else constants, "multipliers": multipliers}
+    notes = motion_notes(system, models, t_span, initial, parameters, **vakonomic)
     trajectories: dict[str, Trajectory] = {}
-    notes: list[str] = []
-    for model in models:
-        name, form, label = _parse(model)
-        tr = simulate(system, name, t_span, initial, parameters, form=form, **options)
+    for name, form, label in parsed:
+        own = {**options, **vakonomic} if _takes_constants(name) else options
+        tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
         if tr.failure == "pole":
             fallback = registry.get(name).fallback
             if fallback is None:
@@ -379,7 +494,7 @@ def compare(
                     f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
                     f"shown instead: the {fallback} model (the same motion with multipliers, no pole)"
                 )
-                tr = simulate(system, fallback, t_span, initial, parameters, **options)
+                tr = simulate(system, fallback, t_span, initial, parameters, **own)
             warnings.warn(note, ChaplyginWarning, stacklevel=2)
             notes.append(note)
         trajectories[label] = tr

@@ -425,12 +425,22 @@ def _multipliers(
 
     simulate's one-state path, for the first member, checks the request (and its μ(0) is every
     member's when μ(0) is given or ``constants="match"``); from constants c, ``μ = c − ∂T/∂q̇_dep``
-    is evaluated for all members at once.
+    is evaluated for all members at once (one member after another where the family's
+    integral does not apply: there c fixes the momenta at the start only).
     """
     first = _initial_multipliers(system, vak, Q[0], QD[0], {k: float(v[0]) for k, v in params.items()}, t0)
     c = vak.get("constants")
     if "mu" in vak or (isinstance(c, str) and c == "match"):
         return np.tile(first, (len(Q), 1))  # the same for every member
+    if registry.family_obstructions(system):
+        return np.array(
+            [
+                _initial_multipliers(
+                    system, vak, Q[k], QD[k], {name: float(v[k]) for name, v in params.items()}, t0
+                )
+                for k in range(len(Q))
+            ]
+        )
     exprs = system.integrated_multipliers(c)
     names = system.equations("vakonomic").multipliers
     return _evaluate_all(system, [exprs[m].xreplace(system._to_sym) for m in names], Q, QD, params, t0)

@@ -58,6 +58,7 @@ __all__ = [
     "choose_backend",
     "duration",
     "simulate",
+    "vakonomic_constants",
 ]
 
 #: chaplygin.numeric.symmetric.METHODS (the tests check that they agree; not imported: it compiles)
@@ -649,7 +650,8 @@ def _vakonomic_setup(
 ) -> tuple[Any, dict[str, Any] | None]:
     """Constants of the family, or the initial multipliers of the multiplier form, checked: each
     a finite number, one per constraint (a sequence, a mapping, or a number where g = 1), or
-    ``constants="match"``; anything else is refused with an :class:`InputError`."""
+    ``constants="match"`` (:data:`MATCH`) or ``"zero"`` (every c_β = 0, as ``None``); anything
+    else is refused with an :class:`InputError`."""
     entry = registry.get(model)
     if not (entry.constants or entry.multipliers_in_state):
         if constants is not None or multipliers is not None:
@@ -675,7 +677,7 @@ def _vakonomic_setup(
         return None, {"mu": _vakonomic_numbers(system, multipliers, "multipliers", "μ(0)")}
     if isinstance(constants, str) and constants == "match":
         c: Any = "match"
-    elif constants is None:
+    elif constants is None or (isinstance(constants, str) and constants == "zero"):
         c = [0.0] * system.g
     else:
         c = _constant_values(system, _vakonomic_numbers(system, constants, "constants", "c_β"))
@@ -689,7 +691,9 @@ def _vakonomic_numbers(system: System, value: Any, what: str, symbol: str) -> li
 
     g = system.g
     accepted = f"one finite number per constraint ({g}) as a sequence or a mapping by name" + (
-        ", 'match', or None (every c_β = 0)" if what == "constants" else ""
+        f" ({_constant_example(system)}), 'match' (μ(0) = 0) or 'zero' (every c_β = 0)"
+        if what == "constants"
+        else ""
     )
     if isinstance(value, Mapping):
         return {key: _finite(x, f"{what}: {key}", "a finite number") for key, x in value.items()}
@@ -707,6 +711,13 @@ def _vakonomic_numbers(system: System, value: Any, what: str, symbol: str) -> li
     return [_finite(x, f"{what}[{k}]", "a finite number") for k, x in enumerate(values)]
 
 
+def _constant_example(system: System) -> str:
+    """``{'c_1': …, 'c_2': …}``: the Python form of the constants of ``system`` by name."""
+    from chaplygin.models.vakonomic import constant_symbols
+
+    return "{" + ", ".join(f"{c.name!r}: …" for c in constant_symbols(system)) + "}"
+
+
 def _constant_values(system: System, given: list[float] | dict[Any, float]) -> list[float]:
     """The constants c_β in order, from :func:`_vakonomic_numbers` (a mapping by name or 1 … g)."""
     if isinstance(given, list):
@@ -718,11 +729,18 @@ def _constant_values(system: System, given: list[float] | dict[Any, float]) -> l
     for key, value in given.items():
         k = key - 1 if isinstance(key, int) else names.index(str(key)) if str(key) in names else -1
         if not 0 <= k < system.g:
-            raise InputError(f"constants: unknown key {key!r}; use {', '.join(names)} or 1 … {system.g}.")
+            raise InputError(
+                f"constants: unknown key {key!r}; the keys are {', '.join(map(repr, names))} "
+                f"(or 1 … {system.g}), e.g. constants={_constant_example(system)}; or give "
+                "constants='match' or 'zero'."
+            )
         out[k] = value
     missing = [name for name, value in zip(names, out) if value is None]
     if missing:
-        raise InputError(f"constants: no value for {', '.join(missing)}; give every c_β a number.")
+        raise InputError(
+            f"constants: no value for {', '.join(missing)}; give every c_β a number, e.g. "
+            f"constants={_constant_example(system)}."
+        )
     return [float(x) for x in out if x is not None]
 
 
@@ -1444,18 +1462,69 @@ def _initial_multipliers(
     c = vak["constants"]
     if isinstance(c, str) and c == "match":
         return np.zeros(system.g)  # μ(0) = 0: vakonomic momenta equal the true ones
-    from chaplygin.models.vakonomic import family_obstructions
+    return _multipliers_from_constants(system, np.asarray(c, dtype=float), q, qd, params, t0)
 
-    problems = family_obstructions(system)
-    if problems:
-        raise ChaplyginError(
-            f"initial multipliers: for {system.name} μ(0) does not follow from constants c ("
-            + "; ".join(problems)
-            + "); give constants='match' to start with μ(0) = 0 (or the initial multipliers "
-            "themselves, multipliers=[...])."
+
+def _momenta(
+    system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``∂T/∂q̇_dep`` and the columns ``A_dep`` of the dependent velocities in the constraints
+    at a state: the vakonomic momenta of the dependent coordinates are
+    ``∂L_v/∂q̇_dep = ∂T/∂q̇_dep + A_depᵀ μ``."""
+    p = np.array(_matching_constants(system, q, qd, params, t0), dtype=float)
+    a = _numeric(system, system._constraint_matrix(), q, qd, params, t0)
+    return p, a[:, list(system._dep)]
+
+
+def _multipliers_from_constants(
+    system: System, c: np.ndarray, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+) -> np.ndarray:
+    """μ(0) from the constants c: ``A_depᵀ μ = c − ∂T/∂q̇_dep`` at t0 (eqs. (19)-(20) with c kept).
+
+    c_β are the momenta ``∂L_v/∂q̇_{ε+β}`` of the dependent coordinates at the start; on a
+    Chaplygin system without forces along the dependent coordinates they stay constant (the
+    integral of (18b)), on any other system they are their values at t0.
+    """
+    p, a_dep = _momenta(system, q, qd, params, t0)
+    try:
+        mu = np.linalg.solve(a_dep.T, c - p)
+    except np.linalg.LinAlgError:
+        mu = np.full(system.g, np.nan)
+    if not np.all(np.isfinite(mu)):
+        raise InputError(
+            "initial multipliers: the constraints cannot be solved for the dependent velocities at "
+            "the initial state, so μ(0) does not follow from the constants; start elsewhere or "
+            "give multipliers=[μ(0), ...]."
         )
-    exprs = system.integrated_multipliers(c)
-    return np.array([_evaluate(system, exprs[m].xreplace(system._to_sym), q, qd, params, t0) for m in names])
+    return mu
+
+
+def vakonomic_constants(
+    system: System,
+    constants: Any,
+    multipliers: Any,
+    initial: Mapping[Any, float],
+    parameters: Mapping[Any, float] | None = None,
+    t0: float = 0.0,
+) -> list[float]:
+    """The constants c_β of the vakonomic motion that ``constants`` or ``multipliers`` ask for,
+    as numbers: the momenta ``∂L_v/∂q̇_{ε+β} = ∂T/∂q̇_{ε+β} + Σ_α A_α,ε+β μ_α`` of the dependent
+    coordinates at ``t0``.
+
+    ``constants="match"`` gives ``c_β = ∂T/∂q̇_{ε+β}`` (μ(0) = 0: the vakonomic motion starts
+    with the accelerations of the true one), ``"zero"`` or None every ``c_β = 0`` (Lindelöf's
+    motion on a Chaplygin system), values themselves; ``multipliers`` (μ(0)) the c they give.
+    Checked as by :func:`simulate`.
+    """
+    _, vak = _vakonomic_setup(system, "vakonomic", constants, multipliers)
+    assert vak is not None
+    params = _parameters(system, parameters)
+    q, qd = initial_state(system, initial, params, t0)
+    p, a_dep = _momenta(system, q, qd, params, t0)
+    if "mu" in vak:
+        return [float(x) for x in p + a_dep.T @ _initial_multipliers(system, vak, q, qd, params, t0)]
+    c = vak["constants"]
+    return [float(x) for x in (p if isinstance(c, str) else c)]
 
 
 def integrate(
