@@ -10,8 +10,8 @@ Shown outputs (the convention, also in docs/architecture.md):
 - a ```text block directly after a ```python block (nothing between them but blank lines and
   an ``<!-- output: … -->`` comment) is what that block prints to stdout;
 - a ```text block directly after a ```bash block of ``chaplygin …`` commands is what those
-  commands print (stdout and stderr, as a terminal shows them); they run in-process through
-  typer's test runner, in an empty working directory, 80 columns wide;
+  commands print on stdout (each must succeed); they run in-process through typer's test
+  runner, in an empty working directory, 80 columns wide;
 - the comparison ignores how much white space there is (not where), reads numbers as numbers
   (relative tolerance 1e-6 by default; ``<!-- output: rtol=1e-3 atol=1e-9 -->`` above the block
   states another), and takes ``...`` in a shown output for any text (a time, a temporary path);
@@ -248,7 +248,8 @@ def cli_commands(block: Block) -> list[list[str]] | None:
 
 
 def run_cli(block: Block, where: str) -> str:
-    """What the ``chaplygin`` commands of a shell block print, run in-process."""
+    """What the ``chaplygin`` commands of a shell block print on stdout, run in-process; each must
+    succeed (stderr, with its progress and notes that depend on the caches, is not compared)."""
     from typer.testing import CliRunner
 
     from chaplygin.apps.cli import app
@@ -263,7 +264,10 @@ def run_cli(block: Block, where: str) -> str:
         result = CliRunner().invoke(app, args)
         if result.exception is not None and not isinstance(result.exception, SystemExit):
             raise result.exception
-        printed.append(result.output)
+        assert result.exit_code == 0, (
+            f"{where}: chaplygin {shlex.join(args)}: exit {result.exit_code}\n{result.stderr}"
+        )
+        printed.append(result.stdout)
     return "".join(printed)
 
 
