@@ -23,7 +23,7 @@ from chaplygin import ChaplyginError, compare, examples
 from chaplygin.apps.cli import app
 
 T_ = dynamicsymbols._t
-RACER = Path(__file__).parent / "data" / "roller_racer.toml"
+RACER = Path(__file__).resolve().parent.parent / "benchmarks" / "systems" / "roller_racer.toml"
 runner = CliRunner()
 
 

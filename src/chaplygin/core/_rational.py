@@ -526,7 +526,7 @@ def linear_forms(
     right side collected by products of the ``velocities`` (the velocity-quadratic terms,
     then the forces), each coefficient cancelled.  Every coefficient is exact: the row is
     the residual times a factor that vanishes nowhere the residual is defined.  A residual
-    without unknowns (a velocity constraint) is ``(r, 0)``; one whose normal form would be
+    without unknowns (a velocity constraint) is ``(numerator of r, 0)``; one whose normal form would be
     too large is ``(Σ_j M_j x_j, −rest)`` with each part in normal form where that is small.
     """
     alg = Algebra(residuals)
@@ -558,8 +558,8 @@ def _linear_form(
         groups[key] = groups.get(key, ring.zero) + ring({rest: coeff})
     unknown_at = [picked.index(i) for i in left if i is not None]
     on_left = [key for key in groups if any(key[k] for k in unknown_at)]
-    if not on_left:
-        return alg.to_expr(frac), sp.S.Zero
+    if not on_left:  # a velocity constraint: its numerator = 0 (the denominator vanishes nowhere)
+        return alg.to_expr(alg.field.raw_new(frac.numer, ring.one)), sp.S.Zero
     coeffs = {key: alg.reduce((p, frac.denom)) for key, p in groups.items()}
     scale = ring.one
     for key in on_left:
