@@ -454,6 +454,7 @@ def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[st
 SOLVED_FACTOR = 2
 #: ... or at most this many nodes (symbols and operations) in all, whatever ``M`` and ``F``
 SOLVED_NODES = 20_000
+_FOLDED = "--full prints it whole"
 _UNSOLVED = "Not solved in print (the solved form is too large to read): M*x = F with x = ({})"
 
 
@@ -558,59 +559,62 @@ class _Derivation:
             },
         }
 
-    def render(self, fmt: DeriveFormat) -> str:
-        """What ``derive --format fmt`` prints."""
+    def render(self, fmt: DeriveFormat, full: bool = False) -> str:
+        """What ``derive --format fmt`` prints; an expression beyond a screen folded into a
+        summary (:mod:`chaplygin.core._fold`) unless ``full`` (JSON: always whole)."""
+        import sympy as sp
+
+        from chaplygin.core import _fold
+
         head, acc = self.head, self.accelerations
         if fmt is DeriveFormat.json:
             return json.dumps(self.json_doc(), indent=2, ensure_ascii=False)
+        solved = [sp.Eq(k, v, evaluate=False) for k, v in (acc or {}).items()]
+        M, F = self.linear or ([], [])
+        entries = [
+            sp.Eq(sp.Symbol(f"M[{i + 1},{j + 1}]"), x, evaluate=False)
+            for i, row in enumerate(M)
+            for j, x in enumerate(row)
+        ]
+        entries += [sp.Eq(sp.Symbol(f"F[{i + 1}]"), x, evaluate=False) for i, x in enumerate(F)]
+        unsolved = _UNSOLVED.format(", ".join(head["unknowns"]))
         if fmt is DeriveFormat.latex:
             from sympy.physics.vector.printing import vlatex
 
-            rows = r" \\ ".join(vlatex(e) for e in self.equations)  # as Equations.latex()
-            lines = [
-                f"% {head['title']} - {head['system']}",
-                r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}",
-            ]
+            lines = [f"% {head['title']} - {head['system']}", _fold.latex(self.equations, full=full)]
             if acc is not None:
-                rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
-                lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+                lines += ["% solved", _fold.latex(solved, full=full)]
             if self.linear is not None:
-                import sympy as sp
-
-                M, F = self.linear
-                lines += [
-                    f"% {_UNSOLVED.format(', '.join(head['unknowns']))}",
-                    f"M = {vlatex(sp.Matrix(M))}",
-                    f"F = {vlatex(sp.Matrix(F))}",
-                ]
+                lines.append(f"% {unsolved}")
+                if full or not any(map(_fold.folded, entries)):
+                    lines += [f"M = {vlatex(sp.Matrix(M))}", f"F = {vlatex(sp.Matrix(F))}"]
+                else:
+                    lines.append(_fold.latex(entries, full=False))
+            if not full and any(map(_fold.folded, [*self.equations, *solved, *entries])):
+                lines.append(f"% {_FOLDED}")
             return "\n".join(lines)
         if fmt is DeriveFormat.pretty:
-            import sympy as sp
-
             from chaplygin.core._symbols import pretty
 
-            text = f"{head['title']} - {head['system']}\n\n{pretty(self.equations)}"
+            text = f"{head['title']} - {head['system']}\n\n" + "\n\n".join(
+                _fold.pretty(self.equations, full=full, hint=_FOLDED)
+            )
             if acc is not None:
-                solved = (sp.Eq(k, v, evaluate=False) for k, v in acc.items())
-                text += f"\n\nSolved:\n\n{pretty(solved)}"
+                text += "\n\nSolved:\n\n" + "\n\n".join(_fold.pretty(solved, full=full, hint=_FOLDED))
             if self.linear is not None:
-                M, F = self.linear
-                text += f"\n\n{_UNSOLVED.format(', '.join(head['unknowns']))}:\n\nM = {pretty(sp.Matrix(M))}\n\nF = {pretty(sp.Matrix(F))}"
+                if full or not any(map(_fold.folded, entries)):
+                    text += f"\n\n{unsolved}:\n\nM = {pretty(sp.Matrix(M))}\n\nF = {pretty(sp.Matrix(F))}"
+                else:
+                    text += f"\n\n{unsolved}:\n\n" + "\n".join(_fold.pretty(entries, hint=_FOLDED))
             return text
         lines = [f"{head['title']} - {head['system']}"]
-        lines += [f"  {file_syntax(e.lhs)} = 0" for e in self.equations]
+        lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in self.equations]
         if acc is not None:
             lines.append("Solved:")
-            lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+            lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in solved]
         if self.linear is not None:
-            M, F = self.linear
-            lines.append(f"{_UNSOLVED.format(', '.join(head['unknowns']))}:")
-            lines += [
-                f"  M[{i + 1},{j + 1}] = {file_syntax(x)}"
-                for i, row in enumerate(M)
-                for j, x in enumerate(row)
-            ]
-            lines += [f"  F[{i + 1}] = {file_syntax(x)}" for i, x in enumerate(F)]
+            lines.append(f"{unsolved}:")
+            lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in entries]
         return "\n".join(lines)
 
 
@@ -641,6 +645,13 @@ def derive(
         help="Also pass each solved acceleration through SymPy's simplify "
         "(slow; the default result is already an exact, cancelled normal form).",
     ),
+    full: bool = typer.Option(
+        False,
+        "--full",
+        help="Print every expression whole. Without it an expression beyond a screen (more than "
+        "1000 symbols and operations) is folded into its size and its leading terms "
+        "(--format json is always whole).",
+    ),
 ) -> None:
     """Derive the equations of motion of one model and print them.
 
@@ -653,11 +664,13 @@ def derive(
     with _failures():
         source = _definition(file)
         if no_cache or source is None:
-            _emit(_derive(file, model, form, accelerations, simplify).render(fmt))
+            _emit(_derive(file, model, form, accelerations, simplify).render(fmt, full))
             return
         asked = model if model is not None else "true-motion"  # the entry names the model
         request = ("derive", source, asked, form.value) + (("simplified",) if simplify else ())
-        out_key = cache.key(*request, str(accelerations), "printed as", fmt.value)
+        out_key = cache.key(
+            *request, str(accelerations), "printed as", fmt.value, "whole" if full else "folded"
+        )
         printed = cache.load(out_key)  # the same request printed before: no SymPy at all
         if isinstance(printed, str):
             _emit(printed)
@@ -674,7 +687,7 @@ def derive(
                 cache.store(keys[0], data)
         if not accelerations:
             found.accelerations = None  # an entry with them serves a request without
-        text = found.render(fmt)
+        text = found.render(fmt, full)
         cache.store(out_key, text)
         _emit(text)
 

@@ -43,6 +43,7 @@ from sympy.core.function import AppliedUndef
 from sympy.printing.mathml import MathMLPresentationPrinter
 from sympy.printing.precedence import PRECEDENCE
 
+from chaplygin.core import _fold
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
@@ -315,38 +316,62 @@ def mathml_pieces(expr: Any) -> list[str]:
 def _block(expr: Any) -> str:
     """A displayed formula: its pieces wrap between terms when wider than the page.
 
-    A formula of more than :data:`TYPESET_NODES` symbols and operations (a rolling body's
-    equations run to tens of thousands) is replaced by a note: typesetting it would
-    take minutes and give pages that no one reads.
+    A formula beyond a screen (:func:`chaplygin.core._fold.folded`) is shown as its summary,
+    typeset, with the whole of it, cut into pieces of at most
+    :data:`~chaplygin.core._fold.PIECE_NODES` symbols and operations between which the browser
+    may break the line, one click away in a ``<details>`` element.  A formula of more than
+    :data:`TYPESET_NODES` symbols and operations (a rolling body's equations run to hundreds of
+    thousands) is typeset only as its summary: the whole would take minutes and megabytes.
     """
     expr = _as_basic(expr, "_block")
-    if _too_long(expr):
-        return f'<div class="eq">{_untypeset(expr)}</div>'
-    return f'<div class="eq">{"<wbr>".join(mathml_pieces(expr))}</div>'
+    if not _fold.folded(expr):
+        return f'<div class="eq">{"<wbr>".join(mathml_pieces(expr))}</div>'
+    note = _fold.note(expr)
+    shown = f'<div class="eq">{_typeset(_fold.summary(expr))}</div>'
+    if _fold.size(expr, TYPESET_NODES) > TYPESET_NODES:
+        why = f"not typeset whole: {note}; chaplygin derive --full prints it"
+        return shown + f'<p class="note">{_esc(why)}</p>'
+    whole = f'<div class="eq">{_typeset(_fold.tokens(expr))}</div>'
+    return shown + f"<details><summary>the whole formula: {_esc(note)}</summary>{whole}</details>"
 
 
-#: the largest formula (in symbols and operations) that :func:`_block` typesets
-TYPESET_NODES = 4000
+#: the largest formula (in symbols and operations) that :func:`_block` typesets whole
+TYPESET_NODES = 50_000
 
 
-def _too_long(expr: sp.Basic) -> bool:
-    """``expr`` has more than :data:`TYPESET_NODES` symbols and operations (its tree's nodes)."""
-    count, stack = 0, [expr]
-    while stack:
-        count += 1
-        if count > TYPESET_NODES:
-            return True
-        stack.extend(stack.pop().args)
-    return False
+def _typeset(tokens: Sequence[_fold.Token]) -> str:
+    """``tokens`` as a row of inline ``<math>`` elements in display style, cut before every
+    token a line may break before (:func:`chaplygin.core._fold.lines`)."""
+    printer = _Printer({"order": None})
+    dom = printer.dom
 
+    def mo(text: str) -> Any:
+        node = dom.createElement("mo")
+        node.appendChild(dom.createTextNode(text))
+        return node
 
-def _untypeset(expr: sp.Basic) -> str:
-    """An equation's small sides typeset, its large ones named by their size."""
-    if isinstance(expr, sp.Equality):
-        return " = ".join(_untypeset(side) for side in expr.args)
-    if not _too_long(expr):
-        return mathml(expr)
-    return f'<span class="note">[a formula of more than {TYPESET_NODES} symbols and operations, not typeset]</span>'
+    pieces: list[list[Any]] = []
+    for tok in tokens:
+        if tok.kind == "piece":
+            node = printer._print(tok.expr)
+        elif tok.kind == "more":
+            node = dom.createElement("mi")
+            node.appendChild(dom.createTextNode("…"))
+        elif tok.kind == "close" and tok.expr is not None:
+            node = dom.createElement("msup")
+            node.appendChild(mo(")"))
+            node.appendChild(printer._print(tok.expr))
+        elif tok.text == "*":
+            node = mo("\u22c5")  # a product cut between its factors: a visible dot
+        else:
+            node = mo(tok.text)
+        if tok.kind == "op" and not tok.prefix:
+            node.setAttribute("form", "infix")
+        if tok.breaks or not pieces:
+            pieces.append([node])
+        else:
+            pieces[-1].append(node)
+    return "<wbr>".join(_markup(p, display="inline", displaystyle=True) for p in pieces)
 
 
 def _cell(expr: Any) -> str:

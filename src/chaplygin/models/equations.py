@@ -10,8 +10,9 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
+from chaplygin.core import _fold
 from chaplygin.core._fast import gradient
-from chaplygin.core._symbols import TIME, pretty, replace_shared
+from chaplygin.core._symbols import TIME, replace_shared
 from chaplygin.errors import ModelError
 from chaplygin.models._rational import normal_all, simplified
 from chaplygin.models.registry import MODELS
@@ -205,27 +206,28 @@ class Equations:
         lines += [f"  {vsstrrepr(e.lhs)} = 0" for e in self.equations]
         return "\n".join(lines)
 
-    def pretty(self) -> str:
-        """A multi-line Unicode rendering, one equation after another."""
-        return f"{self._heading()}\n\n{pretty(self.equations)}"
+    def pretty(self, *, full: bool = False) -> str:
+        """A multi-line Unicode rendering, one equation after another; an equation beyond a
+        screen is folded into a one-line summary unless ``full`` (:mod:`chaplygin.core._fold`)."""
+        shown = _fold.pretty(self.equations, full=full, hint="pretty(full=True) prints it whole")
+        return f"{self._heading()}\n\n" + "\n\n".join(shown)
 
-    def latex(self) -> str:
-        """LaTeX of the equations, with dots for time derivatives."""
-        from sympy.physics.vector.printing import vlatex
-
-        rows = r" \\ ".join(vlatex(e) for e in self.equations)
-        return r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"
+    def latex(self, *, full: bool = True) -> str:
+        """LaTeX of the equations, with dots for time derivatives, a long one broken into lines;
+        with ``full=False`` an equation beyond a screen is folded into a summary."""
+        return _fold.latex(self.equations, full=full)
 
     def _repr_latex_(self) -> str:
         from chaplygin import _html
 
         title = _html.latex_text(self._heading())
-        return f"$\\displaystyle \\begin{{array}}{{l}} {title} \\\\ {self.latex()} \\end{{array}}$"
+        body = self.latex(full=False)
+        return f"$\\displaystyle \\begin{{array}}{{l}} {title} \\\\ {body} \\end{{array}}$"
 
     def _repr_html_(self) -> str:
         from chaplygin import _html
 
-        return _html.heading(self._heading()) + _html.math(f"\\displaystyle {self.latex()}", display=True)
+        return _fold.html(self.equations, escape=_html.escape, heading=_html.heading(self._heading()))
 
     def _heading(self) -> str:
         return f"{self.title} - {self.system.name}"
