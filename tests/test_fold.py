@@ -138,6 +138,8 @@ def test_a_notebook_folds_a_big_result_with_the_whole_one_a_click_away(
     assert latex.count("(") == latex.count(")")
     assert len(racer._repr_latex_()) < 3000  # the LaTeX display folds too
     assert len(racer.latex()) > len(file_syntax(racer.equations[0].lhs))  # latex(): the whole, for a paper
+    pretty = racer.pretty()  # one line per folded equation; pretty(full=True) the whole
+    assert len(pretty) < 2000 and pretty.count("pretty(full=True) prints it whole") == 2
 
 
 def test_derive_folds_a_big_system_and_prints_it_whole_with_full(
@@ -160,3 +162,28 @@ def test_derive_folds_a_big_system_and_prints_it_whole_with_full(
     knife = chaplygin.examples.knife_edge().equations("chaplygin")
     assert small.stdout.splitlines()[1:3] == [f"  {file_syntax(e.lhs)} = 0" for e in knife.equations]
     assert "folded" not in small.stdout
+
+
+def test_a_long_value_in_a_one_line_verdict_shows_its_leading_terms() -> None:
+    """Main a11bdc0 said only 'an expression of N characters, not printed (…)'."""
+    from chaplygin.core._brief import MAX_BRIEF, brief
+
+    x, y = sp.symbols("x y")
+    expr = sum(sp.Symbol(f"k{i}") * sp.sin(x) ** i * sp.cos(y) ** (i + 1) for i in range(1, 40))
+    text = brief(expr, "--full prints it")
+    shown, _, size = text.rpartition(" (")
+    assert size == f"{len(str(expr))} characters; --full prints it)"
+    assert len(shown) <= MAX_BRIEF and shown.count("…") >= 1
+    first = expr.as_ordered_terms()[0]
+    assert shown.startswith(str(first))  # the leading term, whole
+    assert brief(x + y, "--full prints it") == "x + y"  # a short one as it is
+
+
+def test_a_folded_value_in_a_notebook_table_keeps_the_whole_a_click_away(fold_at: None) -> None:
+    x, y = sp.symbols("x y")
+    expr = sum((x + i) ** 2 / (y + i) for i in range(1, 60))
+    shown = _fold.html_math(expr, escape=str)
+    summary, _, whole = shown.partition("<details>")
+    assert len(summary) < 1500 and r"\dots" in summary
+    assert whole.count(r"\\") > 5 and all(f"y + {i}" in whole for i in (1, 59))
+    assert _fold.html_math(x + y, escape=str) == "$x + y$"  # a small one as it always was

@@ -581,6 +581,8 @@ class _Derivation:
         if fmt is DeriveFormat.latex:
             from sympy.physics.vector.printing import vlatex
 
+            entries = [sp.Eq(sp.Symbol(f"{e.lhs.name[0]}_{{{e.lhs.name[2:-1]}}}"), e.rhs) for e in entries]
+
             lines = [f"% {head['title']} - {head['system']}", _fold.latex(self.equations, full=full)]
             if acc is not None:
                 lines += ["% solved", _fold.latex(solved, full=full)]
@@ -727,8 +729,9 @@ def check_json(system: System) -> dict[str, Any]:
     return _checked(system)[0]
 
 
-def _checked(system: System) -> tuple[dict[str, Any], Any]:
-    """:func:`check_json`'s document, and the model comparison (None where there is none)."""
+def _checked(system: System) -> tuple[dict[str, Any], Any, Any]:
+    """:func:`check_json`'s document, the model comparison (None where there is none) and the
+    integrability report."""
     from chaplygin.analysis.transitions import compare_models
     from chaplygin.apps.report import applicable_models
 
@@ -755,42 +758,52 @@ def _checked(system: System) -> tuple[dict[str, Any], Any]:
         why_not = None
     except ChaplyginError as exc:
         comparison, why_not = None, str(exc)
-    return {
-        "schema": "chaplygin.check/1",
-        "system": system.name,
-        "coordinates": _names(system.coordinates),
-        "independent": _names(system.independent),
-        "dependent": _names(system.dependent),
-        "constraint_form": system.constraint_form,
-        "affine": system.is_affine,
-        "scleronomic": system.is_scleronomic,
-        "integrability": {
-            "integrable": rep.integrable,
-            "condition_28": condition(rep.condition_28),
-            "condition_33": condition(rep.condition_33),
-            "frobenius": condition(rep.frobenius),
-            "relations": [file_syntax(r) for r in rep.relations],
+    return (
+        {
+            "schema": "chaplygin.check/1",
+            "system": system.name,
+            "coordinates": _names(system.coordinates),
+            "independent": _names(system.independent),
+            "dependent": _names(system.dependent),
+            "constraint_form": system.constraint_form,
+            "affine": system.is_affine,
+            "scleronomic": system.is_scleronomic,
+            "integrability": {
+                "integrable": rep.integrable,
+                "condition_28": condition(rep.condition_28),
+                "condition_33": condition(rep.condition_33),
+                "frobenius": condition(rep.frobenius),
+                "relations": [file_syntax(r) for r in rep.relations],
+            },
+            "chaplygin_system": {
+                "is_chaplygin": system.is_chaplygin,
+                "obstructions": list(system.chaplygin_obstructions),
+            },
+            "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
+            "comparison": comparison,
+            "comparison_unavailable": why_not,
         },
-        "chaplygin_system": {
-            "is_chaplygin": system.is_chaplygin,
-            "obstructions": list(system.chaplygin_obstructions),
-        },
-        "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
-        "comparison": comparison,
-        "comparison_unavailable": why_not,
-    }, cmp
+        cmp,
+        rep,
+    )
 
 
 @app.command(cls=_Command)
 def check(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     fmt: CheckFormat = typer.Option(CheckFormat.text, "--format", "-f", help="Output format."),
+    full: bool = typer.Option(
+        False,
+        "--full",
+        help="Print every expression whole. Without it an expression longer than a line (300 "
+        "characters) is shown as its leading terms and its size (--format json is always whole).",
+    ),
 ) -> None:
     """Integrability of the constraints, Chaplygin-system test, and how the two models relate."""
     with _failures():
         loaded = _load(file)
         with _Steps(1, "checking"):
-            doc, comparison = _checked(loaded.system)
+            doc, comparison, report = _checked(loaded.system)
         if fmt is CheckFormat.json:
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
             return
@@ -812,7 +825,8 @@ def check(
             if c["failures"]:
                 first = c["failures"][0]
                 more = len(c["failures"]) - 1
-                value = brief(first["value"], "--format json has it")  # a page helps nobody
+                expr = getattr(report, key).failures[0][1]
+                value = first["value"] if full else brief(expr, "--full prints it", file_syntax)
                 line += f" - {first['component']} = {value}" + (f" (and {more} more)" if more else "")
             lines.append(f"{line}. {c['note']}")
         if integ["integrable"]:
@@ -826,7 +840,13 @@ def check(
             else "Chaplygin system: no - " + "; ".join(chap["obstructions"])
         )
         lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
-        if comparison is not None:
+        if comparison is not None and comparison.verdict == "differ":  # a defect may run to pages
+            lines.append(str(comparison).splitlines()[0])
+            lines += [
+                f"  {file_syntax(q)}: {file_syntax(d) if full else brief(d, '--full prints it', file_syntax)}"
+                for q, d in comparison.defect.items()
+            ]
+        elif comparison is not None:
             lines.append(str(comparison))
         else:
             lines.append(f"Chetaev vs Lindelöf: not compared - {doc['comparison_unavailable']}")

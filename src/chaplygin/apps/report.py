@@ -325,18 +325,25 @@ def _block(expr: Any) -> str:
     """
     expr = _as_basic(expr, "_block")
     if not _fold.folded(expr):
-        return f'<div class="eq">{"<wbr>".join(mathml_pieces(expr))}</div>'
+        pieces = mathml_pieces(expr)
+        if max(len(_TAG.sub("", p)) for p in pieces) > WIDEST_PIECE:  # a long fraction, a power
+            return f'<div class="eq long">{_typeset(_fold.tokens(expr))}</div>'
+        return f'<div class="eq">{"<wbr>".join(pieces)}</div>'
     note = _fold.note(expr)
-    shown = f'<div class="eq">{_typeset(_fold.summary(expr))}</div>'
+    shown = f'<div class="eq long">{_typeset(_fold.summary(expr))}</div>'
     if _fold.size(expr, TYPESET_NODES) > TYPESET_NODES:
         why = f"not typeset whole: {note}; chaplygin derive --full prints it"
         return shown + f'<p class="note">{_esc(why)}</p>'
-    whole = f'<div class="eq">{_typeset(_fold.tokens(expr))}</div>'
+    whole = f'<div class="eq long">{_typeset(_fold.tokens(expr))}</div>'
     return shown + f"<details><summary>the whole formula: {_esc(note)}</summary>{whole}</details>"
 
 
 #: the largest formula (in symbols and operations) that :func:`_block` typesets whole
 TYPESET_NODES = 50_000
+#: the widest piece (characters of its text) of a formula cut between the terms of its sums
+#: only; a formula with a wider one is cut at every depth (:func:`chaplygin.core._fold.tokens`)
+WIDEST_PIECE = 120
+_TAG = re.compile(r"<[^>]+>")
 
 
 def _typeset(tokens: Sequence[_fold.Token]) -> str:
@@ -868,6 +875,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .eq { text-align: center; padding: 0.25rem 0; overflow-x: auto; overflow-y: hidden; }
 .eq math { margin-block: 0.25em; }
 .eq.cell { text-align: left; padding: 0.1rem 0; }
+.eq.long { text-align: left; padding-left: 2em; text-indent: -2em; }
 math { font-size: 1.08em; }
 .figure { margin: 1rem 0; overflow-x: auto; }
 .figure svg { max-width: 100%; height: auto; }

@@ -37,8 +37,10 @@ __all__ = [
     "LINE_WIDTH",
     "PIECE_NODES",
     "Token",
+    "abbreviated",
     "folded",
     "html",
+    "html_math",
     "latex",
     "lines",
     "note",
@@ -238,7 +240,11 @@ def summary(expr: sp.Basic, width: int = MAX_BRIEF) -> list[Token]:
         return 1 + 2 * _is_sum(node)
 
     used, queue = cost(root), deque([(root, 0)])
-    while queue:  # a sum below the top shows only if it shows a piece: "(… + …)" says nothing
+    later: list[tuple[_Node, int]] = []  # sums that would show only "(… + …)": after the rest
+    while queue or later:
+        if not queue:
+            queue.extend((node, -1) for node, _ in later)  # depth -1: now they may
+            later = []
         node, depth = queue.popleft()
         if node.kind == "piece":
             continue
@@ -250,20 +256,21 @@ def summary(expr: sp.Basic, width: int = MAX_BRIEF) -> list[Token]:
                     break
                 extra += step
                 shown += 1
-            if used - 1 + extra > width or (
-                depth > 1 and all(c.kind != "piece" for c in node.children[:shown])
-            ):
+            if depth > 1 and all(c.kind != "piece" for c in node.children[:shown]):
+                later.append((node, depth))
+                continue
+            if used - 1 + extra > width:
                 continue
             used += extra - 1 + (4 if shown < len(node.children) else 0)
             plan.shown[id(node)] = shown
-            queue.extend((c, depth + 1) for c in node.children[:shown])
+            queue.extend((c, abs(depth) + 1) for c in node.children[:shown])
             continue
         extra = sum(cost(c) + 1 for c in node.children) + 2 * (node.kind == "power")
         if depth and used - 1 + extra > width:
             continue
         used += extra - 1
         plan.shown[id(node)] = 1
-        queue.extend((c, depth + 1) for c in node.children)
+        queue.extend((c, abs(depth) + 1) for c in node.children)
     out: list[Token] = []
     _emit(root, out, plan)
     return out
@@ -312,8 +319,14 @@ def text(
         if isinstance(expr, sp.Equality):
             return f"{printer(expr.lhs)} = {printer(expr.rhs)}"
         return printer(expr)
-    shown = "".join(_text_token(t, printer) for t in summary(expr, width))
-    return f"{shown}    # folded: {note(expr)}" + (f"; {hint}" if hint else "")
+    return f"{abbreviated(expr, printer, width)}    # folded: {note(expr)}" + (f"; {hint}" if hint else "")
+
+
+def abbreviated(
+    expr: sp.Basic, printer: Callable[[sp.Basic], str] = file_syntax, width: int = MAX_BRIEF
+) -> str:
+    """The :func:`summary` of ``expr`` as text, ``…`` for what it leaves out."""
+    return "".join(_text_token(t, printer) for t in summary(expr, width))
 
 
 def _latex_token(tok: Token, at_start: bool) -> str:
@@ -371,8 +384,8 @@ def latex(exprs: Iterable[sp.Basic], *, full: bool = True, width: int = LINE_WID
     if all(len(r) == 1 for r in rows) and (full or not any(map(folded, exprs))):
         one = r" \\ ".join(vlatex(e) for e in exprs)  # as SymPy prints them, aligned at "="
         return r"\begin{aligned}" + one.replace("=", "&=") + r"\end{aligned}"
-    out = [" \\\\ ".join(["& " + r[0], *(r"& \qquad " + line for line in r[1:])]) for r in rows]
-    return r"\begin{aligned}" + r" \\[0.5ex] ".join(out) + r"\end{aligned}"
+    out = [" \\\\\n".join(["& " + r[0], *(r"& \qquad " + line for line in r[1:])]) for r in rows]
+    return "\\begin{aligned}\n" + " \\\\[0.5ex]\n".join(out) + "\n\\end{aligned}"
 
 
 def html(exprs: Sequence[sp.Basic], *, escape: Callable[[str], str], heading: str = "") -> str:
@@ -381,21 +394,41 @@ def html(exprs: Sequence[sp.Basic], *, escape: Callable[[str], str], heading: st
     inside a ``<details>`` element, one click away."""
     if not any(map(folded, exprs)):
         return heading + "$$" + escape(r"\displaystyle " + latex(exprs)) + "$$"
-    parts = [heading]
-    for e in exprs:
-        if not folded(e):
-            parts.append(f"$${escape(latex([e]))}$$")
-            continue
-        parts.append(f"$${escape(latex([e], full=False))}$$")
-        parts.append(
-            f"<details><summary>the whole: {escape(note(e))}</summary>$${escape(latex([e]))}$$</details>"
-        )
-    return "".join(parts)
+    return heading + "".join(html_math(e, escape=escape, display=True) for e in exprs)
+
+
+def html_math(expr: sp.Basic, *, escape: Callable[[str], str], display: bool = False) -> str:
+    """One expression as HTML math (``$…$``, or ``$$…$$`` with ``display``); folded, its summary
+    and the whole of it, broken into lines, in a ``<details>`` element."""
+    from sympy.physics.vector.printing import vlatex
+
+    fence = "$$" if display else "$"
+    if not folded(expr):
+        return fence + escape(latex([expr]) if display else vlatex(expr)) + fence
+    return (
+        f"{fence}{escape(latex([expr], full=False))}{fence}"
+        f"<details><summary>the whole: {escape(note(expr))}</summary>$${escape(latex([expr]))}$$</details>"
+    )
+
+
+#: the widest Unicode rendering :func:`pretty` shows; a wider one is shown as text in lines
+PRETTY_WIDTH = 4 * LINE_WIDTH
 
 
 def pretty(exprs: Iterable[sp.Basic], *, full: bool = False, hint: str = "") -> list[str]:
-    """Each expression for a Unicode display: whole as :func:`chaplygin.core._symbols.pretty`
-    prints it where small or ``full``, else as the one line of :func:`text`."""
+    """Each expression for a Unicode display: as :func:`chaplygin.core._symbols.pretty` prints
+    it where that is at most :data:`PRETTY_WIDTH` wide, else in the file syntax broken into lines
+    of :data:`LINE_WIDTH` (:func:`lines`); folded as the one line of :func:`text` unless ``full``."""
     from chaplygin.core._symbols import pretty as whole
 
-    return [whole([e]) if full or not folded(e) else text(e, hint=hint) for e in exprs]
+    out = []
+    for e in exprs:
+        if not full and folded(e):
+            out.append(text(e, hint=hint))
+            continue
+        drawn = whole([e])
+        if max(map(len, drawn.splitlines()), default=0) > PRETTY_WIDTH:
+            rows = ["".join(_text_token(t, file_syntax) for t in line).strip() for line in lines(tokens(e))]
+            drawn = "\n    ".join(rows)
+        out.append(drawn)
+    return out
