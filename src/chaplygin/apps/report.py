@@ -8,7 +8,8 @@ network, that holds
 * the integrability verdict: conditions (28) and (33), the Frobenius test, finite relations;
 * whether it is a Chaplygin system, and how the Chetaev and vakonomic models relate
   (:func:`~chaplygin.compare_models`);
-* the equations of every model that applies, as MathML (rendered natively by browsers);
+* the equations of every model that applies, as MathML (rendered natively by browsers), a long
+  one broken into lines and folded into a summary, the whole one click away;
 * the models simulated from the same initial state: a summary table, figures as inline SVG,
   energy drift and constraint drift;
 * for a rolling body (:func:`chaplygin.bodies.rolling_body`), the body drawn rolling in 3-D,
@@ -20,8 +21,11 @@ network, that holds
 Math is rendered with SymPy's MathML presentation printer, extended to print time
 derivatives of coordinates with dots and to set multi-letter names and functions apart by a thin
 space in products.  Displayed formulas are rows of inline ``<math>`` pieces cut between terms
-(:func:`mathml_pieces`), so that the browser wraps a long one as it wraps text: only a single term
-wider than the page would scroll.
+(:func:`mathml_pieces`), so that the browser wraps a long one as it wraps text.  A formula with a
+term too wide for that is cut at every depth, into pieces of a few dozen symbols
+(:mod:`chaplygin.core._fold`), and a formula beyond a screen is shown as its summary with the
+whole of it one click away (``<details>``): the rule ``chaplygin derive`` and the notebook
+displays fold by.
 """
 
 from __future__ import annotations

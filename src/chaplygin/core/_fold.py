@@ -3,7 +3,7 @@
 A rolling body's or a roller racer's equations run to tens of thousands of characters.  Printed
 on one line they are unreadable, typeset on one line they are kilometres wide.  This module is
 the one place that decides how a long expression is shown, for the terminal (``chaplygin
-derive``, ``check``), ``str``, the notebook displays (``_repr_latex_``, ``_repr_html_``) and the
+derive``, ``check``), ``str`` of a verdict, the notebook displays (``_repr_latex_``, ``_repr_html_``) and the
 HTML report:
 
 * An expression is cut into **pieces** (:func:`tokens`): subexpressions of at most
@@ -26,16 +26,18 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import sympy as sp
 
 from chaplygin.core._brief import MAX_BRIEF
-from chaplygin.core._symbols import file_syntax
+from chaplygin.core._symbols import _small, file_syntax
 
 __all__ = [
     "FOLD_NODES",
     "LINE_WIDTH",
     "PIECE_NODES",
+    "PRETTY_WIDTH",
     "Token",
     "abbreviated",
     "folded",
@@ -44,6 +46,7 @@ __all__ = [
     "latex",
     "lines",
     "note",
+    "pretty",
     "size",
     "summary",
     "text",
@@ -84,51 +87,56 @@ def note(expr: sp.Basic) -> str:
 # ====================================================================== the tree of pieces
 @dataclass(eq=False)
 class _Node:
-    """``expr`` cut for display: a piece (``kind == "piece"``), or an operation on nodes."""
+    """``expr`` cut for display: a piece (``kind == "piece"``), or an operation on the nodes of
+    its ``parts`` (built when first asked for: a summary looks at the top of a tree only)."""
 
     kind: str  # piece, sum, product, fraction, power, equation
     expr: sp.Basic
-    children: list[_Node] = field(default_factory=list)
+    parts: list[tuple[sp.Basic, bool]] = field(default_factory=list)  # (expression, a piece as it is)
+    ordered: bool = True  # sums in SymPy's display order (as file_syntax prints them)
     signs: list[str] = field(default_factory=list)  # sum: "+" or "-" before each term
     negative: bool = False  # product, fraction: a leading minus
     exponent: sp.Basic | None = None  # power
+
+    @cached_property
+    def children(self) -> list[_Node]:
+        return [_Node("piece", e) if whole else _build(e, self.ordered) for e, whole in self.parts]
 
 
 def _is_sum(node: _Node) -> bool:
     return node.kind == "sum" or (node.kind == "piece" and isinstance(node.expr, sp.Add))
 
 
-def _build(expr: sp.Basic) -> _Node:
+def _build(expr: sp.Basic, ordered: bool | None = None) -> _Node:
+    if ordered is None:  # as file_syntax orders the terms: up to ORDERED_NODES, on the DAG
+        ordered = _small(expr)
     if isinstance(expr, sp.Equality):
-        return _Node("equation", expr, [_build(expr.lhs), _build(expr.rhs)])
+        return _Node("equation", expr, [(expr.lhs, False), (expr.rhs, False)], ordered)
     if size(expr, PIECE_NODES) <= PIECE_NODES:
         return _Node("piece", expr)
     if isinstance(expr, sp.Add):
-        terms = expr.as_ordered_terms() if size(expr, 20_000) <= 20_000 else list(expr.args)
-        signs, children = [], []
-        for term in terms:
-            negative = term.could_extract_minus_sign()
-            signs.append("-" if negative else "+")
-            children.append(_build(-term if negative else term))
-        return _Node("sum", expr, children, signs)
+        terms = expr.as_ordered_terms() if ordered else list(expr.args)
+        signs = ["-" if term.could_extract_minus_sign() else "+" for term in terms]
+        parts = [(-term if sign == "-" else term, False) for term, sign in zip(terms, signs)]
+        return _Node("sum", expr, parts, ordered, signs)
     if isinstance(expr, sp.Mul):
         negative = expr.could_extract_minus_sign()
         body = -expr if negative else expr
         numer, denom = sp.fraction(body)
         if denom != 1:
-            return _Node("fraction", expr, [_build(numer), _build(denom)], negative=negative)
+            return _Node("fraction", expr, [(numer, False), (denom, False)], ordered, negative=negative)
         if not isinstance(body, sp.Mul):
-            node = _build(body)
-            return _Node("product", expr, [node], negative=negative)
-        factors = body.as_ordered_factors()
+            return _Node("product", expr, [(body, False)], ordered, negative=negative)
+        factors = body.as_ordered_factors() if ordered else list(body.args)
         small = [f for f in factors if size(f, PIECE_NODES) <= PIECE_NODES and not isinstance(f, sp.Add)]
-        rest = [_build(f) for f in factors if not any(f is s for s in small)]
-        head = [_Node("piece", sp.Mul(*small))] if small else []
-        return _Node("product", expr, head + rest, negative=negative)
+        rest = [(f, False) for f in factors if not any(f is s for s in small)]
+        head = [(sp.Mul(*small), True)] if small else []
+        return _Node("product", expr, head + rest, ordered, negative=negative)
     if isinstance(expr, sp.Pow) and expr.exp.is_number and expr.exp.is_negative:
-        return _Node("fraction", expr, [_Node("piece", sp.S.One), _build(sp.Pow(expr.base, -expr.exp))])
+        parts = [(sp.S.One, True), (sp.Pow(expr.base, -expr.exp), False)]
+        return _Node("fraction", expr, parts, ordered)
     if isinstance(expr, sp.Pow) and size(expr.exp, PIECE_NODES) <= PIECE_NODES:
-        return _Node("power", expr, [_build(expr.base)], exponent=expr.exp)
+        return _Node("power", expr, [(expr.base, False)], ordered, exponent=expr.exp)
     return _Node("piece", expr)  # a function of a long argument, …: printed whole
 
 
