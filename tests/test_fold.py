@@ -97,10 +97,13 @@ def test_pieces_put_together_are_the_expression() -> None:
     for _ in range(6):
         expr = grow(4)
         assert _fold.size(expr) > _fold.PIECE_NODES
-        lines = _fold.lines(_fold.tokens(expr), 60)
-        text = "".join(_fold._text_token(t, file_syntax) for line in lines for t in line)
-        values = {s: sp.Rational(rng.randint(1, 9), rng.randint(2, 9)) for s in (a, b, c, x, y)}
-        assert (_parsed(text, {a, b, c, x, y}) - expr).subs(values) == 0
+        for width in (30, 60):  # an equation, its short "= 0" kept on the last line
+            lines = _fold.lines(_fold.tokens(sp.Eq(expr, 0, evaluate=False)), width)
+            assert len(lines) > 2
+            text = "".join(_fold._text_token(t, file_syntax) for line in lines for t in line)
+            lhs, _, rhs = text.rpartition(" = ")
+            values = {s: sp.Rational(rng.randint(1, 9), rng.randint(2, 9)) for s in (a, b, c, x, y)}
+            assert rhs == "0" and (_parsed(lhs, {a, b, c, x, y}) - expr).subs(values) == 0
 
 
 def test_the_report_typesets_the_voronets_equations_in_lines(

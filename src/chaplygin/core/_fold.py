@@ -127,11 +127,18 @@ def _build(expr: sp.Basic, ordered: bool | None = None) -> _Node:
             return _Node("fraction", expr, [(numer, False), (denom, False)], ordered, negative=negative)
         if not isinstance(body, sp.Mul):
             return _Node("product", expr, [(body, False)], ordered, negative=negative)
-        factors = body.as_ordered_factors() if ordered else list(body.args)
-        small = [f for f in factors if size(f, PIECE_NODES) <= PIECE_NODES and not isinstance(f, sp.Add)]
-        rest = [(f, False) for f in factors if not any(f is s for s in small)]
-        head = [(sp.Mul(*small), True)] if small else []
-        return _Node("product", expr, head + rest, ordered, negative=negative)
+        parts, run = [], []  # in the printed order, each run of small factors one piece
+        for f in body.as_ordered_factors() if ordered else body.args:
+            if size(f, PIECE_NODES) <= PIECE_NODES and not isinstance(f, sp.Add):
+                run.append(f)
+                continue
+            if run:
+                parts.append((sp.Mul(*run), True))
+                run = []
+            parts.append((f, False))
+        if run:
+            parts.append((sp.Mul(*run), True))
+        return _Node("product", expr, parts, ordered, negative=negative)
     if isinstance(expr, sp.Pow) and expr.exp.is_number and expr.exp.is_negative:
         parts = [(sp.S.One, True), (sp.Pow(expr.base, -expr.exp), False)]
         return _Node("fraction", expr, parts, ordered)
@@ -285,7 +292,8 @@ def summary(expr: sp.Basic, width: int = MAX_BRIEF) -> list[Token]:
 
 
 def lines(toks: Sequence[Token], width: int = LINE_WIDTH) -> list[list[Token]]:
-    """``toks`` in lines of about ``width`` characters, broken before tokens that allow it."""
+    """``toks`` in lines of about ``width`` characters, broken before tokens that allow it; a
+    last line of less than a tenth of ``width`` (``= 0``) stays on the line before."""
     cache: dict[int, int] = {}
     out: list[list[Token]] = [[]]
     used = 0
@@ -296,6 +304,9 @@ def lines(toks: Sequence[Token], width: int = LINE_WIDTH) -> list[list[Token]]:
             used = 0
         out[-1].append(tok)
         used += w
+    if len(out) > 1 and used < width // 10:
+        last = out.pop()
+        out[-1] += last
     return out
 
 
@@ -375,8 +386,10 @@ def latex(exprs: Iterable[sp.Basic], *, full: bool = True, width: int = LINE_WID
     r"""The expressions (equations) as one LaTeX ``aligned`` block, each broken into lines of about
     ``width`` characters; a folded one (unless ``full``) as its summary and its size.
 
-    Where every expression fits on one line the block is ``lhs &= rhs`` rows as SymPy prints
-    them; otherwise every line starts at the left and the continuations are indented.
+    An expression of at most ``2 * width`` characters of text stays on one line as SymPy
+    typesets it (its fractions stacked, which takes about half the width of the text).  Where
+    every expression does, the block is ``lhs &= rhs`` rows; otherwise every line starts at the
+    left and the continuations are indented.
     """
     from sympy.physics.vector.printing import vlatex
 
@@ -387,10 +400,12 @@ def latex(exprs: Iterable[sp.Basic], *, full: bool = True, width: int = LINE_WID
             body = _latex_lines(summary(e), width)
             body[-1] += r"\quad\text{(folded: " + note(e) + ")}"
             rows.append(body)
+        elif size(e, 4 * width) <= 4 * width and len(text(e, full=True)) <= 2 * width:
+            rows.append([vlatex(e)])  # fits on a line as SymPy typesets it (fractions stacked)
         else:
             rows.append(_latex_lines(tokens(e), width))
     if all(len(r) == 1 for r in rows) and (full or not any(map(folded, exprs))):
-        one = r" \\ ".join(vlatex(e) for e in exprs)  # as SymPy prints them, aligned at "="
+        one = r" \\ ".join(rows[i][0] for i in range(len(exprs)))  # aligned at "="
         return r"\begin{aligned}" + one.replace("=", "&=") + r"\end{aligned}"
     out = [" \\\\\n".join(["& " + r[0], *(r"& \qquad " + line for line in r[1:])]) for r in rows]
     return "\\begin{aligned}\n" + " \\\\[0.5ex]\n".join(out) + "\n\\end{aligned}"
