@@ -571,17 +571,16 @@ class _Derivation:
             return json.dumps(self.json_doc(), indent=2, ensure_ascii=False)
         solved = [sp.Eq(k, v, evaluate=False) for k, v in (acc or {}).items()]
         M, F = self.linear or ([], [])
+        cell = "{}_{{{}}}" if fmt is DeriveFormat.latex else "{}[{}]"  # M_{1,2} in LaTeX, else M[1,2]
         entries = [
-            sp.Eq(sp.Symbol(f"M[{i + 1},{j + 1}]"), x, evaluate=False)
+            sp.Eq(sp.Symbol(cell.format("M", f"{i + 1},{j + 1}")), x, evaluate=False)
             for i, row in enumerate(M)
             for j, x in enumerate(row)
         ]
-        entries += [sp.Eq(sp.Symbol(f"F[{i + 1}]"), x, evaluate=False) for i, x in enumerate(F)]
+        entries += [sp.Eq(sp.Symbol(cell.format("F", i + 1)), x, evaluate=False) for i, x in enumerate(F)]
         unsolved = _UNSOLVED.format(", ".join(head["unknowns"]))
         if fmt is DeriveFormat.latex:
             from sympy.physics.vector.printing import vlatex
-
-            entries = [sp.Eq(sp.Symbol(f"{e.lhs.name[0]}_{{{e.lhs.name[2:-1]}}}"), e.rhs) for e in entries]
 
             lines = [f"% {head['title']} - {head['system']}", _fold.latex(self.equations, full=full)]
             if acc is not None:
