@@ -35,10 +35,15 @@ def test_check_finds_the_rolling_constraints_nonholonomic_and_the_models_differe
     text = runner.invoke(app, ["check", "example:rattleback"])
     assert text.exit_code == 0, text.stderr
     assert "not integrable (nonholonomic)" in text.stdout and "the models differ" in text.stdout
-    assert "characters, not printed (the comparison's .defect holds it)" in text.stdout  # pages of defect
-    # nor are the thousands of characters of the failing components (the JSON has them whole)
-    assert max(map(len, text.stdout.splitlines())) < 500
-    assert "characters, not printed (--format json has it)" in text.stdout
+    # the pages of defect, and the thousands of characters of the failing components, are shown
+    # as their leading terms and their size (the JSON and --full have them whole)
+    assert max(map(len, text.stdout.splitlines())) < 520
+    assert text.stdout.count("characters; --full prints it)") == 6
+    whole = runner.invoke(app, ["check", "example:rattleback", "--full"])
+    assert whole.exit_code == 0, whole.stderr
+    for q, d in cmp["defect"].items():
+        assert f"  {q}: {d}" in whole.stdout.splitlines()
+    assert integ["frobenius"]["failures"][0]["value"] in whole.stdout
 
 
 def test_derive_prints_the_linear_system_where_the_solved_form_is_too_large() -> None:
@@ -52,11 +57,15 @@ def test_derive_prints_the_linear_system_where_the_solved_form_is_too_large() ->
     M = linear["mass_matrix"]
     assert all(M[i][j] == M[j][i] for i in range(3) for j in range(3))  # a kinetic-energy Hessian
 
-    text = runner.invoke(app, ["derive", "example:rattleback"])  # served by the stored derivation
+    text = runner.invoke(app, ["derive", "example:rattleback", "--full"])  # the stored derivation
     assert text.exit_code == 0, text.stderr
     assert "M*x = F with x = (psi'', theta'', phi'')" in text.stdout
     assert f"  M[1,2] = {M[0][1]}\n" in text.stdout and f"  F[3] = {linear['forcing'][2]}" in text.stdout
     assert "Solved:" not in text.stdout
+    folded = runner.invoke(app, ["derive", "example:rattleback"])  # each entry beyond a screen folded
+    assert folded.exit_code == 0 and "M*x = F with x = (psi'', theta'', phi'')" in folded.stdout
+    assert "  F[3] = " in folded.stdout and "--full prints it whole" in folded.stdout
+    assert max(map(len, folded.stdout.splitlines())) < 3000
 
 
 def test_a_small_solved_form_is_still_printed() -> None:

@@ -34,6 +34,7 @@ import sympy as sp
 from sympy.physics.vector.printing import vlatex, vsstrrepr
 
 from chaplygin import _html
+from chaplygin.core import _fold
 from chaplygin.core._brief import brief
 from chaplygin.core._fast import derivative
 from chaplygin.core._rational import normal_all
@@ -105,7 +106,9 @@ class Condition:
         if self.failures:
             label, expr = self.failures[0]
             more = f" (and {len(self.failures) - 1} more)" if len(self.failures) > 1 else ""
-            first = f"{_html.escape(label)} = {_html.math(vlatex(expr))}{_html.escape(more)}"
+            first = (
+                f"{_html.escape(label)} = {_fold.html_math(expr, escape=_html.escape)}{_html.escape(more)}"
+            )
         return [_html.escape(self.name), self.verdict, first, _html.escape(self.note)]
 
 

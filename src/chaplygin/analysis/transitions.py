@@ -25,6 +25,7 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 from chaplygin import _html
 from chaplygin.analysis.equivalence import EquationsLike, Inconsistent, _Linear, _States, where
 from chaplygin.analysis.integrability import shown as readable
+from chaplygin.core import _fold
 from chaplygin.core._brief import brief
 from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import simplify_small
@@ -86,7 +87,9 @@ class ModelComparison:
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        rows = [(_html.math(vlatex(q)), _html.math(vlatex(d))) for q, d in self.defect.items()]
+        rows = [
+            (_html.math(vlatex(q)), _fold.html_math(d, escape=_html.escape)) for q, d in self.defect.items()
+        ]
         text = _html.heading(str(self).splitlines()[0])
         if self.verdict == "differ":
             text += _html.table(rows, ["coordinate", "Lindelöf defect (15) − (22)"])

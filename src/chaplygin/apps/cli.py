@@ -461,6 +461,7 @@ def derive_json(eqs: Equations, accelerations: dict[Any, Any] | None) -> dict[st
 SOLVED_FACTOR = 2
 #: ... or at most this many nodes (symbols and operations) in all, whatever ``M`` and ``F``
 SOLVED_NODES = 20_000
+_FOLDED = "--full prints it whole"
 _UNSOLVED = "Not solved in print (the solved form is too large to read): M*x = F with x = ({})"
 
 
@@ -565,59 +566,63 @@ class _Derivation:
             },
         }
 
-    def render(self, fmt: DeriveFormat) -> str:
-        """What ``derive --format fmt`` prints."""
+    def render(self, fmt: DeriveFormat, full: bool = False) -> str:
+        """What ``derive --format fmt`` prints; an expression beyond a screen folded into a
+        summary (:mod:`chaplygin.core._fold`) unless ``full`` (JSON: always whole)."""
+        import sympy as sp
+
+        from chaplygin.core import _fold
+
         head, acc = self.head, self.accelerations
         if fmt is DeriveFormat.json:
             return json.dumps(self.json_doc(), indent=2, ensure_ascii=False)
+        solved = [sp.Eq(k, v, evaluate=False) for k, v in (acc or {}).items()]
+        M, F = self.linear or ([], [])
+        cell = "{}_{{{}}}" if fmt is DeriveFormat.latex else "{}[{}]"  # M_{1,2} in LaTeX, else M[1,2]
+        entries = [
+            sp.Eq(sp.Symbol(cell.format("M", f"{i + 1},{j + 1}")), x, evaluate=False)
+            for i, row in enumerate(M)
+            for j, x in enumerate(row)
+        ]
+        entries += [sp.Eq(sp.Symbol(cell.format("F", i + 1)), x, evaluate=False) for i, x in enumerate(F)]
+        unsolved = _UNSOLVED.format(", ".join(head["unknowns"]))
         if fmt is DeriveFormat.latex:
             from sympy.physics.vector.printing import vlatex
 
-            rows = r" \\ ".join(vlatex(e) for e in self.equations)  # as Equations.latex()
-            lines = [
-                f"% {head['title']} - {head['system']}",
-                r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}",
-            ]
+            lines = [f"% {head['title']} - {head['system']}", _fold.latex(self.equations, full=full)]
             if acc is not None:
-                rows = r" \\ ".join(f"{vlatex(k)} &= {vlatex(v)}" for k, v in acc.items())
-                lines += ["% solved", r"\begin{aligned}" + rows + r"\end{aligned}"]
+                lines += ["% solved", _fold.latex(solved, full=full)]
             if self.linear is not None:
-                import sympy as sp
-
-                M, F = self.linear
-                lines += [
-                    f"% {_UNSOLVED.format(', '.join(head['unknowns']))}",
-                    f"M = {vlatex(sp.Matrix(M))}",
-                    f"F = {vlatex(sp.Matrix(F))}",
-                ]
+                lines.append(f"% {unsolved}")
+                if full or not any(map(_fold.folded, entries)):
+                    lines += [f"M = {vlatex(sp.Matrix(M))}", f"F = {vlatex(sp.Matrix(F))}"]
+                else:
+                    lines.append(_fold.latex(entries, full=False))
+            if not full and any(map(_fold.folded, [*self.equations, *solved, *entries])):
+                lines.append(f"% {_FOLDED}")
             return "\n".join(lines)
         if fmt is DeriveFormat.pretty:
-            import sympy as sp
-
             from chaplygin.core._symbols import pretty
 
-            text = f"{head['title']} - {head['system']}\n\n{pretty(self.equations)}"
+            text = f"{head['title']} - {head['system']}\n\n" + "\n\n".join(
+                _fold.pretty(self.equations, full=full, hint=_FOLDED)
+            )
             if acc is not None:
-                solved = (sp.Eq(k, v, evaluate=False) for k, v in acc.items())
-                text += f"\n\nSolved:\n\n{pretty(solved)}"
+                text += "\n\nSolved:\n\n" + "\n\n".join(_fold.pretty(solved, full=full, hint=_FOLDED))
             if self.linear is not None:
-                M, F = self.linear
-                text += f"\n\n{_UNSOLVED.format(', '.join(head['unknowns']))}:\n\nM = {pretty(sp.Matrix(M))}\n\nF = {pretty(sp.Matrix(F))}"
+                if full or not any(map(_fold.folded, entries)):
+                    text += f"\n\n{unsolved}:\n\nM = {pretty(sp.Matrix(M))}\n\nF = {pretty(sp.Matrix(F))}"
+                else:
+                    text += f"\n\n{unsolved}:\n\n" + "\n".join(_fold.pretty(entries, hint=_FOLDED))
             return text
         lines = [f"{head['title']} - {head['system']}"]
-        lines += [f"  {file_syntax(e.lhs)} = {file_syntax(e.rhs)}" for e in self.equations]
+        lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in self.equations]
         if acc is not None:
             lines.append("Solved:")
-            lines += [f"  {file_syntax(k)} = {file_syntax(v)}" for k, v in acc.items()]
+            lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in solved]
         if self.linear is not None:
-            M, F = self.linear
-            lines.append(f"{_UNSOLVED.format(', '.join(head['unknowns']))}:")
-            lines += [
-                f"  M[{i + 1},{j + 1}] = {file_syntax(x)}"
-                for i, row in enumerate(M)
-                for j, x in enumerate(row)
-            ]
-            lines += [f"  F[{i + 1}] = {file_syntax(x)}" for i, x in enumerate(F)]
+            lines.append(f"{unsolved}:")
+            lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in entries]
         return "\n".join(lines)
 
 
@@ -648,6 +653,13 @@ def derive(
         help="Also pass each solved acceleration through SymPy's simplify "
         "(slow; the default result is already an exact, cancelled normal form).",
     ),
+    full: bool = typer.Option(
+        False,
+        "--full",
+        help="Print every expression whole. Without it an expression beyond a screen (more than "
+        "1000 symbols and operations) is folded into its size and its leading terms "
+        "(--format json is always whole).",
+    ),
 ) -> None:
     """Derive the equations of motion of one model and print them.
 
@@ -660,11 +672,13 @@ def derive(
     with _failures():
         source = _definition(file)
         if no_cache or source is None:
-            _emit(_derive(file, model, form, accelerations, simplify).render(fmt))
+            _emit(_derive(file, model, form, accelerations, simplify).render(fmt, full))
             return
         asked = model if model is not None else "true-motion"  # the entry names the model
         request = ("derive", source, asked, form.value) + (("simplified",) if simplify else ())
-        out_key = cache.key(*request, str(accelerations), "printed as", fmt.value)
+        out_key = cache.key(
+            *request, str(accelerations), "printed as", fmt.value, "whole" if full else "folded"
+        )
         printed = cache.load(out_key)  # the same request printed before: no SymPy at all
         if isinstance(printed, str):
             _emit(printed)
@@ -681,7 +695,7 @@ def derive(
                 cache.store(keys[0], data)
         if not accelerations:
             found.accelerations = None  # an entry with them serves a request without
-        text = found.render(fmt)
+        text = found.render(fmt, full)
         cache.store(out_key, text)
         _emit(text)
 
@@ -721,8 +735,9 @@ def check_json(system: System) -> dict[str, Any]:
     return _checked(system)[0]
 
 
-def _checked(system: System) -> tuple[dict[str, Any], Any]:
-    """:func:`check_json`'s document, and the model comparison (None where there is none)."""
+def _checked(system: System) -> tuple[dict[str, Any], Any, Any]:
+    """:func:`check_json`'s document, the model comparison (None where there is none) and the
+    integrability report."""
     from chaplygin.analysis.transitions import compare_models
     from chaplygin.apps.report import applicable_models
 
@@ -749,42 +764,52 @@ def _checked(system: System) -> tuple[dict[str, Any], Any]:
         why_not = None
     except ChaplyginError as exc:
         comparison, why_not = None, str(exc)
-    return {
-        "schema": "chaplygin.check/1",
-        "system": system.name,
-        "coordinates": _names(system.coordinates),
-        "independent": _names(system.independent),
-        "dependent": _names(system.dependent),
-        "constraint_form": system.constraint_form,
-        "affine": system.is_affine,
-        "scleronomic": system.is_scleronomic,
-        "integrability": {
-            "integrable": rep.integrable,
-            "condition_28": condition(rep.condition_28),
-            "condition_33": condition(rep.condition_33),
-            "frobenius": condition(rep.frobenius),
-            "relations": [file_syntax(r) for r in rep.relations],
+    return (
+        {
+            "schema": "chaplygin.check/1",
+            "system": system.name,
+            "coordinates": _names(system.coordinates),
+            "independent": _names(system.independent),
+            "dependent": _names(system.dependent),
+            "constraint_form": system.constraint_form,
+            "affine": system.is_affine,
+            "scleronomic": system.is_scleronomic,
+            "integrability": {
+                "integrable": rep.integrable,
+                "condition_28": condition(rep.condition_28),
+                "condition_33": condition(rep.condition_33),
+                "frobenius": condition(rep.frobenius),
+                "relations": [file_syntax(r) for r in rep.relations],
+            },
+            "chaplygin_system": {
+                "is_chaplygin": system.is_chaplygin,
+                "obstructions": list(system.chaplygin_obstructions),
+            },
+            "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
+            "comparison": comparison,
+            "comparison_unavailable": why_not,
         },
-        "chaplygin_system": {
-            "is_chaplygin": system.is_chaplygin,
-            "obstructions": list(system.chaplygin_obstructions),
-        },
-        "models": {"applicable": [f"{m}/{f}" for m, f in models], "not_applicable": reasons},
-        "comparison": comparison,
-        "comparison_unavailable": why_not,
-    }, cmp
+        cmp,
+        rep,
+    )
 
 
 @app.command(cls=_Command)
 def check(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
     fmt: CheckFormat = typer.Option(CheckFormat.text, "--format", "-f", help="Output format."),
+    full: bool = typer.Option(
+        False,
+        "--full",
+        help="Print every expression whole. Without it an expression longer than a line (300 "
+        "characters) is shown as its leading terms and its size (--format json is always whole).",
+    ),
 ) -> None:
     """Integrability of the constraints, Chaplygin-system test, and how the two models relate."""
     with _failures():
         loaded = _load(file)
         with _Steps(1, "checking"):
-            doc, comparison = _checked(loaded.system)
+            doc, comparison, report = _checked(loaded.system)
         if doc["comparison_unavailable"] is not None:
             doc["comparison_unavailable"] = cli_wording(doc["comparison_unavailable"])
         if fmt is CheckFormat.json:
@@ -808,7 +833,8 @@ def check(
             if c["failures"]:
                 first = c["failures"][0]
                 more = len(c["failures"]) - 1
-                value = brief(first["value"], "--format json has it")  # a page helps nobody
+                expr = getattr(report, key).failures[0][1]
+                value = first["value"] if full else brief(expr, "--full prints it", file_syntax)
                 line += f" - {first['component']} = {value}" + (f" (and {more} more)" if more else "")
             lines.append(f"{line}. {c['note']}")
         if integ["integrable"]:
@@ -822,7 +848,13 @@ def check(
             else "Chaplygin system: no - " + "; ".join(chap["obstructions"])
         )
         lines.append("Models that apply: " + ", ".join(doc["models"]["applicable"]))
-        if comparison is not None:
+        if comparison is not None and comparison.verdict == "differ":  # a defect may run to pages
+            lines.append(str(comparison).splitlines()[0])
+            lines += [
+                f"  {file_syntax(q)}: {file_syntax(d) if full else brief(d, '--full prints it', file_syntax)}"
+                for q, d in comparison.defect.items()
+            ]
+        elif comparison is not None:
             lines.append(str(comparison))
         else:
             lines.append(f"Chetaev vs Lindelöf: not compared - {doc['comparison_unavailable']}")

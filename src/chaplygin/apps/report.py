@@ -8,7 +8,8 @@ network, that holds
 * the integrability verdict: conditions (28) and (33), the Frobenius test, finite relations;
 * whether it is a Chaplygin system, and how the Chetaev and vakonomic models relate
   (:func:`~chaplygin.compare_models`);
-* the equations of every model that applies, as MathML (rendered natively by browsers);
+* the equations of every model that applies, as MathML (rendered natively by browsers), a long
+  one broken into lines and folded into a summary, the whole one click away;
 * the models simulated from the same initial state: a summary table, figures as inline SVG,
   energy drift and constraint drift;
 * for a rolling body (:func:`chaplygin.bodies.rolling_body`), the body drawn rolling in 3-D,
@@ -20,8 +21,11 @@ network, that holds
 Math is rendered with SymPy's MathML presentation printer, extended to print time
 derivatives of coordinates with dots and to set multi-letter names and functions apart by a thin
 space in products.  Displayed formulas are rows of inline ``<math>`` pieces cut between terms
-(:func:`mathml_pieces`), so that the browser wraps a long one as it wraps text: only a single term
-wider than the page would scroll.
+(:func:`mathml_pieces`), so that the browser wraps a long one as it wraps text.  A formula with a
+term too wide for that is cut at every depth, into pieces of a few dozen symbols
+(:mod:`chaplygin.core._fold`), and a formula beyond a screen is shown as its summary with the
+whole of it one click away (``<details>``): the rule ``chaplygin derive`` and the notebook
+displays fold by.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ from sympy.core.function import AppliedUndef
 from sympy.printing.mathml import MathMLPresentationPrinter
 from sympy.printing.precedence import PRECEDENCE
 
+from chaplygin.core import _fold
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
@@ -315,38 +320,69 @@ def mathml_pieces(expr: Any) -> list[str]:
 def _block(expr: Any) -> str:
     """A displayed formula: its pieces wrap between terms when wider than the page.
 
-    A formula of more than :data:`TYPESET_NODES` symbols and operations (a rolling body's
-    equations run to tens of thousands) is replaced by a note: typesetting it would
-    take minutes and give pages that no one reads.
+    A formula beyond a screen (:func:`chaplygin.core._fold.folded`) is shown as its summary,
+    typeset, with the whole of it, cut into pieces of at most
+    :data:`~chaplygin.core._fold.PIECE_NODES` symbols and operations between which the browser
+    may break the line, one click away in a ``<details>`` element.  A formula of more than
+    :data:`TYPESET_NODES` symbols and operations (a rolling body's equations run to hundreds of
+    thousands) is typeset only as its summary: the whole would take minutes and megabytes.
     """
     expr = _as_basic(expr, "_block")
-    if _too_long(expr):
-        return f'<div class="eq">{_untypeset(expr)}</div>'
-    return f'<div class="eq">{"<wbr>".join(mathml_pieces(expr))}</div>'
+    if not _fold.folded(expr):
+        pieces = mathml_pieces(expr)
+        if max(len(_TAG.sub("", p)) for p in pieces) > WIDEST_PIECE:  # a long fraction, a power
+            return f'<div class="eq long">{_typeset(_fold.tokens(expr))}</div>'
+        return f'<div class="eq">{"<wbr>".join(pieces)}</div>'
+    note = _fold.note(expr)
+    shown = f'<div class="eq long">{_typeset(_fold.summary(expr))}</div>'
+    if _fold.size(expr, TYPESET_NODES) > TYPESET_NODES:
+        why = f"not typeset whole: {note}; chaplygin derive --full prints it"
+        return shown + f'<p class="note">{_esc(why)}</p>'
+    whole = f'<div class="eq long">{_typeset(_fold.tokens(expr))}</div>'
+    return shown + f"<details><summary>the whole formula: {_esc(note)}</summary>{whole}</details>"
 
 
-#: the largest formula (in symbols and operations) that :func:`_block` typesets
-TYPESET_NODES = 4000
+#: the largest formula (in symbols and operations) that :func:`_block` typesets whole
+TYPESET_NODES = 50_000
+#: the widest piece (characters of its text) of a formula cut between the terms of its sums
+#: only; a formula with a wider one is cut at every depth (:func:`chaplygin.core._fold.tokens`)
+WIDEST_PIECE = 120
+_TAG = re.compile(r"<[^>]+>")
 
 
-def _too_long(expr: sp.Basic) -> bool:
-    """``expr`` has more than :data:`TYPESET_NODES` symbols and operations (its tree's nodes)."""
-    count, stack = 0, [expr]
-    while stack:
-        count += 1
-        if count > TYPESET_NODES:
-            return True
-        stack.extend(stack.pop().args)
-    return False
+def _typeset(tokens: Sequence[_fold.Token]) -> str:
+    """``tokens`` as a row of inline ``<math>`` elements in display style, cut before every
+    token a line may break before (:func:`chaplygin.core._fold.lines`)."""
+    printer = _Printer({"order": None})
+    dom = printer.dom
 
+    def mo(text: str) -> Any:
+        node = dom.createElement("mo")
+        node.appendChild(dom.createTextNode(text))
+        return node
 
-def _untypeset(expr: sp.Basic) -> str:
-    """An equation's small sides typeset, its large ones named by their size."""
-    if isinstance(expr, sp.Equality):
-        return " = ".join(_untypeset(side) for side in expr.args)
-    if not _too_long(expr):
-        return mathml(expr)
-    return f'<span class="note">[a formula of more than {TYPESET_NODES} symbols and operations, not typeset]</span>'
+    pieces: list[list[Any]] = []
+    for tok in tokens:
+        if tok.kind == "piece":
+            node = printer._print(tok.expr)
+        elif tok.kind == "more":
+            node = dom.createElement("mi")
+            node.appendChild(dom.createTextNode("…"))
+        elif tok.kind == "close" and tok.expr is not None:
+            node = dom.createElement("msup")
+            node.appendChild(mo(")"))
+            node.appendChild(printer._print(tok.expr))
+        elif tok.text == "*":
+            node = mo("\u22c5")  # a product cut between its factors: a visible dot
+        else:
+            node = mo(tok.text)
+        if tok.kind == "op" and not tok.prefix:
+            node.setAttribute("form", "infix")
+        if tok.breaks or not pieces:
+            pieces.append([node])
+        else:
+            pieces[-1].append(node)
+    return "<wbr>".join(_markup(p, display="inline", displaystyle=True) for p in pieces)
 
 
 def _cell(expr: Any) -> str:
@@ -843,6 +879,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .eq { text-align: center; padding: 0.25rem 0; overflow-x: auto; overflow-y: hidden; }
 .eq math { margin-block: 0.25em; }
 .eq.cell { text-align: left; padding: 0.1rem 0; }
+.eq.long { text-align: left; padding-left: 2em; text-indent: -2em; }
 math { font-size: 1.08em; }
 .figure { margin: 1rem 0; overflow-x: auto; }
 .figure svg { max-width: 100%; height: auto; }

@@ -23,11 +23,14 @@ from collections.abc import Iterable
 from fractions import Fraction
 
 import sympy as sp
+from sympy.simplify.fu import TR10i
 
-__all__ = ["MAX_MULTIPLE", "angle_rewrites"]
+__all__ = ["CONTRACT_NODES", "MAX_MULTIPLE", "angle_rewrites", "contracted"]
 
 #: the largest integer multiple of a base angle that is expanded (sin 4θ is 8 terms)
 MAX_MULTIPLE = 4
+#: the largest expression (symbols and operations) whose angle sums are contracted for display
+CONTRACT_NODES = 20_000
 
 _TRIG = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
 
@@ -128,3 +131,20 @@ def angle_rewrites(exprs: Iterable[sp.Expr]) -> dict[sp.Expr, sp.Expr]:
         if new != f:
             out[f] = new
     return out
+
+
+def contracted(expr: sp.Expr) -> sp.Expr:
+    """``expr`` for display, its sums of products contracted back into functions of angle sums:
+    ``sin ψ cos θ + sin θ cos ψ`` is ``sin(ψ + θ)`` (SymPy's ``fu`` rule TR10i, a fixed set of
+    identities: the value is unchanged).  Left as it is beyond :data:`CONTRACT_NODES`.
+
+    The normal form expands every angle sum, so that identities between them are seen; a
+    reader reads the sum.
+    """
+    count, stack = 0, [expr]
+    while stack:
+        count += 1
+        if count > CONTRACT_NODES:
+            return expr
+        stack.extend(stack.pop().args)
+    return TR10i(expr) if expr.has(sp.sin, sp.cos) else expr

@@ -11,8 +11,10 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
+from chaplygin.core import _fold
+from chaplygin.core._angles import contracted
 from chaplygin.core._rational import floated, linear_forms, normal_all, simplified
-from chaplygin.core._symbols import TIME, pretty, replace_shared
+from chaplygin.core._symbols import TIME, replace_shared
 from chaplygin.errors import ChaplyginWarning, ModelError
 from chaplygin.models.registry import MODELS
 
@@ -100,7 +102,8 @@ class Equations:
 
         The unknowns :attr:`unknowns` (accelerations, multipliers) on the left, each
         coefficient one cancelled fraction (trigonometric functions of angle sums expanded,
-        ``sin² + cos² = 1`` applied), the row cleared of the left side's denominators; on the
+        ``sin² + cos² = 1`` applied, then sums of products read back as functions of angle sums:
+        :func:`~chaplygin.core._angles.contracted`), the row cleared of the left side's denominators; on the
         right the velocity-quadratic terms, collected by products of velocities, and the
         forces.  A velocity constraint of a multiplier model reads ``Eq(expression, 0)``.
         Each equation is the model's residual times a factor that vanishes nowhere it is
@@ -109,7 +112,7 @@ class Equations:
         """
         velocities = [*self.system._vars.xd, *self._state]
         return [
-            sp.Eq(self._user(lhs), self._user(rhs), evaluate=False)
+            sp.Eq(contracted(self._user(lhs)), contracted(self._user(rhs)), evaluate=False)
             for lhs, rhs in readable(self._residuals, self._unknowns, velocities)
         ]
 
@@ -166,7 +169,7 @@ class Equations:
             stays in its normal form, with a :class:`~chaplygin.errors.ChaplyginWarning`
             naming it.  The default normal form is exact already.
         """
-        out = {self._user(k): self._user(v) for k, v in self._accelerations.items()}
+        out = {self._user(k): contracted(self._user(v)) for k, v in self._accelerations.items()}
         if simplify:
             values, skipped = simplified(list(out.values()))
             if skipped:
@@ -223,31 +226,33 @@ class Equations:
 
     # -------------------------------------------------------------- printing
     def __str__(self) -> str:
+        hint = "pretty(full=True) or .equations have it whole"
         lines = [self._heading()]
-        lines += [f"  {vsstrrepr(e.lhs)} = {vsstrrepr(e.rhs)}" for e in self.equations]
+        lines += [f"  {_fold.text(e, hint=hint, printer=vsstrrepr)}" for e in self.equations]
         return "\n".join(lines)
 
-    def pretty(self) -> str:
-        """A multi-line Unicode rendering, one equation after another."""
-        return f"{self._heading()}\n\n{pretty(self.equations)}"
+    def pretty(self, *, full: bool = False) -> str:
+        """A multi-line Unicode rendering, one equation after another; an equation beyond a
+        screen is folded into a one-line summary unless ``full`` (:mod:`chaplygin.core._fold`)."""
+        shown = _fold.pretty(self.equations, full=full, hint="pretty(full=True) prints it whole")
+        return f"{self._heading()}\n\n" + "\n\n".join(shown)
 
-    def latex(self) -> str:
-        """LaTeX of the equations, with dots for time derivatives."""
-        from sympy.physics.vector.printing import vlatex
-
-        rows = r" \\ ".join(vlatex(e) for e in self.equations)
-        return r"\begin{aligned}" + rows.replace("=", "&=") + r"\end{aligned}"
+    def latex(self, *, full: bool = True) -> str:
+        """LaTeX of the equations, with dots for time derivatives, a long one broken into lines;
+        with ``full=False`` an equation beyond a screen is folded into a summary."""
+        return _fold.latex(self.equations, full=full)
 
     def _repr_latex_(self) -> str:
         from chaplygin import _html
 
         title = _html.latex_text(self._heading())
-        return f"$\\displaystyle \\begin{{array}}{{l}} {title} \\\\ {self.latex()} \\end{{array}}$"
+        body = self.latex(full=False)
+        return f"$\\displaystyle \\begin{{array}}{{l}} {title} \\\\ {body} \\end{{array}}$"
 
     def _repr_html_(self) -> str:
         from chaplygin import _html
 
-        return _html.heading(self._heading()) + _html.math(f"\\displaystyle {self.latex()}", display=True)
+        return _fold.html(self.equations, escape=_html.escape, heading=_html.heading(self._heading()))
 
     def _heading(self) -> str:
         return f"{self.title} - {self.system.name}"
