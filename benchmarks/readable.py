@@ -41,17 +41,30 @@ INCLINE_RATIO = 1.2
 SPRING = "-100*(phi - 1/2)"
 
 
+#: seconds after which a command is stopped and its time shown as "> LIMIT" (the roller racer's
+#: --simplify did not finish in 10 minutes before issue 28)
+LIMIT = 120.0
+
+
 def run(src: Path, args: list[str], repeat: int) -> tuple[str, float]:
-    """``chaplygin ARGS`` on ``src``'s package, each repeat with an empty cache: (stdout, median s)."""
+    """``chaplygin ARGS`` on ``src``'s package, each repeat with an empty cache: (stdout, median s);
+    a command still running after :data:`LIMIT` seconds is stopped: ("", inf)."""
     code = f"import sys; sys.path.insert(0, {str(src)!r}); from chaplygin.apps.cli import main; main()"
     times, out = [], ""
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as cache:
             env = {**os.environ, "CHAPLYGIN_CACHE": cache, "COLUMNS": "200"}
             start = time.perf_counter()
-            done = subprocess.run(
-                [sys.executable, "-c", code, *args], capture_output=True, text=True, env=env
-            )
+            try:
+                done = subprocess.run(
+                    [sys.executable, "-c", code, *args],
+                    capture_output=True,
+                    text=True,
+                    env=env,
+                    timeout=LIMIT,
+                )
+            except subprocess.TimeoutExpired:
+                return "", float("inf")
             times.append(time.perf_counter() - start)
         if done.returncode != 0:
             raise SystemExit(f"chaplygin {' '.join(args)} failed ({done.returncode}):\n{done.stderr}")
@@ -72,7 +85,7 @@ def measure(src: Path, repeat: int) -> dict[str, dict[str, float | str]]:
         text, seconds = run(src, ["derive", spec], repeat)
         row: dict[str, float | str] = {
             "bytes": len(text.encode()),
-            "longest line": max(map(len, text.splitlines())),
+            "longest line": max(map(len, text.splitlines()), default=0),
             "cold s": seconds,
             "text": text,
         }
@@ -89,7 +102,7 @@ def table(now: dict, before: dict | None) -> str:
         head += f"{'bytes before':>14}{'ratio':>7}{'cold before':>13}"
     lines = [head]
     for name, row in now.items():
-        simp = f"{row['simplify s']:.2f}" if "simplify s" in row else "-"
+        simp = "-" if "simplify s" not in row else f"{row['simplify s']:.2f}".replace("inf", f"> {LIMIT:.0f}")
         line = f"{name:<26}{row['bytes']:>9}{row['longest line']:>9}{row['cold s']:>10.2f}{simp:>14}"
         if before and name in before:
             old = before[name]

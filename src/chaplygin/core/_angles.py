@@ -25,12 +25,13 @@ from fractions import Fraction
 import sympy as sp
 from sympy.simplify.fu import TR10i
 
-__all__ = ["CONTRACT_NODES", "MAX_MULTIPLE", "angle_rewrites", "contracted"]
+__all__ = ["CONTRACT_NODES", "MAX_MULTIPLE", "angle_rewrites", "contracted", "has_angle_sums"]
 
 #: the largest integer multiple of a base angle that is expanded (sin 4θ is 8 terms)
 MAX_MULTIPLE = 4
-#: the largest expression (symbols and operations) whose angle sums are contracted for display
-CONTRACT_NODES = 20_000
+#: the largest part (symbols and operations) whose angle sums are contracted for display:
+#: SymPy's TR10i grows fast with size (14 s on the sleigh chain's solved form, whole)
+CONTRACT_NODES = 1500
 
 _TRIG = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
 
@@ -136,15 +137,33 @@ def angle_rewrites(exprs: Iterable[sp.Expr]) -> dict[sp.Expr, sp.Expr]:
 def contracted(expr: sp.Expr) -> sp.Expr:
     """``expr`` for display, its sums of products contracted back into functions of angle sums:
     ``sin ψ cos θ + sin θ cos ψ`` is ``sin(ψ + θ)`` (SymPy's ``fu`` rule TR10i, a fixed set of
-    identities: the value is unchanged).  Left as it is beyond :data:`CONTRACT_NODES`.
+    identities: the value is unchanged).
 
     The normal form expands every angle sum, so that identities between them are seen; a
-    reader reads the sum.
+    reader reads the sum.  A sum is contracted term by term, a fraction in its numerator and
+    denominator, down to parts of at most :data:`CONTRACT_NODES`; a larger part stays as it is.
     """
+    if not expr.has(sp.sin, sp.cos):
+        return expr
+    if _nodes(expr) <= CONTRACT_NODES:
+        return TR10i(expr)
+    if expr.is_Add or expr.is_Mul:
+        return expr.func(*map(contracted, expr.args))
+    if expr.is_Pow:
+        return expr.func(contracted(expr.base), expr.exp)
+    return expr
+
+
+def _nodes(expr: sp.Expr) -> int:
+    """The symbols and operations of ``expr``, counted up to just past :data:`CONTRACT_NODES`."""
     count, stack = 0, [expr]
-    while stack:
+    while stack and count <= CONTRACT_NODES:
         count += 1
-        if count > CONTRACT_NODES:
-            return expr
         stack.extend(stack.pop().args)
-    return TR10i(expr) if expr.has(sp.sin, sp.cos) else expr
+    return count
+
+
+def has_angle_sums(exprs: Iterable[sp.Expr]) -> bool:
+    """Whether a trigonometric function of a sum (``sin(θ + ψ)``) occurs in ``exprs``: where the
+    input wrote none, a display has none to read back (:func:`contracted` is not tried)."""
+    return any(f.args[0].is_Add for f in _trig_of(exprs))

@@ -12,7 +12,7 @@ from sympy.physics.mechanics import dynamicsymbols
 from sympy.physics.vector.printing import vsstrrepr
 
 from chaplygin.core import _fold
-from chaplygin.core._angles import contracted
+from chaplygin.core._angles import contracted, has_angle_sums
 from chaplygin.core._rational import floated, linear_forms, normal_all, simplified
 from chaplygin.core._symbols import TIME, replace_shared
 from chaplygin.errors import ChaplyginWarning, ModelError
@@ -112,9 +112,20 @@ class Equations:
         """
         velocities = [*self.system._vars.xd, *self._state]
         return [
-            sp.Eq(contracted(self._user(lhs)), contracted(self._user(rhs)), evaluate=False)
+            sp.Eq(self._shown(lhs), self._shown(rhs), evaluate=False)
             for lhs, rhs in readable(self._residuals, self._unknowns, velocities)
         ]
+
+    def _shown(self, expr: sp.Expr) -> sp.Expr:
+        """An internal expression as displayed: user symbols; angle sums read back where the
+        system was written with them (:func:`~chaplygin.core._angles.contracted`)."""
+        return contracted(self._user(expr)) if self._angle_sums else self._user(expr)
+
+    @cached_property
+    def _angle_sums(self) -> bool:
+        s = self.system
+        written = [s.kinetic_energy, *s._given_constraints, *s.forces.values()]
+        return has_angle_sums(written + ([s.force_function] if s.force_function is not None else []))
 
     @cached_property
     def residuals(self) -> list[sp.Expr]:
@@ -169,7 +180,7 @@ class Equations:
             stays in its normal form, with a :class:`~chaplygin.errors.ChaplyginWarning`
             naming it.  The default normal form is exact already.
         """
-        out = {self._user(k): contracted(self._user(v)) for k, v in self._accelerations.items()}
+        out = {self._user(k): self._shown(v) for k, v in self._accelerations.items()}
         if simplify:
             values, skipped = simplified(list(out.values()))
             if skipped:
