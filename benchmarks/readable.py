@@ -106,7 +106,8 @@ def table(now: dict, before: dict | None) -> str:
         line = f"{name:<26}{row['bytes']:>9}{row['longest line']:>9}{row['cold s']:>10.2f}{simp:>14}"
         if before and name in before:
             old = before[name]
-            line += f"{old['bytes']:>14}{row['bytes'] / old['bytes']:>7.2f}{old['cold s']:>13.2f}"
+            ratio = f"{row['bytes'] / old['bytes']:.2f}" if old["bytes"] else "-"
+            line += f"{old['bytes']:>14}{ratio:>7}{old['cold s']:>13.2f}"
         lines.append(line)
     return "\n".join(lines)
 
@@ -150,6 +151,9 @@ def main() -> None:
     )
     now = measure(ROOT / "src", args.repeat)
     before = measure(args.baseline, args.repeat) if args.baseline else None
+    if args.json:
+        strip = lambda rows: {k: {f: v for f, v in r.items() if f != "text"} for k, r in rows.items()}  # noqa: E731
+        args.json.write_text(json.dumps({"now": strip(now), "before": before and strip(before)}, indent=1))
     print(table(now, before))
     if before:
         shared = [n for n in now if n in before and n not in HANDWRITTEN]
@@ -162,9 +166,6 @@ def main() -> None:
     results = goals(now)
     for text, ok in results:
         print(f"  {'met ' if ok else 'MISS'} {text}")
-    if args.json:
-        strip = lambda rows: {k: {f: v for f, v in r.items() if f != "text"} for k, r in rows.items()}  # noqa: E731
-        args.json.write_text(json.dumps({"now": strip(now), "before": before and strip(before)}, indent=1))
     sys.exit(0 if all(ok for _, ok in results) else 1)
 
 

@@ -574,7 +574,14 @@ def _linear_form(
         monomial = sp.Mul(*(ring.symbols[picked[k]] ** e for k, e in enumerate(key)))
         on = key in on_left
         sides[0 if on else 1].append((sign if on else -sign) * alg.to_expr(c) * monomial)
-    return sp.Add(*sides[0]), sp.Add(*sides[1])
+    return _common(sp.Add(*sides[0])), _common(sp.Add(*sides[1]))
+
+
+def _common(side: sp.Expr) -> sp.Expr:
+    """A side with the factors common to all its terms taken out (``a²m sin θ θ̇ (…)/5``),
+    where that reads shorter."""
+    out = sp.factor_terms(side)
+    return out if len(str(out)) < len(str(side)) else side
 
 
 def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:

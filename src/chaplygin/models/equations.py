@@ -105,7 +105,7 @@ class Equations:
         ``sin² + cos² = 1`` applied, then sums of products read back as functions of angle sums:
         :func:`~chaplygin.core._angles.contracted`), the row cleared of the left side's denominators; on the
         right the velocity-quadratic terms, collected by products of velocities, and the
-        forces.  A velocity constraint of a multiplier model reads ``Eq(expression, 0)``.
+        forces; a factor common to a side's terms taken out where that reads shorter.  A velocity constraint of a multiplier model reads ``Eq(expression, 0)``.
         Each equation is the model's residual times a factor that vanishes nowhere it is
         defined: ``eq.lhs - eq.rhs`` is 0 exactly where the residual is
         (:attr:`mass_matrix` and :attr:`forcing` are the unscaled ``M·x = F``).
