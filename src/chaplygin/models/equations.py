@@ -102,10 +102,11 @@ class Equations:
 
         The unknowns :attr:`unknowns` (accelerations, multipliers) on the left, each
         coefficient one cancelled fraction (trigonometric functions of angle sums expanded,
-        ``sin² + cos² = 1`` applied, then sums of products read back as functions of angle sums:
-        :func:`~chaplygin.core._angles.contracted`), the row cleared of the left side's denominators; on the
-        right the velocity-quadratic terms, collected by products of velocities, and the
-        forces; a factor common to a side's terms taken out where that reads shorter.  A velocity constraint of a multiplier model reads ``Eq(expression, 0)``.
+        ``sin² + cos² = 1`` applied, then sums of products read back as functions of angle
+        sums: :func:`~chaplygin.core._angles.contracted`), the row cleared of the left side's
+        denominators; on the right the terms in the velocities, collected by products of
+        velocities, and the forces; a factor common to a side's terms taken out where that
+        reads shorter.  A velocity constraint of a multiplier model reads ``Eq(expression, 0)``.
         Each equation is the model's residual times a factor that vanishes nowhere it is
         defined: ``eq.lhs - eq.rhs`` is 0 exactly where the residual is
         (:attr:`mass_matrix` and :attr:`forcing` are the unscaled ``M·x = F``).
