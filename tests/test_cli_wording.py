@@ -56,15 +56,16 @@ def said(*args: str, code: int = 1) -> str:
             "use --model vakonomic (the multiplier form)",
         ),
         (
-            ["simulate", "example:sleigh-chain", "--model", "vakonomic", "--constants", "1,1,1", "-t", "1"],
-            "give --constants match to start with μ(0) = 0.",
+            ["simulate", "example:sleigh-chain", "--model", "vakonomic", "--constants", "1,1", "-t", "1"],
+            "Invalid value for --constants",
         ),
     ],
 )
 def test_errors_name_the_option(tmp_path: Path, args: list[str], option: str) -> None:
-    if args[0] == "simulate":
-        args = [*args, "-o", str(tmp_path / "v.csv")]
-    assert option in said(*args)
+    code = 1
+    if args[0] == "simulate":  # a value the option refuses: a usage error
+        args, code = [*args, "-o", str(tmp_path / "v.csv")], 2
+    assert option in " ".join(said(*args, code=code).split())
 
 
 def test_check_names_the_option_in_text_and_json() -> None:
