@@ -152,3 +152,29 @@ def test_simulate_names_a_time_limit_that_is_not_a_number() -> None:
         numeric_simulate.simulate(
             DISK.constructor(), "voronets", 0.01, DISK.initial, DISK.parameters, time_limit="abc"
         )
+
+
+def test_a_run_that_crawls_near_a_pole_and_stops_there_is_not_refused(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Review of issue 28: ``chaplygin report`` of a sleigh on an incline (t = 3, past the pole of
+    its solved constraint at θ = π/2) was refused as '249 days' from Lindelöf's run crawling
+    towards the pole 0.5 s in; run anyway it ends in 4 s, stopped at the pole.  One slow stretch
+    does not refuse a run: a second estimate, four times as late, must agree."""
+    clock = [0.0]
+    monkeypatch.setattr(numeric_simulate.time, "monotonic", lambda: clock[0])
+    refusal = lambda left, pace: f"too long: {left} ({pace})"  # noqa: E731
+    told = numeric_simulate.pace_check(3.0, 3600.0, refusal, "ask for a shorter time")
+    for now, done in ((0.0, 1.858), (0.6, 1.8580001)):  # crawling: beyond the limit at first
+        clock[0] = now
+        told(done)
+    for now, done in ((2.1, 2.5), (3.0, 3.0)):  # then on at a pace within it
+        clock[0] = now
+        told(done)
+    slow = numeric_simulate.pace_check(3.0, 3600.0, refusal, "ask for a shorter time")
+    for now, done in ((0.0, 0.0), (0.6, 1e-6)):
+        clock[0] = now
+        slow(done)
+    clock[0] = 2.1
+    with pytest.raises(InputError, match="too long"):
+        slow(2e-6)  # still crawling: refused

@@ -93,8 +93,21 @@ def test_printed_equations_have_the_models_solution(spec: Spec, seed: int) -> No
         )
 
 
-GALLERY = ["knife-edge", "chaplygin-sleigh", "rolling-sphere", "vertical-rolling-disk", "turntable-ball"]
-HANDWRITTEN = ["sleigh_incline_tan", "sleigh_incline_implicit", "roller_racer", "snakeboard_spring"]
+GALLERY = [
+    "knife-edge",
+    "chaplygin-sleigh",
+    "rolling-sphere",
+    "vertical-rolling-disk",
+    "turntable-ball",
+    "lindelof-problem",
+]
+HANDWRITTEN = [
+    "sleigh_incline_tan",
+    "sleigh_incline_implicit",
+    "roller_racer",
+    "snakeboard_spring",
+    "car_trailer",
+]
 
 
 @pytest.mark.parametrize("name", GALLERY + HANDWRITTEN)
@@ -177,3 +190,28 @@ def test_roller_racer_prints_within_a_tenth_of_before() -> None:
         solved = numbers(eqs.accelerations.values(), values)
         assert solved == pytest.approx(list(model_solution(eqs, values)), rel=1e-9)
         assert printed_solution(eqs, values) == pytest.approx(solved, rel=1e-9)
+
+
+def test_check_reads_the_same_whichever_way_the_constraint_is_written() -> None:
+    """Review of issue 28: ``check`` showed the Lindelöf defect with ``tan θ³`` for ``y' = tan θ x'``
+    and in sin/cos for the implicit constraint; both are one normal form now (the closed-forms
+    test (33) is about A as written, and may differ)."""
+    from chaplygin.analysis.integrability import analyze
+    from chaplygin.analysis.transitions import compare_models
+
+    solved, implicit = load("sleigh_incline_tan"), load("sleigh_incline_implicit")
+    assert str(compare_models(solved).defect) == str(compare_models(implicit).defect)
+    a, b = analyze(solved), analyze(implicit)
+    assert str(a.frobenius) == str(b.frobenius) and str(a.condition_28) == str(b.condition_28)
+    assert "tan" not in str(a) and "tan" not in str(compare_models(solved).defect)
+
+
+def test_multiplier_models_of_a_constraint_written_with_tan_print_no_tan() -> None:
+    """Review of issue 28: the car with a trailer (``y' = tan θ x'``, decimals, forces) printed its
+    Chetaev solution nested with ``(−a m sin θ + a m cos θ tan θ)`` factors, 65 KB; B of a solved
+    constraint is in normal form now, and so is every entry a nested solve starts from."""
+    car = load("car_trailer")
+    for model in ("chetaev", "vakonomic"):
+        eqs = car.equations(model)
+        shown = [*eqs.equations, *eqs.accelerations.values(), *eqs.linear_system()]
+        assert not any(e.has(sp.tan) for e in shown), model

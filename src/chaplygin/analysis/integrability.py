@@ -25,7 +25,6 @@ single constraint) and returns only relations it has verified.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from itertools import combinations
 from typing import TYPE_CHECKING
@@ -39,7 +38,7 @@ from chaplygin.core._brief import brief
 from chaplygin.core._fast import derivative
 from chaplygin.core._rational import normal_all
 from chaplygin.core._sampling import vanishes
-from chaplygin.core._symbols import TIME, simplify_small
+from chaplygin.core._symbols import TIME
 from chaplygin.models.reduced import Reduction
 
 if TYPE_CHECKING:
@@ -47,23 +46,18 @@ if TYPE_CHECKING:
 
 __all__ = ["Condition", "IntegrabilityReport", "analyze"]
 
-#: expressions up to this many operations are shown after ``cancel`` and ``simplify_small``
+#: expressions up to this many operations are shown with their common factors taken out
 SHOWN_OPS = 200
 
 
-def shown(expr: sp.Expr, tidy: Callable[[sp.Expr], sp.Expr]) -> sp.Expr:
-    """``expr`` as printed in a verdict: ``tidy(expr)`` when small, else its normal form.
-
-    ``tidy`` (general cancellation, trigsimp) costs seconds on the expressions
-    of a rolling body; a large one is put in the fraction-free normal form of
-    :func:`~chaplygin.core._rational.normal_all`, or left as it is where that
-    normal form is too large to compute.
+def shown(expr: sp.Expr) -> sp.Expr:
+    """``expr`` as printed in a verdict: one cancelled fraction in the normal form of
+    :func:`~chaplygin.core._rational.normal_all` (``tan`` as ``sin/cos``, ``sin² + cos² = 1``), so
+    that it reads the same however the constraints were written; common factors taken out
+    where it is small; left as it is where that normal form is too large to compute.
     """
-    return tidy(expr) if sp.count_ops(expr) <= SHOWN_OPS else normal_all([expr])[0]
-
-
-def _tidy(expr: sp.Expr) -> sp.Expr:
-    return simplify_small(sp.cancel(expr))
+    normal = normal_all([expr])[0]
+    return sp.factor_terms(normal) if sp.count_ops(normal) <= SHOWN_OPS else normal
 
 
 @dataclass
@@ -177,14 +171,14 @@ def analyze(system: System) -> IntegrabilityReport:
         e = derivative(s._B[b, c], v.x[ind[k]]) - derivative(s._B[b, k], v.x[ind[c]])
         if not vanishes(e):
             label = f"∂B[{_name(s, dep[b])}, {_name(s, ind[c])}]/∂{_name(s, ind[k])} − ∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂{_name(s, ind[c])}"
-            fail28.append((label, user(shown(e, _tidy))))
+            fail28.append((label, user(shown(e))))
     for b, k in ((b, k) for b in range(s.g) for k in range(len(ind)) if timed):
         e = derivative(s._B[b, k], TIME) - derivative(s._B0[b], v.x[ind[k]])
         if not vanishes(e):
             label = (
                 f"∂B[{_name(s, dep[b])}, {_name(s, ind[k])}]/∂t − ∂B0[{_name(s, dep[b])}]/∂{_name(s, ind[k])}"
             )
-            fail28.append((label, user(shown(e, _tidy))))
+            fail28.append((label, user(shown(e))))
     if any(e.has(*dep_x) for e in (*s._B, *s._B0)):
         c28 = Condition(
             "(28)",
@@ -210,12 +204,12 @@ def analyze(system: System) -> IntegrabilityReport:
                 label = (
                     f"∂A[{b + 1}, {_name(s, j)}]/∂{_name(s, k)} − ∂A[{b + 1}, {_name(s, k)}]/∂{_name(s, j)}"
                 )
-                fail33.append((label, user(shown(e, _tidy))))
+                fail33.append((label, user(shown(e))))
         for k in range(s.n) if timed else ():
             e = derivative(s._A[b, k], TIME) - derivative(s._A0[b], v.x[k])
             if not vanishes(e):
                 label = f"∂A[{b + 1}, {_name(s, k)}]/∂t − ∂A0[{b + 1}]/∂{_name(s, k)}"
-                fail33.append((label, user(shown(e, _tidy))))
+                fail33.append((label, user(shown(e))))
     c33 = Condition(
         "(33)",
         not fail33,
@@ -238,11 +232,11 @@ def analyze(system: System) -> IntegrabilityReport:
                     e = derivative(w, r.ind_xd[c])
                     if not vanishes(e):
                         label = f"[X_{_name(s, ind[k])}, X_{_name(s, ind[c])}] along ∂{_name(s, dep[b])}"
-                        fail_f.append((label, user(shown(e, _tidy))))
+                        fail_f.append((label, user(shown(e))))
             e0 = w.xreplace({x: 0 for x in r.ind_xd})
             if not vanishes(e0):
                 label = f"[X_t, X_{_name(s, ind[k])}] along ∂{_name(s, dep[b])}"
-                fail_f.append((label, user(shown(-e0, _tidy))))
+                fail_f.append((label, user(shown(-e0))))
     cf = Condition(
         "Frobenius",
         not fail_f,

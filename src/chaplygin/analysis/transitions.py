@@ -28,7 +28,6 @@ from chaplygin.analysis.integrability import shown as readable
 from chaplygin.core import _fold
 from chaplygin.core._brief import brief
 from chaplygin.core._sampling import vanishes
-from chaplygin.core._symbols import simplify_small
 from chaplygin.errors import ChaplyginError, ModelError
 from chaplygin.models.reduced import Reduction, bracket_terms, lindelof_defect
 from chaplygin.models.vakonomic import family_obstructions
@@ -115,14 +114,10 @@ def compare_models(system: System) -> ModelComparison:
     defect = lindelof_defect(system, r)
     zero = [vanishes(d) for d in defect]
     shown = {
-        system.independent[k]: system.to_user(sp.S.Zero if z else readable(d, _tidy))
+        system.independent[k]: system.to_user(sp.S.Zero if z else readable(d))
         for k, (d, z) in enumerate(zip(defect, zero))
     }
     return ModelComparison(system.name, coincide, coincide, shown, all(zero))
-
-
-def _tidy(expr: sp.Expr) -> sp.Expr:
-    return simplify_small(sp.expand(expr))
 
 
 @dataclass

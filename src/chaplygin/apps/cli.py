@@ -490,7 +490,7 @@ class _Derivation:
         """The derivation; a solved form much larger than ``M·x = F`` is kept as ``M`` and ``F``."""
         linear = None
         if accelerations is not None:
-            M, F = eqs.mass_matrix, eqs.forcing
+            M, F = eqs.linear_system()
             budget = SOLVED_FACTOR * max(_size(list(M) + list(F)), SOLVED_NODES)
             if _size(list(accelerations.values()), budget) > budget:
                 linear, accelerations = (M.tolist(), list(F)), None

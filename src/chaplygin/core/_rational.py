@@ -488,8 +488,8 @@ def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> lis
         return [alg.to_expr(x) for x in alg.fractions(*alg.solve_den(N[:, :n], N[:, n:]))]
     except ZeroDivisionError:
         raise ModelError(f"{what} do not determine their unknowns: the mass matrix is singular.") from None
-    except TooLarge:
-        return list(M.LUsolve(F.applyfunc(zero_if_vanishing)))
+    except TooLarge:  # nested, from entries each in normal form (tan gone, a vanishing one 0)
+        return list(normal_matrix(M).LUsolve(normal_matrix(F)))
 
 
 def solve_columns(M: sp.Matrix, F: sp.Matrix, what: str) -> sp.Matrix:
@@ -526,7 +526,8 @@ def linear_forms(
     right side collected by products of the ``velocities`` (the velocity-quadratic terms,
     then the forces), each coefficient cancelled.  Every coefficient is exact: the row is
     the residual times a factor that vanishes nowhere the residual is defined.  A residual
-    without unknowns (a velocity constraint) is ``(numerator of r, 0)``; one whose normal form would be
+    without unknowns (a velocity constraint) is ``(r, 0)``, unscaled: its multiplier's meaning
+    depends on its scale; one whose normal form would be
     too large is ``(Σ_j M_j x_j, −rest)`` with each part in normal form where that is small.
     """
     alg = Algebra(residuals)
@@ -558,8 +559,8 @@ def _linear_form(
         groups[key] = groups.get(key, ring.zero) + ring({rest: coeff})
     unknown_at = [picked.index(i) for i in left if i is not None]
     on_left = [key for key in groups if any(key[k] for k in unknown_at)]
-    if not on_left:  # a velocity constraint: its numerator = 0 (the denominator vanishes nowhere)
-        return alg.to_expr(alg.field.raw_new(frac.numer, ring.one)), sp.S.Zero
+    if not on_left:  # a velocity constraint, as its multiplier multiplies it
+        return alg.to_expr(frac), sp.S.Zero
     coeffs = {key: alg.reduce((p, frac.denom)) for key, p in groups.items()}
     scale = ring.one
     for key in on_left:
@@ -582,6 +583,11 @@ def _common(side: sp.Expr) -> sp.Expr:
     where that reads shorter."""
     out = sp.factor_terms(side)
     return out if len(str(out)) < len(str(side)) else side
+
+
+def normal_matrix(M: sp.Matrix) -> sp.Matrix:
+    """``M`` with each entry in normal form (:func:`normal_all`)."""
+    return sp.Matrix(M.rows, M.cols, normal_all(list(M)))
 
 
 def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:
@@ -626,5 +632,6 @@ def simplified(exprs: Sequence[sp.Expr]) -> tuple[list[sp.Expr], list[int]]:
             skipped.append(k)
             continue
         candidate = sp.simplify(expr)
-        out.append(candidate if sp.count_ops(candidate) < ops else expr)
+        tan_back = candidate.has(sp.tan, sp.cot, sp.sec, sp.csc)  # the normal form has none
+        out.append(candidate if sp.count_ops(candidate) < ops and not tan_back else expr)
     return out, skipped

@@ -32,7 +32,7 @@ from chaplygin.core._fast import (
 )
 from chaplygin.core._native import is_quadratic, linear_split, momenta
 from chaplygin.core._operations import operation
-from chaplygin.core._rational import exact_numbers, floated, solve_columns
+from chaplygin.core._rational import exact_numbers, floated, normal_matrix, solve_columns
 from chaplygin.core._symbols import (
     TIME,
     Vars,
@@ -329,8 +329,9 @@ class System:
                 rows.append(split[0])
                 consts.append(split[1])
             g = len(dep)
-            self._B = sp.Matrix(g, len(self._ind), [c for r in rows for c in r])
-            self._B0 = sp.Matrix(g, 1, consts)
+            # each coefficient in normal form (tan as sin/cos, cancelled), as form A's are solved
+            self._B = normal_matrix(sp.Matrix(g, len(self._ind), [c for r in rows for c in r]))
+            self._B0 = normal_matrix(sp.Matrix(g, 1, consts))
             self._A = sp.zeros(g, self.n)
             for b in range(g):
                 self._A[b, dep[b]] = 1

@@ -13,7 +13,7 @@ from sympy.physics.vector.printing import vsstrrepr
 
 from chaplygin.core import _fold
 from chaplygin.core._angles import contracted, has_angle_sums
-from chaplygin.core._rational import floated, linear_forms, normal_all, simplified
+from chaplygin.core._rational import floated, linear_forms, normal_all, normal_matrix, simplified
 from chaplygin.core._symbols import TIME, replace_shared
 from chaplygin.errors import ChaplyginWarning, ModelError
 from chaplygin.models.registry import MODELS
@@ -151,6 +151,11 @@ class Equations:
     def forcing(self) -> sp.Matrix:
         """``F`` of ``M·x = F`` in the model's unknowns :attr:`unknowns` (not simplified)."""
         return self._user(self._F)
+
+    def linear_system(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """``(M, F)`` of ``M·x = F`` as displayed: :attr:`mass_matrix` and :attr:`forcing` with each
+        entry one cancelled fraction in normal form (the values unchanged)."""
+        return tuple(m.applyfunc(self._shown) for m in (normal_matrix(self._M), normal_matrix(self._F)))
 
     @cached_property
     def _accelerations(self) -> dict[sp.Symbol, sp.Expr]:

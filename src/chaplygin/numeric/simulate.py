@@ -794,27 +794,32 @@ def pace_check(
     total: float, limit: float, refusal: Callable[[str, str], str], instead: str
 ) -> Callable[[float], None]:
     """A callback told the progress ``done`` of a run (a time reached, steps taken) towards
-    ``total``: once, :data:`ESTIMATE_AFTER` seconds after its first call (counted from there, so
-    that a compilation in the first stretch does not count), it estimates the time left from the
-    pace so far and raises :class:`InputError` beyond ``limit`` seconds, with the message
+    ``total``: :data:`ESTIMATE_AFTER` seconds after its first call (counted from there, so that
+    a compilation in the first stretch does not count), it estimates the time left from the pace
+    so far; beyond ``limit`` seconds it estimates again four times as late (a run that crawls
+    near a pole, where the integrator then stops it, is beyond only at first) and, beyond again,
+    raises :class:`InputError` with the message
     ``refusal(estimate, pace)``, the limit, and the advice ``instead`` (``"ask for a shorter
     time"``) or how to lift the limit; ``pace`` says how far the run went in how long."""
     origin: list[float] = []  # (wall time, done) of the first call
-    checked = [False]
+    checks = [0]  # estimates made: a second, later one confirms a refusal
 
     def told(done: float) -> None:
-        if checked[0] or done >= total:
+        if checks[0] >= 2 or done >= total:
             return
         now = time.monotonic()
         if not origin:
             origin.extend((now, done))
             return
         elapsed = now - origin[0]
-        if elapsed < ESTIMATE_AFTER:
+        if elapsed < ESTIMATE_AFTER * 4 ** checks[0]:
             return
-        checked[0] = True
+        checks[0] += 1
         left = elapsed * (total - done) / (done - origin[1]) if done > origin[1] else math.inf
-        if left > limit:
+        if left <= limit:
+            checks[0] = 2  # within the limit: no more estimates
+        elif checks[0] == 2:  # beyond it twice (a run that crawls near a pole and then stops
+            # there, as the integrator finds it, is beyond it only at first)
             pace = f"from {origin[1]:.4g} to {done:.4g} in {elapsed:.1f} s"
             raise InputError(
                 f"{refusal(duration(left), pace)}, beyond the limit of {duration(limit)}; "
