@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
@@ -217,3 +219,17 @@ def test_run_options_are_checked(knife: System, options: dict, named: str) -> No
     with pytest.raises(InputError) as info:
         simulate(knife, "chaplygin", t_end, KNIFE_0, KNIFE_P, **options)
     assert named in str(info.value)
+
+
+def test_a_parameter_that_makes_a_denominator_vanish_is_named(tmp_path: Path) -> None:
+    """Review of issue 28: ``compare car_trailer.toml -p L=0`` said 'unexpected TypeError: Cannot
+    convert complex to float' (1/L at the initial state); it names the state and the values now."""
+    from typer.testing import CliRunner
+
+    from chaplygin.apps import cli
+
+    car = Path(__file__).resolve().parent.parent / "benchmarks" / "systems" / "car_trailer.toml"
+    result = CliRunner().invoke(cli.app, ["compare", str(car), "-t", "1", "-p", "L=0"])
+    assert result.exit_code == 1, result.output
+    text = " ".join((result.stdout + result.stderr).split())
+    assert "not finite at the initial state" in text and "L = 0" in text and "unexpected" not in text

@@ -1427,9 +1427,16 @@ def _evaluate(
     values = {TIME: t0, **dict(zip(v.x, q)), **{x: val for x, val in zip(v.xd, qd) if not np.isnan(val)}}
     values.update({system.parameter(k): val for k, val in params.items()})
     out = expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf()
-    if isinstance(out, sp.MatrixBase):
-        return np.array(out.tolist(), dtype=float)
-    return float(out)
+    try:
+        if isinstance(out, sp.MatrixBase):
+            return np.array(out.tolist(), dtype=float)
+        return float(out)
+    except TypeError:  # zoo or a complex number: a denominator vanishes, or a root of a negative
+        given = ", ".join(f"{k} = {val:g}" for k, val in params.items())
+        raise InputError(
+            f"{system.name}: the equations are not finite at the initial state (t = {t0:g}; {given}): "
+            "a denominator vanishes there (a parameter of 0?); change the parameters or the initial values."
+        ) from None
 
 
 def _matching_constants(
