@@ -490,9 +490,9 @@ class _Derivation:
         """The derivation; a solved form much larger than ``M·x = F`` is kept as ``M`` and ``F``."""
         linear = None
         if accelerations is not None:
-            M, F = eqs.linear_system()
-            budget = SOLVED_FACTOR * max(_size(list(M) + list(F)), SOLVED_NODES)
+            budget = SOLVED_FACTOR * max(_size(list(eqs.mass_matrix) + list(eqs.forcing)), SOLVED_NODES)
             if _size(list(accelerations.values()), budget) > budget:
+                M, F = eqs.linear_system()  # shown in normal form
                 linear, accelerations = (M.tolist(), list(F)), None
         s = eqs.system
         head = {

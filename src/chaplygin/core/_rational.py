@@ -74,9 +74,6 @@ TERMS = 400
 
 #: the most terms an intermediate product or power may have before it is formed
 _WORK = 50 * TERMS
-#: the most terms an expression's parts may have as they are converted: its normal form
-#: (:data:`TERMS`) is often much shorter, the identity and cancellation applied
-_CONVERT = 8 * TERMS
 #: denominators up to this many terms are shown factored
 _FACTOR_TERMS = 40
 
@@ -85,8 +82,8 @@ class TooLarge(Exception):
     """Expanded normal forms would be too large: the caller solves with nested expressions."""
 
 
-def _check(*polys: PolyElement, limit: int = TERMS) -> None:
-    if any(len(p) > limit for p in polys):
+def _check(*polys: PolyElement) -> None:
+    if any(len(p) > TERMS for p in polys):
         raise TooLarge
 
 
@@ -212,7 +209,7 @@ class Algebra:
                 self._divisors[n] = None  # (sin² + cos², which is 1, is none)
         else:  # pragma: no cover - every other expression is a kernel
             raise KeyError(expr)
-        _check(*out, limit=_CONVERT)
+        _check(*out)
         memo[expr] = out
         return out
 
