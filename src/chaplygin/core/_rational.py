@@ -6,10 +6,12 @@ the parameters, the velocities, and functions of the coordinates such as
 them elements of the field ``ℚ(kernels)``, where SymPy's sparse polynomials
 solve a small linear system without fractions (``solve_den``:
 ``x = adj(M)·F / det M`` up to common factors) and cancel common factors
-exactly.  The one identity that links kernels in every rolling problem,
-``sin²a + cos²a = 1``, is applied by rewriting every even power of one of the
-two (``cos²a → 1 − sin²a``, or the other way) — a normal form modulo the
-identity — before cancelling, so that factors such as ``cos²θ`` and
+exactly.  Trigonometric functions are first written in the sines and cosines of
+base angles (``sin(θ + ψ)``, ``tan θ``, ``sin 2θ`` in ``sin θ``, ``cos θ``, ``sin ψ``,
+``cos ψ``: :mod:`chaplygin.core._angles`), so that one identity is left, the one
+that links kernels in every rolling problem: ``sin²a + cos²a = 1``.  It is applied
+by rewriting every even power of one of the two (``cos²a → 1 − sin²a``, or the
+other way) — a normal form modulo the identity — before cancelling, so that factors such as ``cos²θ`` and
 ``1 − sin²θ`` cancel.  Both directions are tried and the shorter result is
 kept.  Before that, the input's denominators (every sum met as ``1/(…)``) are
 divided out of numerator and denominator wherever they divide both — the
@@ -24,7 +26,8 @@ stays available on request (:func:`simplified`).
 
 Expressions enter the field through :meth:`Algebra.convert`, which walks the
 expression tree once and multiplies out in sparse polynomial arithmetic (much
-faster than SymPy's ``expand``).  A rational power ``b**(p/q)`` is the kernel
+faster than SymPy's ``expand``), adding fractions over the least common multiple
+of their denominators (a derivation's nested ``D²`` and ``D³`` give ``D³``, not ``D⁵``).  A rational power ``b**(p/q)`` is the kernel
 ``b**(1/q)`` to the power ``p``.  A Float is the exact rational of the decimal
 it was written as (:func:`decimal`: 17.9 is 179/10), so that the numbers of a
 system written with Float parameters cancel as exactly as symbols would
@@ -61,6 +64,7 @@ __all__ = [
     "floated",
     "linear_forms",
     "normal_all",
+    "normal_matrix",
     "simplified",
     "solve_columns",
     "solve_linear",

@@ -24,13 +24,6 @@ if TYPE_CHECKING:
 __all__ = ["Equations"]
 
 
-def readable(
-    residuals: Sequence[sp.Expr], unknowns: Sequence[sp.Symbol], velocities: Sequence[sp.Symbol]
-) -> list[tuple[sp.Expr, sp.Expr]]:
-    """Each residual as ``M_i·x = F_i`` for display (:func:`~chaplygin.core._rational.linear_forms`)."""
-    return linear_forms(residuals, unknowns, velocities)
-
-
 class Equations:
     """Equations of motion of one model, with the linear system ``M·x = F`` they form.
 
@@ -114,7 +107,7 @@ class Equations:
         velocities = [*self.system._vars.xd, *self._state]
         return [
             sp.Eq(self._shown(lhs), self._shown(rhs), evaluate=False)
-            for lhs, rhs in readable(self._residuals, self._unknowns, velocities)
+            for lhs, rhs in linear_forms(self._residuals, self._unknowns, velocities)
         ]
 
     def _shown(self, expr: sp.Expr) -> sp.Expr:
@@ -124,6 +117,7 @@ class Equations:
 
     @cached_property
     def _angle_sums(self) -> bool:
+        """Whether the system was written with trigonometric functions of sums of angles."""
         s = self.system
         written = [s.kinetic_energy, *s._given_constraints, *s.forces.values()]
         return has_angle_sums(written + ([s.force_function] if s.force_function is not None else []))
