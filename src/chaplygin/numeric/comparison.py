@@ -391,6 +391,22 @@ def motion_notes(
     return notes
 
 
+#: the fallback's note where the constraints were written solved with a denominator
+_SHARED_POLE = (
+    "but with the constraints as written, solved with a denominator, its rows have that pole too "
+    "and lose accuracy near it; written implicitly they would not"
+)
+
+
+def _rows_have_poles(system: System) -> bool:
+    """Whether a coefficient of the constraints ``A q̇ + A_0 = 0`` has a coordinate in a
+    denominator (``y' = tan θ x'``: ``A = [−sin θ / cos θ, 1]``)."""
+    import sympy as sp
+
+    coordinates = system._vars.x
+    return any(sp.denom(sp.together(a)).has(*coordinates) for a in [*system._A, *system._A0])
+
+
 def compare(
     system: System,
     models: Sequence[str | tuple[str, str]] | None,
@@ -446,8 +462,11 @@ def compare(
         Passed to :func:`chaplygin.numeric.simulate` for every model (it checks them);
         ``progress(t)`` hears each model's integration in turn.
 
-    :attr:`Comparison.notes` gives the constants used (as numbers), and says which labels are
-    names of one motion (:func:`motion_notes`).
+    Returns
+    -------
+    Comparison
+        The runs; its :attr:`Comparison.notes` give the constants used (as numbers) and say
+        which labels are names of one motion (:func:`motion_notes`).
     """
     options: dict[str, Any] = {
         "rtol": rtol,
@@ -492,7 +511,9 @@ def compare(
             else:
                 note = (
                     f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
-                    f"shown instead: the {fallback} model (the same motion with multipliers, no pole)"
+                    f"shown instead: the {fallback} model (the same motion with multipliers, "
+                    + (_SHARED_POLE if _rows_have_poles(system) else "no pole")
+                    + ")"
                 )
                 tr = simulate(system, fallback, t_span, initial, parameters, **own)
             warnings.warn(note, ChaplyginWarning, stacklevel=2)
