@@ -25,6 +25,8 @@ from fractions import Fraction
 import sympy as sp
 from sympy.simplify.fu import TR10i
 
+from chaplygin.core._fold import size
+
 __all__ = ["CONTRACT_NODES", "MAX_MULTIPLE", "angle_rewrites", "contracted", "has_angle_sums"]
 
 #: the largest integer multiple of a base angle that is expanded (sin 4θ is 8 terms)
@@ -145,22 +147,13 @@ def contracted(expr: sp.Expr) -> sp.Expr:
     """
     if not expr.has(sp.sin, sp.cos):
         return expr
-    if _nodes(expr) <= CONTRACT_NODES:
+    if size(expr, CONTRACT_NODES) <= CONTRACT_NODES:
         return TR10i(expr)
     if expr.is_Add or expr.is_Mul:
         return expr.func(*map(contracted, expr.args))
     if expr.is_Pow:
         return expr.func(contracted(expr.base), expr.exp)
     return expr
-
-
-def _nodes(expr: sp.Expr) -> int:
-    """The symbols and operations of ``expr``, counted up to just past :data:`CONTRACT_NODES`."""
-    count, stack = 0, [expr]
-    while stack and count <= CONTRACT_NODES:
-        count += 1
-        stack.extend(stack.pop().args)
-    return count
 
 
 def has_angle_sums(exprs: Iterable[sp.Expr]) -> bool:

@@ -54,6 +54,7 @@ from sympy.polys.rings import PolyElement
 
 from chaplygin.core._angles import angle_rewrites
 from chaplygin.core._fast import gradient
+from chaplygin.core._fold import size
 from chaplygin.errors import ModelError
 
 __all__ = [
@@ -63,6 +64,7 @@ __all__ = [
     "exact_numbers",
     "floated",
     "linear_forms",
+    "nested_inputs",
     "normal_all",
     "normal_matrix",
     "simplified",
@@ -490,7 +492,7 @@ def solve_linear(M: sp.Matrix, F: sp.Matrix, what: str = "the equations") -> lis
     except ZeroDivisionError:
         raise ModelError(f"{what} do not determine their unknowns: the mass matrix is singular.") from None
     except TooLarge:  # nested, from entries each in normal form (tan gone, a vanishing one 0)
-        return list(normal_matrix(M).LUsolve(normal_matrix(F)))
+        return list(nested_inputs(M).LUsolve(nested_inputs(F)))
 
 
 def solve_columns(M: sp.Matrix, F: sp.Matrix, what: str) -> sp.Matrix:
@@ -579,9 +581,16 @@ def _linear_form(
     return _common(sp.Add(*sides[0])), _common(sp.Add(*sides[1]))
 
 
+#: the largest side (symbols and operations) whose common factors are looked for: beyond it a
+#: display folds the side anyway, and ``factor_terms`` costs a second
+COMMON_NODES = 2000
+
+
 def _common(side: sp.Expr) -> sp.Expr:
     """A side with the factors common to all its terms taken out (``a²m sin θ θ̇ (…)/5``),
-    where that reads shorter."""
+    where that reads shorter; a side beyond :data:`COMMON_NODES` as it is."""
+    if size(side, COMMON_NODES) > COMMON_NODES:
+        return side
     out = sp.factor_terms(side)
     return out if len(str(out)) < len(str(side)) else side
 
@@ -589,6 +598,23 @@ def _common(side: sp.Expr) -> sp.Expr:
 def normal_matrix(M: sp.Matrix) -> sp.Matrix:
     """``M`` with each entry in normal form (:func:`normal_all`)."""
     return sp.Matrix(M.rows, M.cols, normal_all(list(M)))
+
+
+_RECIPROCAL_TRIG = (sp.tan, sp.cot, sp.sec, sp.csc)
+
+
+def nested_inputs(M: sp.Matrix) -> sp.Matrix:
+    """``M``'s entries for a nested (LU) solve: each in normal form where that is 0, where the
+    entry has ``tan``, ``cot``, ``sec`` or ``csc``, or where it is no larger, so that no
+    identically zero sum (``sin θ − cos θ tan θ``, a product of sums that cancels) is carried
+    into the solution; else as it is (expanded, a product of sums grows, and the nested
+    solution with it: 2.5× on random 4-coordinate systems)."""
+    entries = list(M)
+    out = [
+        n if n == 0 or e.has(*_RECIPROCAL_TRIG) or sp.count_ops(n) <= sp.count_ops(e) else e
+        for e, n in zip(entries, normal_all(entries))
+    ]
+    return sp.Matrix(M.rows, M.cols, out)
 
 
 def normal_all(exprs: Sequence[sp.Expr]) -> list[sp.Expr]:

@@ -16,7 +16,7 @@ import sympy as sp
 from sympy.polys.matrices import DomainMatrix
 
 from chaplygin.core._fast import gradient, jacobian
-from chaplygin.core._rational import Algebra, TooLarge, normal_matrix
+from chaplygin.core._rational import Algebra, TooLarge, nested_inputs
 from chaplygin.core._symbols import total_derivative
 from chaplygin.errors import ModelError
 from chaplygin.models.equations import Equations
@@ -160,20 +160,20 @@ def _solve_nested(system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol])
     ind_xdd = [v.xdd[i] for i in ind]
     acc_dep: dict[sp.Symbol, sp.Expr] = {}
     if g:
-        a_dep = normal_matrix(system._A.extract(list(range(g)), dep))
-        c = a_dep.LUsolve(normal_matrix(-_differentiated_constraints(system)))
+        a_dep = nested_inputs(system._A.extract(list(range(g)), dep))
+        c = a_dep.LUsolve(nested_inputs(-_differentiated_constraints(system)))
         acc_dep = {
             v.xdd[i]: sum((system._B[b, k] * a for k, a in enumerate(ind_xdd)), c[b])
             for b, i in enumerate(dep)
         }
     projected = system._C.T * dynamic.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep)
-    Mr = normal_matrix(jacobian(projected, ind_xdd))
+    Mr = nested_inputs(jacobian(projected, ind_xdd))
     out: dict[sp.Symbol, sp.Expr] = dict(
-        zip(ind_xdd, Mr.LUsolve(normal_matrix(-projected.xreplace({a: 0 for a in ind_xdd}))))
+        zip(ind_xdd, Mr.LUsolve(nested_inputs(-projected.xreplace({a: 0 for a in ind_xdd}))))
     )
     out.update({a: e.xreplace(out) for a, e in acc_dep.items()})
     if g:
         rows = sp.Matrix([dynamic[i] for i in dep])
         rest = rows.xreplace({u: 0 for u in unknowns}).xreplace(out)
-        out.update(zip(unknowns, normal_matrix(jacobian(rows, unknowns)).LUsolve(-rest)))
+        out.update(zip(unknowns, nested_inputs(jacobian(rows, unknowns)).LUsolve(-rest)))
     return {a: out[a] for a in [*v.xdd, *unknowns]}
