@@ -526,12 +526,12 @@ def linear_forms(
     As a mechanics text writes an equation of motion: the accelerations (and multipliers)
     on the left, each coefficient one cancelled fraction in normal form; the row multiplied
     by the least common multiple of the left side's denominators, so that they are gone; the
-    right side collected by products of the ``velocities`` (the velocity-quadratic terms,
-    then the forces), each coefficient cancelled.  Every coefficient is exact: the row is
-    the residual times a factor that vanishes nowhere the residual is defined.  A residual
-    without unknowns (a velocity constraint) is ``(r, 0)``, unscaled: its multiplier's meaning
-    depends on its scale; one whose normal form would be
-    too large is ``(Σ_j M_j x_j, −rest)`` with each part in normal form where that is small.
+    right side collected by products of the ``velocities`` (what is left is the forces), each
+    coefficient cancelled; a factor common to a side's terms taken out where that reads
+    shorter.  Every coefficient is exact: the row is the residual times a factor that vanishes
+    nowhere the residual is defined.  A residual without unknowns (a velocity constraint) is
+    ``(r, 0)``, unscaled: its multiplier's meaning depends on its scale.  One whose normal form
+    would be too large is ``(Σ_j M_j x_j, −rest)``, each part in normal form where that is small.
     """
     alg = Algebra(residuals)
     gens = alg.ring.gens
