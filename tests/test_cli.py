@@ -577,7 +577,7 @@ KNIFE = ["simulate", "example:knife-edge", "--samples", "5"]
         (["--t-end", "1", "--param", "J=nan"], "J = nan"),
         (["--t-end", "1", "--initial", "phi=1.5707963267948966"], "pole of the solved constraints"),
         (["--t-end", "1", "--initial", "x'=inf"], "x' = inf"),
-        (["--t-end", "inf"], "end time = inf"),
+        (["--t-end", "inf"], "--t-end = inf"),
         (["--t-end", "-1"], "must be after the start"),
         (["--t-end", "1", "--samples", "10000000"], "--samples 10000000"),  # (Python: samples = 10000000)
     ],

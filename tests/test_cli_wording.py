@@ -162,3 +162,13 @@ def test_a_sweep_names_the_options_on_the_command_line_and_keywords_in_python(tm
 )
 def test_the_wording(python: str, command_line: str) -> None:
     assert cli_wording(python) == command_line
+
+
+def test_compare_names_the_end_time_option_and_refuses_a_model_twice() -> None:
+    """Review of issue 28: ``compare -t -1`` said ``t_span: the end time …`` (Python's name), and
+    ``--models chetaev,chetaev`` silently gave one row."""
+    assert "--t-end -1 must be after the start 0." in said("compare", "example:knife-edge", "-t", "-1")
+    twice = said("compare", "example:knife-edge", "--models", "chetaev,chetaev", "-t", "1", code=2)
+    assert "chetaev is listed twice" in twice
+    with pytest.raises(ChaplyginError, match="'chetaev' is listed twice"):
+        chaplygin.compare(examples.knife_edge(), ["chetaev", "chetaev"], 1.0, {})

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["CLI_OPTIONS", "PYTHON_HINT", "cli_wording"]
+__all__ = ["CLI_OPTIONS", "CLI_PHRASES", "PYTHON_HINT", "cli_wording"]
 
 #: a Python keyword of the API → the option of the command line that gives it
 CLI_OPTIONS = {
@@ -41,6 +41,9 @@ CLI_OPTIONS = {
     "to": "--to",
     "prefix": "--prefix",
 }
+#: a phrase of the API's messages → the option of the command line it names (the command
+#: line's runs start at t = 0: its end time is the whole span)
+CLI_PHRASES = {"t_span: the end time": "--t-end"}
 #: keywords of the API that the command line has no option for
 PYTHON_ONLY = ("multipliers", "threads", "keep", "path", "what", "max_step")
 
@@ -77,5 +80,9 @@ def cli_wording(text: str) -> str:
     'does not apply. Use --model voronets, which allows T, U and B'
     >>> cli_wording("pass time_limit=None with resume=True to finish")
     'pass --time-limit 0 with --resume to finish'
+    >>> cli_wording("t_span: the end time -1 must be after the start 0.")
+    '--t-end -1 must be after the start 0.'
     """
+    for python, option in CLI_PHRASES.items():
+        text = text.replace(python, option)
     return PYTHON_HINT.sub(_option, _DROPPED.sub("", text))

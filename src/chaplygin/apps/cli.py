@@ -1191,6 +1191,13 @@ def compare(
     multipliers (chetaev; vakonomic for the family), with a warning and a note.
     """
     specs = [_model_spec(m) for m in models.split(",")] if models else None
+    listed = specs or []
+    twice = next((s for k, s in enumerate(listed) if s in listed[:k]), None)
+    if twice is not None:
+        named = twice[0] if twice[1] == "classic" else "/".join(twice)
+        raise typer.BadParameter(
+            f"{named} is listed twice; name each model (and form) once.", param_hint="--models"
+        )
     c = _constants(constants)
     rtol, atol = _tolerance(rtol, "--rtol"), _tolerance(atol, "--atol")
     _overrides(param, "--param"), _overrides(initial, "--initial")

@@ -489,6 +489,10 @@ def compare(
     parsed = [_parse(model) for model in models]
     for name, form, _ in parsed:
         registry.get(name, form)
+    labels = [label for _, _, label in parsed]
+    twice = next((label for k, label in enumerate(labels) if label in labels[:k]), None)
+    if twice is not None:
+        raise ChaplyginError(f"models: {twice!r} is listed twice; name each model (and form) once.")
     given = constants is not None or multipliers is not None
     if given and not any(_takes_constants(name) for name, _, _ in parsed):
         raise ChaplyginError(
