@@ -227,3 +227,150 @@ def test_every_model_derives_with_a_relation() -> None:
                 elim = solution(eliminated.equations(model, form, constants=[0.7]), v)
                 for acc, value in got.items():
                     assert value == pytest.approx(want[acc], rel=1e-10) == elim[acc], form
+
+
+# ------------------------------------------------------------------ simulate
+def pendulum_xy() -> System:
+    T = m / 2 * (d(x) ** 2 + d(y) ** 2)
+    return System([x, y], T, [], potential_energy=m * g * y, holonomic={y: x**2 + y**2 - l**2})
+
+
+def test_pendulum_in_x_y_moves_as_the_pendulum_in_its_angle() -> None:
+    """Started at y = -0.5 (a guess), y is solved to -l cos θ0 by Newton, told in the notes, and
+    x(t) follows l sin θ(t) of the same pendulum written in its angle (an independent run)."""
+    import chaplygin
+
+    params = {"m": 1.0, "g": 9.81, "l": 0.8}
+    th0, rate0 = 0.9, 0.4
+    start = {x: 0.8 * np.sin(th0), y: -0.5, d(x): 0.8 * np.cos(th0) * rate0}
+    tr = chaplygin.simulate(pendulum_xy(), "chetaev", 3.0, start, params, samples=61, backend="numpy")
+    angle = System([th], m * l**2 / 2 * d(th) ** 2, [], potential_energy=-m * g * l * sp.cos(th))
+    ref = chaplygin.simulate(
+        angle, "chetaev", 3.0, {th: th0, d(th): rate0}, params, samples=61, backend="numpy"
+    )
+    assert tr.coordinates["y"][0] == pytest.approx(-0.8 * np.cos(th0), rel=1e-12)
+    assert tr.notes == [
+        f"y solved from the holonomic constraint at the start: -0.5 → {-0.8 * np.cos(th0):.12g}"
+    ]
+    assert np.max(np.abs(tr.coordinates["x"] - 0.8 * np.sin(ref.coordinates["theta"]))) < 1e-7
+    assert np.max(np.abs(tr.coordinates["y"] + 0.8 * np.cos(ref.coordinates["theta"]))) < 1e-7
+    assert tr.holonomic_residual.shape == tr.t.shape
+    assert 0 < np.max(tr.holonomic_residual) < 1e-7
+    assert "holonomic_residual" in tr.columns and "max holonomic residual" in tr._repr_html_()
+    assert ref.holonomic_residual.size == 0 and "holonomic_residual" not in ref.columns
+
+
+def test_a_start_on_the_relation_is_kept_and_bad_starts_are_refused() -> None:
+    import chaplygin
+    from chaplygin.errors import InputError
+
+    params = {"m": 1.0, "g": 9.81, "l": 0.8}
+    on = {x: 0.0, y: -0.8, d(x): 0.1}
+    tr = chaplygin.simulate(pendulum_xy(), "vakonomic", 0.5, on, params, samples=11, backend="numpy")
+    assert tr.notes == [] and tr.coordinates["y"][0] == -0.8
+    with pytest.raises(InputError, match=r"no solution for y near the given y = -0.5"):
+        chaplygin.simulate(pendulum_xy(), "chetaev", 0.5, {**on, x: 2.0, y: -0.5}, params, backend="numpy")
+    with pytest.raises(InputError, match=r"do not fix y at y = 0: ∂f/∂q_dep is singular there"):
+        chaplygin.simulate(pendulum_xy(), "chetaev", 0.5, {**on, x: 0.8, y: 0.0}, params, backend="numpy")
+
+
+def test_ensemble_members_start_on_the_relation() -> None:
+    from chaplygin.numeric.ensemble import simulate_ensemble
+
+    params = {"m": 1.0, "g": 9.81, "l": 0.8}
+    starts = [{x: 0.3, y: -0.5, d(x): 0.1}, {x: -0.2, y: -0.9, d(x): 0.0}]
+    ens = simulate_ensemble(pendulum_xy(), "chetaev", 0.2, starts, params, backend="c")
+    assert ens.y_initial[:, 1] == pytest.approx(-np.sqrt(0.64 - np.array([0.3, -0.2]) ** 2), rel=1e-12)
+
+
+# ------------------------------------------------------------------ system files and the command line
+KNIFE_TOML = """
+name = "Knife edge on a wavy surface"
+coordinates = ["x", "y", "phi", "z"]
+
+[parameters]
+m = 1.0
+J = 0.5
+a = 0.3
+g = 9.81
+
+[energy]
+T = "m/2*(x'^2 + y'^2 + z'^2) + J/2*phi'^2"
+V = "m*g*z"
+
+[constraints]
+{constraints}
+
+[holonomic]
+z = "z - a*sin(x)"
+
+[initial]
+x = 0.2
+phi = 0.3
+"x'" = 1.0
+"phi'" = 0.2
+"""
+SOLVED = '"y\'" = "tan(phi)*x\'"'
+IMPLICIT = 'implicit = ["sin(phi)*x\' - cos(phi)*y\'"]\ndependent = ["y"]'
+
+
+@pytest.mark.parametrize("constraints", [SOLVED, IMPLICIT])
+def test_a_file_with_holonomic_constraints_round_trips(constraints: str) -> None:
+    from chaplygin.io.files import dumps, loads
+
+    loaded = loads(KNIFE_TOML.format(constraints=constraints))
+    s = loaded.system
+    assert {str(k): str(f) for k, f in s.holonomic.items()} == {"z(t)": "-a*sin(x(t)) + z(t)"}
+    assert s.velocity_g == 1
+    text = dumps(s, loaded.parameters, loaded.initial)
+    assert '[holonomic]\nz = "-a*sin(x) + z"' in text
+    back = loads(text).system
+    assert (back.holonomic, back.constraint_form, back.dependent) == (s.holonomic, s.constraint_form, (y, z))
+    assert sp.simplify(back.A - s.A) == sp.zeros(2, 4)
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ('w = "z"', '[holonomic] w: "w" is not a coordinate'),
+        ('"z\'" = "z"', "(write the coordinate, z, not its velocity)"),
+        ('z = "z - "', "[holonomic] z"),
+        ('y = "y - x"', "holonomic[y]: y is a dependent coordinate of the velocity constraints"),
+        ('z = "x - a"', "holonomic[z] = -a + x does not depend on z"),
+    ],
+)
+def test_bad_holonomic_tables_are_named(table: str, message: str) -> None:
+    from chaplygin.io.files import SystemFileError, loads
+
+    text = KNIFE_TOML.format(constraints=SOLVED).replace('z = "z - a*sin(x)"', table)
+    with pytest.raises(SystemFileError) as err:
+        loads(text)
+    assert message in str(err.value)
+
+
+def test_the_command_line_derives_simulates_and_compares_such_a_file(tmp_path) -> None:
+    from typer.testing import CliRunner
+
+    from chaplygin.apps.cli import app
+
+    path = tmp_path / "knife.toml"
+    path.write_text(KNIFE_TOML.format(constraints=SOLVED))
+    runner = CliRunner()
+    out = runner.invoke(app, ["derive", str(path), "--model", "chetaev"])
+    assert out.exit_code == 0, out.output
+    assert out.output.splitlines()[1] == "holonomic: -a*sin(x) + z = 0 (fixes z)"
+    out = runner.invoke(app, ["check", str(path)])
+    assert "Holonomic: -a*sin(x) + z = 0 (fixes z; its time derivative is constraint 2)" in out.output
+    out = runner.invoke(
+        app, ["simulate", str(path), "-t", "0.5", "-o", str(tmp_path / "run.csv"), "--backend", "numpy"]
+    )
+    assert out.exit_code == 0, out.output
+    assert "max holonomic residual" in out.output
+    assert "note: z solved from the holonomic constraint at the start: 0 → 0.0596007992385" in out.output
+    header = (tmp_path / "run.csv").read_text().splitlines()[0]
+    assert header.endswith("constraint_residual,holonomic_residual")
+    out = runner.invoke(
+        app, ["compare", str(path), "-t", "0.5", "--models", "chetaev,vakonomic", "--backend", "numpy"]
+    )
+    assert out.exit_code == 0, out.output
+    assert "note: chetaev: max holonomic residual |f|" in out.output
