@@ -374,3 +374,34 @@ def test_the_command_line_derives_simulates_and_compares_such_a_file(tmp_path) -
     )
     assert out.exit_code == 0, out.output
     assert "note: chetaev: max holonomic residual |f|" in out.output
+
+
+# ------------------------------------------------------------------ from_mechanics
+def test_from_mechanics_takes_relations_as_expressions_or_a_vector_component() -> None:
+    """A particle on the surface z = a sin(x): the relation as an expression and as the vector
+    from the surface point below it give the System written by hand."""
+    from sympy.physics.mechanics import Particle, Point, ReferenceFrame
+
+    from chaplygin import from_mechanics
+
+    N = ReferenceFrame("N")
+    O = Point("O")
+    P = O.locatenew("P", x * N.x + y * N.y + z * N.z)
+    S = O.locatenew("S", x * N.x + y * N.y + a * sp.sin(x) * N.z)
+    P.set_vel(N, P.pos_from(O).dt(N))
+    body = Particle("p", P, m)
+    body.potential_energy = m * g * z
+    by_hand = System(
+        [x, y, z],
+        m / 2 * (d(x) ** 2 + d(y) ** 2 + d(z) ** 2),
+        [],
+        potential_energy=m * g * z,
+        holonomic={z: z - a * sp.sin(x)},
+    )
+    for relation in (z - a * sp.sin(x), P.pos_from(S)):
+        s = from_mechanics(N, [x, y, z], [body], [], dependent=[], holonomic={z: relation})
+        assert s.holonomic == {z: z - a * sp.sin(x)}
+        assert (s.A, s.A0, s.dependent) == (by_hand.A, by_hand.A0, by_hand.dependent)
+        assert sp.simplify(s.kinetic_energy - by_hand.kinetic_energy) == 0
+    with pytest.raises(SystemDefinitionError, match=r"holonomic\[z\]: the vector has 2 non-vanishing"):
+        from_mechanics(N, [x, y, z], [body], [], dependent=[], holonomic={z: P.pos_from(O) - x * N.x})
