@@ -14,7 +14,7 @@ import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin import System
-from chaplygin.errors import SystemDefinitionError
+from chaplygin.errors import ModelError, SystemDefinitionError
 from chaplygin.numeric._modelcache import definition
 from randomsystems import matrix, t
 
@@ -405,3 +405,53 @@ def test_from_mechanics_takes_relations_as_expressions_or_a_vector_component() -
         assert sp.simplify(s.kinetic_energy - by_hand.kinetic_energy) == 0
     with pytest.raises(SystemDefinitionError, match=r"holonomic\[z\]: the vector has 2 non-vanishing"):
         from_mechanics(N, [x, y, z], [body], [], dependent=[], holonomic={z: P.pos_from(O) - x * N.x})
+
+
+# ------------------------------------------------------------------ finite relations as holonomic constraints
+def test_an_integrable_constraint_becomes_its_finite_relation() -> None:
+    """y' = x x' (form B) integrates to y - x²/2 = c: the new system has that relation (c a new
+    parameter, or the value given), no velocity constraint, and the same Chetaev motion."""
+    T = m / 2 * (d(x) ** 2 + d(y) ** 2 + d(z) ** 2)
+    s = System([x, y, z], T, {d(y): x * d(x)}, potential_energy=g * z * y)
+    report = s.integrability()
+    new = report.holonomic_system()
+    c_1 = sp.Symbol("c_1")
+    assert sp.simplify(new.holonomic[y] - (y - x**2 / 2 - c_1)) == 0
+    assert (new.velocity_g, new.g, new.dependent, new.A) == (0, 1, (y,), s.A)
+    assert sp.simplify(report.holonomic_system({"y": 2}).holonomic[y] - (y - x**2 / 2 - 2)) == 0
+    rng = np.random.default_rng(5)
+    v = {p: sp.Float(rng.uniform(0.5, 1.5)) for p in (m, g)}
+    v.update({t: 0, x: 0.3, y: 0.7, z: -0.2, d(x): 0.4, d(z): -0.6, d(y): 0.3 * 0.4})
+    want, got = solution(s.equations("chetaev"), v), solution(new.equations("chetaev"), v)
+    assert all(got[q.diff(t, 2)] == pytest.approx(want[q.diff(t, 2)], rel=1e-12) for q in (x, y, z))
+
+
+def test_an_integrating_factor_relation_and_the_refusals() -> None:
+    T = m / 2 * (d(x) ** 2 + d(y) ** 2)
+    s = System([x, y], T, [y * d(x) - x * d(y)], dependent=[y])
+    new = s.integrability().holonomic_system([0.5])
+    f = new.holonomic[y]
+    assert f == x / y - sp.Float(0.5)  # (an integrating factor 1/y²: ḟ ∝ the constraint)
+    assert not sp.simplify((f.diff(x) * d(x) + f.diff(y) * d(y)) / (y * d(x) - x * d(y))).has(d(x), d(y))
+    with pytest.raises(ModelError, match=r"not integrable \(Frobenius: \[X_x, X_phi\] along ∂y"):
+        knife_eliminated("B").integrability().holonomic_system()
+    steep = System([x, y], T, {d(y): x**x * d(x)})
+    with pytest.raises(ModelError, match="no finite relation f\\(q, t\\) = c was found"):
+        steep.integrability().holonomic_system()
+    with pytest.raises(ModelError, match=r"constants: 2 value\(s\) given for 1 relation"):
+        s.integrability().holonomic_system([1, 2])
+
+
+def test_with_holonomic_adds_relations_to_a_system() -> None:
+    knife = knife_eliminated("A")
+    T = knife.kinetic_energy.subs(a, 0) + m / 2 * d(z) ** 2
+    flat = System([x, y, phi, z], T, **knife_constraint("A"), potential_energy=m * g * z)
+    added = flat.with_holonomic({z: z - a * sp.sin(x)})
+    direct = knife_on_surface("A")
+    assert (added.holonomic, added.dependent, added.A, added.A0) == (
+        direct.holonomic,
+        direct.dependent,
+        direct.A,
+        direct.A0,
+    )
+    assert added.with_holonomic({}, keep_constraints=False).velocity_g == 0

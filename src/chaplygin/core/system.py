@@ -879,6 +879,43 @@ class System:
         """
         return operation("integrated_multipliers")(self, constants)
 
+    def with_holonomic(
+        self, relations: Mapping[Any, Any], *, keep_constraints: bool = True, name: str | None = None
+    ) -> System:
+        """A new System: this one with the holonomic constraints ``relations`` added.
+
+        Parameters
+        ----------
+        relations : mapping
+            ``{q_dep: f(q, t)}`` as for the ``holonomic`` argument of :class:`System`;
+            they join the system's own.
+        keep_constraints : bool
+            False drops the velocity constraints (the relations replace them: see
+            :meth:`IntegrabilityReport.holonomic_system
+            <chaplygin.analysis.integrability.IntegrabilityReport.holonomic_system>`).
+        name : str, optional
+            The new system's name (default: this one's).
+        """
+        if isinstance(relations, (str, sp.Basic)) or not isinstance(relations, Mapping):
+            raise SystemDefinitionError(
+                f"relations: expected a mapping {{coordinate: f(q, t)}}, got {describe(relations)}."
+            )
+        kept = range(self.velocity_g if keep_constraints else 0)
+        given = [self._given_constraints[b] for b in kept]
+        dep = [self.coordinates[self._dep[b]] for b in kept]
+        constraints: Any = dict(zip((q.diff(TIME) for q in dep), given)) if self._form == "B" else given
+        return System(
+            self.coordinates,
+            self.kinetic_energy,
+            constraints,
+            dependent=None if self._form == "B" else dep,
+            potential_energy=self.potential_energy,
+            force_function=self.force_function if self.potential_energy is None else None,
+            forces=self.forces or None,
+            holonomic={**self.holonomic, **relations},
+            name=name or self.name,
+        )
+
     def integrability(self) -> IntegrabilityReport:
         """Integrability of the constraints: conditions (28), (33) and Frobenius."""
         return operation("analyze")(self)
