@@ -455,3 +455,25 @@ def test_with_holonomic_adds_relations_to_a_system() -> None:
         direct.A0,
     )
     assert added.with_holonomic({}, keep_constraints=False).velocity_g == 0
+
+
+def test_the_report_shows_the_relations_and_a_simulated_system_still_pickles() -> None:
+    import copy
+    import pickle
+
+    import chaplygin
+    from chaplygin.apps.report import _source, _system_section
+    from chaplygin.apps.sweep import _fingerprint
+
+    s = pendulum_xy()
+    start = {x: 0.1, y: -0.7, d(x): 0.0}
+    chaplygin.simulate(s, "chetaev", 0.1, start, {"m": 1, "g": 1, "l": 0.8}, backend="numpy")
+    clone = copy.copy(s)
+    clone.__dict__["_equations"] = {}  # (as a sweep sends a System to its workers)
+    assert pickle.loads(pickle.dumps(clone)).holonomic == s.holonomic
+    html = _system_section(_source(s, None, None))
+    assert "Holonomic constraints (1; their time derivatives are the last constraints above)" in html
+    shifted = System(
+        [x, y], s.kinetic_energy, [], potential_energy=m * g * y, holonomic={y: x**2 + y**2 - l**2 - 1}
+    )
+    assert _fingerprint(s) != _fingerprint(shifted)  # (the same derivative ḟ)

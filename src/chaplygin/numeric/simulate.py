@@ -32,6 +32,7 @@ import math
 import os
 import tempfile
 import time
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -515,10 +516,14 @@ def initial_state(
 HOLONOMIC_TOL = 1e-10
 
 
+#: the holonomic constraints' NumPy functions by system (kept off the System: it stays picklable)
+_HOLONOMIC_FUNCTIONS: weakref.WeakKeyDictionary[Any, Any] = weakref.WeakKeyDictionary()
+
+
 def _holonomic_functions(system: System) -> Any:
     """``(f, ∂f/∂q_dep)`` of the holonomic constraints as NumPy functions of
     ``(t, q_1 … q_n, parameters)``, made once per system."""
-    found = system.__dict__.get("_holonomic_numeric")
+    found = _HOLONOMIC_FUNCTIONS.get(system)
     if found is None:
         import sympy as sp
 
@@ -529,7 +534,7 @@ def _holonomic_functions(system: System) -> Any:
         jac = fs.jacobian([v.x[i] for i, _ in system._holonomic])
         args = [TIME, *v.x, *system.parameters]
         found = (sp.lambdify(args, fs, "numpy"), sp.lambdify(args, jac, "numpy"))
-        system.__dict__["_holonomic_numeric"] = found
+        _HOLONOMIC_FUNCTIONS[system] = found
     return found
 
 
