@@ -477,3 +477,9 @@ def test_the_report_shows_the_relations_and_a_simulated_system_still_pickles() -
         [x, y], s.kinetic_energy, [], potential_energy=m * g * y, holonomic={y: x**2 + y**2 - l**2 - 1}
     )
     assert _fingerprint(s) != _fingerprint(shifted)  # (the same derivative ḟ)
+
+
+def test_a_relation_written_with_angle_sums_is_printed_with_them() -> None:
+    s = System([x, y, z], (d(x) ** 2 + d(y) ** 2 + d(z) ** 2) / 2, [], holonomic={z: z - sp.sin(x + y)})
+    text = str(s.equations("chetaev"))
+    assert "-cos(x + y)*x' - cos(x + y)*y' + z' = 0" in text and "sin(x)*sin(y)" not in text
