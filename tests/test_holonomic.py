@@ -91,6 +91,11 @@ def test_bad_relations_are_named(holonomic: object, message: str) -> None:
     assert message in str(err.value)
 
 
+def test_a_relation_given_as_a_velocity_constraint_is_pointed_to_holonomic() -> None:
+    with pytest.raises(SystemDefinitionError, match=r"goes in holonomic=\{coordinate it fixes: f\}"):
+        System([x, y], (d(x) ** 2 + d(y) ** 2) / 2, [x**2 + y**2 - 1], dependent=[y])
+
+
 def test_relations_are_the_last_velocity_constraints() -> None:
     """ḟ = Σ ∂f/∂q_s q̇_s + ∂f/∂t is the last row of A/A_0, its coordinate the last dependent,
     in form A and in form B; a parameter only f contains is a parameter."""

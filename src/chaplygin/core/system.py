@@ -390,7 +390,8 @@ class System:
             if all(c == 0 for c in split[0]):
                 raise SystemDefinitionError(
                     f"constraints[{k}] contains no velocity: {describe(expr)}. A finite "
-                    "(holonomic) relation must be differentiated, or used to eliminate a coordinate."
+                    "(holonomic) relation f(q, t) = 0 goes in holonomic={coordinate it fixes: f} "
+                    "(a system file's [holonomic] table), or is used to eliminate a coordinate."
                 )
             rows.append(split[0])
             consts.append(split[1])
