@@ -25,9 +25,10 @@ single constraint) and returns only relations it has verified.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from itertools import combinations
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 from sympy.physics.vector.printing import vlatex, vsstrrepr
@@ -112,7 +113,9 @@ class IntegrabilityReport:
 
     ``integrable`` is the Frobenius verdict (the true test).  ``relations``
     holds finite relations ``f(q, t)`` that stay constant along every motion,
-    when they were found; each was verified.
+    when they were found; each was verified.  The ``k``-th relation belongs to
+    the ``k``-th constraint and contains its dependent coordinate;
+    :meth:`holonomic_system` turns them into holonomic constraints.
     """
 
     system_name: str
@@ -120,6 +123,73 @@ class IntegrabilityReport:
     condition_33: Condition
     frobenius: Condition
     relations: list[sp.Expr] = field(default_factory=list)
+    #: the system analysed (for :meth:`holonomic_system`)
+    system: System | None = field(default=None, repr=False, compare=False)
+
+    def holonomic_system(self, constants: Any = None) -> System:
+        """The system with its velocity constraints replaced by their finite relations.
+
+        Each relation ``f_β(q, t) = c_β`` found (:attr:`relations`) becomes the holonomic
+        constraint ``f_β − c_β = 0`` of the dependent coordinate of its constraint; the
+        system's own holonomic constraints stay.  The motions are the same: ``ḟ_β = 0`` is
+        the constraint (up to a factor), and ``c_β`` selects the leaf of the foliation.
+
+        Parameters
+        ----------
+        constants : sequence or mapping, optional
+            The values ``c_β``: a sequence (one per velocity constraint, in order) or a
+            mapping by dependent coordinate (symbol or name).  None: new parameters
+            ``c_1 … c_g`` (named ``c_1_`` … where a name is taken).
+
+        Raises
+        ------
+        ModelError
+            If the constraints are not integrable, or no finite relation was found for them.
+        """
+        from chaplygin.errors import ModelError
+
+        s = self.system
+        if s is None:
+            raise ModelError("this report has no system (it was not made by System.integrability()).")
+        g = s.velocity_g
+        if not g:
+            raise ModelError(f"{s.name} has no velocity constraints to replace by finite relations.")
+        if not self.integrable:
+            raise ModelError(
+                f"the constraints of {s.name} are not integrable (Frobenius: "
+                f"{self.frobenius.failures[0][0] if self.frobenius.failures else 'fails'} ≠ 0): "
+                "there are no finite relations to replace them by."
+            )
+        if len(self.relations) < g:
+            raise ModelError(
+                f"the constraints of {s.name} are integrable, but no finite relation f(q, t) = c was "
+                "found for them in closed form; give it yourself with "
+                "system.with_holonomic({q_dep: f - c}, keep_constraints=False)."
+            )
+        keys = [s.coordinates[i] for i in s._dep[:g]]
+        taken = {p.name for p in s.parameters} | {q.func.__name__ for q in s.coordinates}
+        if constants is None:
+            values: list[Any] = []
+            for b in range(g):
+                name = f"c_{b + 1}"
+                while name in taken:
+                    name += "_"
+                values.append(sp.Symbol(name))
+        elif isinstance(constants, Mapping):
+            by_name = {(k if isinstance(k, str) else k.func.__name__): v for k, v in constants.items()}
+            unknown = [k for k in by_name if k not in {q.func.__name__ for q in keys}]
+            if unknown or len(by_name) != g:
+                raise ModelError(
+                    f"constants: give one value per dependent coordinate "
+                    f"({', '.join(q.func.__name__ for q in keys)}); got {', '.join(map(str, by_name))}."
+                )
+            values = [by_name[q.func.__name__] for q in keys]
+        else:
+            values = list(constants)
+            if len(values) != g:
+                raise ModelError(f"constants: {len(values)} value(s) given for {g} relation(s).")
+        relations = {q: f - c for q, f, c in zip(keys, self.relations, values)}
+        return s.with_holonomic(relations, keep_constraints=False)
 
     @property
     def integrable(self) -> bool:
@@ -244,7 +314,9 @@ def analyze(system: System) -> IntegrabilityReport:
         "Lie brackets of the constraint distribution (equivalent to dω ∧ ω_1 ∧ … ∧ ω_g = 0).",
     )
     relations = [user(f) for f in _finite_relations(s)] if cf.holds else []
-    return IntegrabilityReport(s.name, c28, c33, cf, relations)
+    if s._holonomic:  # (the relations of the velocity constraints only: f = 0 is known already)
+        relations = relations[: s.velocity_g]
+    return IntegrabilityReport(s.name, c28, c33, cf, relations, system=s)
 
 
 # ---------------------------------------------------------------- finite relations

@@ -16,7 +16,8 @@ without importing SymPy (nor SciPy or numba, with the ``c`` backend).
 A plan answers only what it can answer exactly as the full path would: a
 reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose state is the
 coordinates and the independent velocities, taken as given), DOP853, no
-constants, overrides naming known parameters, coordinates or velocities.  A
+constants, no holonomic constraints (their coordinates are solved at the start and their
+residual monitored: the full path), overrides naming known parameters, coordinates or velocities.  A
 given dependent velocity is checked against the constraints (the kernel's
 velocities); anything else, a disagreement included, returns ``None`` and the
 full path runs (and reports the error).
@@ -76,6 +77,8 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     only a run that succeeded makes a plan, so the checks of its start passed.
     """
     if definition is None or tr.backend not in PLANNED or tr.model not in REDUCED or not tr.success:
+        return
+    if getattr(loaded.system, "holonomic", None):  # its start is solved and its residual monitored
         return
     from pathlib import Path
 

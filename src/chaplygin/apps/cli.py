@@ -505,6 +505,11 @@ class _Derivation:
             "dependent": _names(s.dependent),
             "parameters": [p.name for p in s.parameters],
             "constraints": {file_syntax(k): file_syntax(v) for k, v in s.constraints.items()},
+            **(
+                {"holonomic": {_names([q])[0]: file_syntax(f) for q, f in s.holonomic.items()}}
+                if s.holonomic
+                else {}
+            ),
             "unknowns": _names(eqs.unknowns),
             "multipliers": _names(eqs.multipliers),
             "constants": [c.name for c in eqs.constants],
@@ -586,10 +591,12 @@ class _Derivation:
         ]
         entries += [sp.Eq(sp.Symbol(cell.format("F", i + 1)), x, evaluate=False) for i, x in enumerate(F)]
         unsolved = _UNSOLVED.format(", ".join(head["unknowns"]))
+        relations = [f"holonomic: {f} = 0 (fixes {q})" for q, f in head.get("holonomic", {}).items()]
         if fmt is DeriveFormat.latex:
             from sympy.physics.vector.printing import vlatex
 
-            lines = [f"% {head['title']} - {head['system']}", _fold.latex(self.equations, full=full)]
+            lines = [f"% {head['title']} - {head['system']}", *(f"% {r}" for r in relations)]
+            lines.append(_fold.latex(self.equations, full=full))
             if acc is not None:
                 lines += ["% solved", _fold.latex(solved, full=full)]
             if self.linear is not None:
@@ -604,8 +611,10 @@ class _Derivation:
         if fmt is DeriveFormat.pretty:
             from chaplygin.core._symbols import pretty
 
-            text = f"{head['title']} - {head['system']}\n\n" + "\n\n".join(
-                _fold.pretty(self.equations, full=full, hint=_FOLDED)
+            text = (
+                "\n".join([f"{head['title']} - {head['system']}", *relations])
+                + "\n\n"
+                + "\n\n".join(_fold.pretty(self.equations, full=full, hint=_FOLDED))
             )
             if acc is not None:
                 text += "\n\nSolved:\n\n" + "\n\n".join(_fold.pretty(solved, full=full, hint=_FOLDED))
@@ -615,7 +624,7 @@ class _Derivation:
                 else:
                     text += f"\n\n{unsolved}:\n\n" + "\n".join(_fold.pretty(entries, hint=_FOLDED))
             return text
-        lines = [f"{head['title']} - {head['system']}"]
+        lines = [f"{head['title']} - {head['system']}", *relations]
         lines += [f"  {_fold.text(e, full=full, hint=_FOLDED)}" for e in self.equations]
         if acc is not None:
             lines.append("Solved:")
@@ -772,6 +781,11 @@ def _checked(system: System) -> tuple[dict[str, Any], Any, Any]:
             "independent": _names(system.independent),
             "dependent": _names(system.dependent),
             "constraint_form": system.constraint_form,
+            **(
+                {"holonomic": {_names([q])[0]: file_syntax(f) for q, f in system.holonomic.items()}}
+                if system.holonomic
+                else {}
+            ),
             "affine": system.is_affine,
             "scleronomic": system.is_scleronomic,
             "integrability": {
@@ -822,6 +836,10 @@ def check(
         lines = [
             f"{system.name}: {system.n} coordinates ({', '.join(doc['coordinates'])}), "
             f"{system.g} constraint(s); dependent: {', '.join(doc['dependent']) or 'none'}",
+            *(
+                f"Holonomic: {f} = 0 (fixes {q}; its time derivative is constraint {system.velocity_g + k + 1})"
+                for k, (q, f) in enumerate(doc.get("holonomic", {}).items())
+            ),
             "Constraints: "
             + ("integrable (holonomic)" if integ["integrable"] else "not integrable (nonholonomic)")
             + ", by the Frobenius test.",
@@ -950,6 +968,7 @@ def _summary_line(label: str, tr: Any, auto: bool = False) -> str:
         f"{label} [{'auto: ' if auto else ''}{tr.backend}]: {tr.status}, {len(tr.t)} samples to t = "
         f"{(tr.t[-1] if len(tr.t) else float('nan')):g}; {tr.energy_label} {tr.energy_drift():.3g}, "
         f"max constraint residual {max(tr.constraint_residual, default=0.0):.3g}"
+        + (f", max holonomic residual {max(tr.holonomic_residual):.3g}" if tr.holonomic_residual.size else "")
     )
 
 
@@ -1068,6 +1087,8 @@ def simulate(
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
         label = named(model)
         _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
+        for note in tr.notes:
+            _emit(f"  note: {note}")
         if created is not None:
             _emit(f"created {created}: it did not exist")
         _stopped_early({label: tr}, lambda _label: str(out))
@@ -1107,6 +1128,11 @@ def _comparison_json(comparison: Comparison) -> dict[str, Any]:
             "final_distance": float(d[-1]) if len(d) else None,
             "energy_drift": tr.energy_drift(),
             "max_constraint_residual": float(np.max(tr.constraint_residual, initial=0.0)),
+            **(
+                {"max_holonomic_residual": float(np.max(tr.holonomic_residual))}
+                if tr.holonomic_residual.size
+                else {}
+            ),
         }
     return {
         "schema": "chaplygin.compare/1",

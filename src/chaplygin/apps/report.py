@@ -940,6 +940,12 @@ def _system_section(src: _Source) -> str:
     out += [_block(sp.Eq(k, v, evaluate=False)) for k, v in s.constraints.items()]
     out.append("<p>Implicit, form A (eq. (1)):</p>")
     out += [_block(sp.Eq(e, 0, evaluate=False)) for e in s.implicit_constraints]
+    if s.holonomic:
+        out.append(
+            f"<p>Holonomic constraints ({len(s.holonomic)}; their time derivatives are the last "
+            "constraints above):</p>"
+        )
+        out += [_block(sp.Eq(f, 0, evaluate=False)) for f in s.holonomic.values()]
     out.append(
         "<p>Reduced kinetic energy (the constraints substituted into T):</p>"
         + _block(sp.Eq(sp.Symbol("T̃"), s.reduced_kinetic_energy, evaluate=False))

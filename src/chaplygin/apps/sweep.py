@@ -295,6 +295,7 @@ def _fingerprint(system: System) -> str:
             system.potential_energy,
             system.forces,
             system.constraints,
+            *((system.holonomic,) if system.holonomic else ()),  # (f's constant is not in ḟ)
         )
     )
     return hashlib.sha256(text.encode("utf-8")).hexdigest()

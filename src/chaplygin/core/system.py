@@ -110,6 +110,14 @@ class System:
         ``potential_energy``.
     forces : mapping, optional
         Non-potential generalized forces ``{coordinate: Q_s(q, q̇, t)}``.
+    holonomic : mapping, optional
+        Holonomic (configuration) constraints ``{q_dep: f(q, t)}``: each relation
+        ``f = 0`` (``sympy.Eq`` accepted) fixes the coordinate it is keyed by, which
+        must not be a dependent coordinate of the velocity constraints.  Its time
+        derivative ``Σ_s ∂f/∂q_s q̇_s + ∂f/∂t = 0`` joins the velocity constraints
+        (form A, the last rows of :attr:`A`), so every model treats it as a
+        constraint; ``simulate`` solves the dependent coordinates from ``f = 0`` at
+        the start and monitors ``f`` along the run.
     name : str, optional
         A human-readable name.
 
@@ -131,6 +139,7 @@ class System:
         potential_energy: sp.Expr | None = None,
         force_function: sp.Expr | None = None,
         forces: Mapping[sp.Expr, sp.Expr] | None = None,
+        holonomic: Mapping[sp.Expr, sp.Expr] | None = None,
         name: str | None = None,
     ) -> None:
         self.name = name or "system"
@@ -176,13 +185,15 @@ class System:
             self._Qnp[i] = self._convert(self.forces[self.coordinates[i]], what)
 
         self._read_constraints(constraints, dependent)
+        self._read_holonomic(holonomic)
         self.independent = tuple(self.coordinates[i] for i in self._ind)
         self.dependent = tuple(self.coordinates[i] for i in self._dep)
         self.g = len(self._dep)
         self.velocities = tuple(q.diff(TIME) for q in self.coordinates)
 
         symbols: set[sp.Symbol] = set()
-        for expr in (self.kinetic_energy, self._U, *self._Qnp, *self._constraint_parts()):
+        relations = [f for _, f in self._holonomic]  # (a constant in f is not in its derivative)
+        for expr in (self.kinetic_energy, self._U, *self._Qnp, *self._constraint_parts(), *relations):
             symbols |= expr.free_symbols
         symbols -= {TIME, *v.x, *v.xd, *v.xdd}
         self.parameters: tuple[sp.Symbol, ...] = tuple(sorted(symbols, key=lambda s: s.name))
@@ -379,7 +390,8 @@ class System:
             if all(c == 0 for c in split[0]):
                 raise SystemDefinitionError(
                     f"constraints[{k}] contains no velocity: {describe(expr)}. A finite "
-                    "(holonomic) relation must be differentiated, or used to eliminate a coordinate."
+                    "(holonomic) relation f(q, t) = 0 goes in holonomic={coordinate it fixes: f} "
+                    "(a system file's [holonomic] table), or is used to eliminate a coordinate."
                 )
             rows.append(split[0])
             consts.append(split[1])
@@ -395,6 +407,61 @@ class System:
         else:
             self._B = sp.zeros(0, self.n)
             self._B0 = sp.zeros(0, 1)
+
+    def _read_holonomic(self, holonomic: Any) -> None:
+        """Append the time derivative of each relation ``f(q, t) = 0`` as the last velocity
+        constraints (form A: ``Σ_s ∂f/∂q_s q̇_s + ∂f/∂t = 0``), its coordinate the last dependent."""
+        self.holonomic: dict[sp.Expr, sp.Expr] = {}
+        self._holonomic: tuple[tuple[int, sp.Expr], ...] = ()
+        if holonomic is None:
+            return
+        if isinstance(holonomic, (str, sp.Basic)) or not isinstance(holonomic, Mapping):
+            raise SystemDefinitionError(
+                "holonomic: expected a mapping {coordinate: f(q, t)} of relations f = 0, each keyed "
+                f"by the coordinate it fixes; got {describe(holonomic)}."
+            )
+        v = self._vars
+        found: list[tuple[int, sp.Expr]] = []
+        for key, value in holonomic.items():
+            i = self._coordinate_index(key, "holonomic")
+            name = self.coordinates[i].func.__name__
+            what = f"holonomic[{name}]"
+            if i in self._dep:
+                raise SystemDefinitionError(
+                    f"{what}: {name} is a dependent coordinate of the velocity constraints already; "
+                    "key the relation by another coordinate it contains, or choose other dependent "
+                    "coordinates for the velocity constraints."
+                )
+            if any(i == j for j, _ in found):
+                raise SystemDefinitionError(f"holonomic: the coordinate {name} is keyed twice.")
+            f = _as_expr(value, what)
+            e = self._convert(f, what)
+            if e.has(*v.xd):
+                raise SystemDefinitionError(
+                    f"{what} = {describe(f)} contains velocities; a holonomic constraint is a relation "
+                    "f(q, t) = 0 between the coordinates (velocity relations go in constraints)."
+                )
+            if simplify_small(e.diff(v.x[i])) == 0:
+                raise SystemDefinitionError(
+                    f"{what} = {describe(f)} does not depend on {name} (∂f/∂{name} = 0), so it cannot "
+                    "fix that coordinate; key it by a coordinate it contains."
+                )
+            self.holonomic[self.coordinates[i]] = f
+            found.append((i, e))
+        self.g = len(self._dep)
+        a, a0 = self._A, self._A0  # (form A read in SymEngine: SymPy's A built now)
+        self.__dict__.pop("_native_A", None)
+        rows = sp.Matrix([[sp.factor_terms(e.diff(x)) for x in v.x] for _, e in found])
+        self._A = a.col_join(rows) if a.rows else rows
+        self._A0 = a0.col_join(sp.Matrix([sp.factor_terms(e.diff(TIME)) for _, e in found]))
+        for name in ("_B", "_B0", "_C", "_velocity_substitution"):  # solved from A when needed
+            self.__dict__.pop(name, None)
+        self._dep = (*self._dep, *(i for i, _ in found))
+        self._ind = tuple(i for i in range(self.n) if i not in self._dep)
+        self._holonomic = tuple(found)
+        self._check_counts()
+        self.g = len(self._dep)
+        self._check_dependent_block()
 
     @cached_property
     def _A(self) -> sp.Matrix:
@@ -654,6 +721,12 @@ class System:
         return self._form
 
     @property
+    def velocity_g(self) -> int:
+        """Number of velocity constraints given as such: ``g`` less the holonomic relations, whose
+        time derivatives are the last rows of :attr:`A`."""
+        return self.g - len(self._holonomic)
+
+    @property
     def epsilon(self) -> int:
         """Number of independent coordinates ``ε = n − g``."""
         return self.n - self.g
@@ -807,6 +880,43 @@ class System:
         """
         return operation("integrated_multipliers")(self, constants)
 
+    def with_holonomic(
+        self, relations: Mapping[Any, Any], *, keep_constraints: bool = True, name: str | None = None
+    ) -> System:
+        """A new System: this one with the holonomic constraints ``relations`` added.
+
+        Parameters
+        ----------
+        relations : mapping
+            ``{q_dep: f(q, t)}`` as for the ``holonomic`` argument of :class:`System`;
+            they join the system's own.
+        keep_constraints : bool
+            False drops the velocity constraints (the relations replace them: see
+            :meth:`IntegrabilityReport.holonomic_system
+            <chaplygin.analysis.integrability.IntegrabilityReport.holonomic_system>`).
+        name : str, optional
+            The new system's name (default: this one's).
+        """
+        if isinstance(relations, (str, sp.Basic)) or not isinstance(relations, Mapping):
+            raise SystemDefinitionError(
+                f"relations: expected a mapping {{coordinate: f(q, t)}}, got {describe(relations)}."
+            )
+        kept = range(self.velocity_g if keep_constraints else 0)
+        given = [self._given_constraints[b] for b in kept]
+        dep = [self.coordinates[self._dep[b]] for b in kept]
+        constraints: Any = dict(zip((q.diff(TIME) for q in dep), given)) if self._form == "B" else given
+        return System(
+            self.coordinates,
+            self.kinetic_energy,
+            constraints,
+            dependent=None if self._form == "B" else dep,
+            potential_energy=self.potential_energy,
+            force_function=self.force_function if self.potential_energy is None else None,
+            forces=self.forces or None,
+            holonomic={**self.holonomic, **relations},
+            name=name or self.name,
+        )
+
     def integrability(self) -> IntegrabilityReport:
         """Integrability of the constraints: conditions (28), (33) and Frobenius."""
         return operation("analyze")(self)
@@ -819,13 +929,17 @@ class System:
         def listed(items: Iterable[Any]) -> str:
             return ", ".join(_html.math(vlatex(x)) for x in items) or "none"
 
-        constraints = "<br/>".join(_html.math(vlatex(sp.Eq(k, v))) for k, v in self.constraints.items())
+        constraints = "<br/>".join(
+            _html.math(vlatex(sp.Eq(k, v))) for k, v in list(self.constraints.items())[: self.velocity_g]
+        )
+        relations = "<br/>".join(_html.math(vlatex(sp.Eq(f, 0))) for f in self.holonomic.values())
         return _html.heading(f"System {self.name}") + _html.fields(
             [
                 ("coordinates", listed(self.coordinates)),
                 ("dependent", listed(self.dependent)),
                 ("parameters", listed(self.parameters)),
                 ("constraints", constraints or "none"),
+                *([("holonomic constraints", relations)] if relations else []),
                 ("kinetic energy", _html.math("T = " + vlatex(self.kinetic_energy))),
             ]
         )
@@ -833,4 +947,5 @@ class System:
     def __repr__(self) -> str:
         names = ", ".join(q.func.__name__ for q in self.coordinates)
         deps = ", ".join(q.func.__name__ for q in self.dependent)
-        return f"System({self.name!r}: coordinates [{names}], dependent [{deps}], g={self.g})"
+        relations = "".join(f", {q.func.__name__}: {describe(f)} = 0" for q, f in self.holonomic.items())
+        return f"System({self.name!r}: coordinates [{names}], dependent [{deps}], g={self.g}{relations})"

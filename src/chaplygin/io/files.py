@@ -20,6 +20,9 @@
     "y'" = "tan(phi)*x'"
     # or: implicit = ["sin(phi)*x' - cos(phi)*y'"] with dependent = ["y"]
 
+    [holonomic]             # optional: coordinate = "f" for a relation f(q, t) = 0 fixing it
+    # z = "z - a*sin(x)"
+
     [initial]               # coordinates and independent velocities (missing ones are 0)
     phi = 0.3
     "x'" = 1.0
@@ -109,7 +112,17 @@ MAX_PARAMETERS = 256
 MAX_SYSTEM_NAME_LENGTH = 200
 
 #: The top-level keys and tables of a system file.
-SECTIONS = ("name", "coordinates", "parameters", "energy", "forces", "constraints", "initial", "body")
+SECTIONS = (
+    "name",
+    "coordinates",
+    "parameters",
+    "energy",
+    "forces",
+    "constraints",
+    "holonomic",
+    "initial",
+    "body",
+)
 #: The shapes of a ``[body]`` table: shape name → (class, its keys, in the constructor's order).
 BODY_SHAPES: dict[str, tuple[type[Shape], tuple[str, ...]]] = {
     "sphere": (Sphere, ("radius",)),
@@ -122,7 +135,7 @@ BODY_SHAPES: dict[str, tuple[type[Shape], tuple[str, ...]]] = {
 BODY_KEYS = ("shape", "mass", "inertia", "center_of_mass", "angles", "g")
 #: The coordinates of a system built from a ``[body]`` table (see :func:`chaplygin.bodies.rolling_body`).
 BODY_COORDINATES = ("psi", "theta", "phi", "x", "y")
-_NOT_WITH_BODY = ("coordinates", "energy", "forces", "constraints")
+_NOT_WITH_BODY = ("coordinates", "energy", "forces", "constraints", "holonomic")
 _ENERGY_KEYS = ("T", "V", "U")
 _IMPLICIT_KEYS = ("implicit", "dependent")
 _FEW_CHOICES = 500  # below this many choices of dependent coordinates, System's own check is quick
@@ -366,6 +379,7 @@ class _Reader:
         names = Names.build(parameters, coordinates)
         kwargs = self.read_energy(names)
         kwargs["forces"] = self.read_forces(names) or None
+        kwargs["holonomic"] = self.read_holonomic(names) or None
         constraints, dependent = self.read_constraints(names)
         system = self.build(names, constraints, dependent, name, kwargs)
         return self.finish(system, parameters, name)
@@ -710,6 +724,23 @@ class _Reader:
             out[key] = self.expression(value, where, names)
         return out
 
+    def read_holonomic(self, names: Names) -> dict[Any, sp.Expr]:
+        """``[holonomic]``: ``coordinate = "f"``, each relation ``f(q, t) = 0`` keyed by the coordinate it fixes."""
+        out: dict[Any, sp.Expr] = {}
+        for key, value in self.table("holonomic").items():
+            where = _key("holonomic", key)
+            if key not in names.coordinates:
+                hint = ""
+                if key.endswith("'") and key[:-1] in names.coordinates:
+                    hint = f" (write the coordinate, {key[:-1]}, not its velocity)"
+                raise self.error(
+                    f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}",
+                    where,
+                    allowed=_SECTION_HELP["holonomic"],
+                )
+            out[names.coordinates[key]] = self.expression(value, where, names)
+        return out
+
     def read_constraints(self, names: Names) -> tuple[Any, list[str] | None]:
         table = self.table("constraints")
         implicit = [k for k in table if k in _IMPLICIT_KEYS]
@@ -894,6 +925,8 @@ _SECTION_HELP = {
     "forces": '[forces] gives generalized forces by coordinate: phi = "-c*phi\'".',
     "constraints": '[constraints] has either solved constraints, "y\'" = "tan(phi)*x\'" (one per dependent '
     'velocity), or implicit = ["sin(phi)*x\' - cos(phi)*y\'"] (each = 0) with dependent = ["y"].',
+    "holonomic": "[holonomic] gives relations f(q, t) = 0 between the coordinates, each keyed by the "
+    'coordinate it fixes (not a dependent coordinate of [constraints]): z = "z - a*sin(x)".',
     "initial": '[initial] gives coordinates and independent velocities: theta = 1.0, "theta\'" = 0.4.',
     "body": "[body] has shape = "
     + " | ".join(map(json.dumps, BODY_SHAPES))
@@ -1065,22 +1098,36 @@ def _system_tables(w: _Writer, system: System, names: Names) -> list[str]:
             qn = q.func.__name__
             out.append(f"{_toml_key(qn)} = {_toml_string(w.expression(value, f'the forces ({qn})', names))}")
 
-    if system.g:
+    velocity_g = system.velocity_g
+    if velocity_g:
         out += ["", "[constraints]"]
         if system.constraint_form == "B":
-            for vel, value in system.constraints.items():
+            solved = system.constraints
+            if system.holonomic:  # (as given: the holonomic coordinates are not independent there)
+                dep = [system.coordinates[i].diff(TIME) for i in system._dep[:velocity_g]]
+                solved = dict(zip(dep, system._given_constraints))
+            for vel, value in solved.items():
                 key = vel.expr.func.__name__ + "'"
                 out.append(
                     f"{_toml_string(key)} = {_toml_string(w.expression(value, f'the constraint {key}', names))}"
                 )
         else:
-            exprs = [w.expression(e, "the implicit constraints", names) for e in system.implicit_constraints]
+            velocity = system.implicit_constraints[:velocity_g]
+            exprs = [w.expression(e, "the implicit constraints", names) for e in velocity]
             out.append("implicit = [")
             out += [f"    {_toml_string(e)}," for e in exprs]
             out.append("]")
             out.append(
-                "dependent = [" + ", ".join(_toml_string(q.func.__name__) for q in system.dependent) + "]"
+                "dependent = ["
+                + ", ".join(_toml_string(q.func.__name__) for q in system.dependent[:velocity_g])
+                + "]"
             )
+    if system.holonomic:
+        out += ["", "[holonomic]"]
+        for q, f in system.holonomic.items():
+            qn = q.func.__name__
+            text = w.expression(f, f"the holonomic constraint ({qn})", names)
+            out.append(f"{_toml_key(qn)} = {_toml_string(text)}")
     return out
 
 

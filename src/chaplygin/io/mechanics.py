@@ -6,12 +6,14 @@ kinetic energy is the bodies' kinetic energy in the inertial frame, the
 generalized forces come from the loads through partial velocities, and
 velocity constraints may be written as mechanics vectors (e.g. "the
 contact-point velocity is zero"): every non-vanishing component along the
-inertial frame's axes becomes one constraint.
+inertial frame's axes becomes one constraint.  Holonomic constraints ``f(q, t) = 0`` are
+given by the coordinate each one fixes, as an expression or as a vector with a single
+non-vanishing component (a contact point's position along the normal of its surface).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import sympy as sp
@@ -49,6 +51,29 @@ def _constraint_expressions(
     return out
 
 
+def _relations(
+    holonomic: Mapping[Any, Vector | sp.Expr] | None, frame: ReferenceFrame, vars_: Vars
+) -> dict[Any, Any] | None:
+    """``holonomic`` with each vector replaced by its one non-vanishing component along ``frame``'s axes."""
+    if holonomic is None or not isinstance(holonomic, Mapping):
+        return holonomic  # (System says what is wrong with it)
+    out: dict[Any, Any] = {}
+    for key, value in holonomic.items():
+        if isinstance(value, Vector):
+            parts = [sp.expand(value.dot(axis)) for axis in (frame.x, frame.y, frame.z)]
+            parts = [p for p in parts if not vanishes(_plain(p, vars_))]
+            if len(parts) != 1:
+                name = getattr(getattr(key, "func", None), "__name__", key)
+                raise SystemDefinitionError(
+                    f"holonomic[{name}]: the vector has {len(parts)} non-vanishing components along "
+                    f"{frame}'s axes; a holonomic constraint is one relation f = 0: give a vector with "
+                    "one component (a point's position along a normal) or the expression itself."
+                )
+            value = parts[0]
+        out[key] = value
+    return out
+
+
 def _generalized_forces(
     loads: Sequence[Load], frame: ReferenceFrame, coordinates: Sequence[sp.Expr]
 ) -> dict[sp.Expr, sp.Expr]:
@@ -83,6 +108,7 @@ def from_mechanics(
     loads: Sequence[Load] = (),
     potential_energy: sp.Expr | None = None,
     force_function: sp.Expr | None = None,
+    holonomic: Mapping[Any, Vector | sp.Expr] | None = None,
     name: str | None = None,
 ) -> System:
     """A :class:`System` from bodies, loads and velocity constraints of ``sympy.physics.mechanics``.
@@ -105,6 +131,13 @@ def from_mechanics(
         One dependent coordinate per (non-vanishing) constraint.
     loads : sequence of (Point, force) or (ReferenceFrame, torque)
         Applied loads; ``Q_s = F · ∂v_P/∂q̇_s`` and ``τ · ∂ω/∂q̇_s``.
+    holonomic : mapping, optional
+        Holonomic constraints ``{q_dep: f}`` with ``f(q, t) = 0``, as for
+        :class:`System`; ``f`` may be a SymPy expression or a mechanics Vector
+        with exactly one component along ``frame.x, frame.y, frame.z`` that does
+        not vanish identically, which is then ``f``: e.g. ``P.pos_from(S)`` for a
+        point P that stays on a surface and the surface's point S below it, so
+        that only the normal component is left.
     """
     coords = tuple(coordinates)
     vars_ = Vars(coords)
@@ -131,5 +164,6 @@ def from_mechanics(
         potential_energy=potential_energy,
         force_function=force_function,
         forces=forces or None,
+        holonomic=_relations(holonomic, frame, vars_),
         name=name,
     )

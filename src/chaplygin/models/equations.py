@@ -119,7 +119,7 @@ class Equations:
     def _angle_sums(self) -> bool:
         """Whether the system was written with trigonometric functions of sums of angles."""
         s = self.system
-        written = [s.kinetic_energy, *s._given_constraints, *s.forces.values()]
+        written = [s.kinetic_energy, *s._given_constraints, *s.holonomic.values(), *s.forces.values()]
         return has_angle_sums(written + ([s.force_function] if s.force_function is not None else []))
 
     @cached_property

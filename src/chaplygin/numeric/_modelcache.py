@@ -58,8 +58,8 @@ def definition(system: System) -> str | None:
     """The SHA-256 (hex) of what ``system`` was defined from; None where it cannot be keyed.
 
     The coordinates (names and assumptions), the kinetic energy, the force function, the
-    generalized forces by coordinate, the constraint form, the dependent coordinates and the
-    constraints as given, as a table of nodes (each subexpression once, in the order first
+    generalized forces by coordinate, the constraint form, the dependent coordinates, the
+    constraints and the holonomic relations as given, as a table of nodes (each subexpression once, in the order first
     met; a symbol by its name and assumptions).  SymPy orders the arguments of a sum or a
     product canonically, so an equal definition gives the same digest in every process.
     Computed once per system.
@@ -71,11 +71,13 @@ def definition(system: System) -> str | None:
 
     given = system.__dict__.get("_given_constraints")  # (absent from a System pickled by an older version)
     forces = [system.forces.get(q, sp.S.Zero) for q in system.coordinates]
+    relations = list(system.__dict__.get("holonomic", {}).values())  # f(q, t) = 0, as given
     exprs = [*system.coordinates, system.kinetic_energy, system.force_function, *forces, *(given or ())]
-    nodes = None if given is None else _nodes(exprs)
+    nodes = None if given is None else _nodes([*exprs, *relations])
     digest = None
     if nodes is not None:
         head = [system.constraint_form, list(system._dep), len(system.coordinates), len(forces)]
+        head += [len(relations)] if relations else []  # (keys of systems without them unchanged)
         text = json.dumps([head, nodes], separators=(",", ":"), ensure_ascii=True)
         digest = hashlib.sha256(text.encode()).hexdigest()
     system.__dict__["_definition_digest"] = digest

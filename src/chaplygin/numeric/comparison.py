@@ -522,6 +522,9 @@ def compare(
                 tr = simulate(system, fallback, t_span, initial, parameters, **own)
             warnings.warn(note, ChaplyginWarning, stacklevel=2)
             notes.append(note)
+        notes += [note for note in tr.notes if note not in notes]  # (a coordinate solved at the start)
+        if tr.holonomic_residual.size:
+            notes.append(f"{label}: max holonomic residual |f| {np.max(tr.holonomic_residual):.3g}")
         trajectories[label] = tr
     return Comparison(
         system.name, trajectories, next(iter(trajectories)), path or _default_path(system), notes

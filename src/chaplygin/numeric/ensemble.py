@@ -53,6 +53,7 @@ from chaplygin.numeric.simulate import (
     duration,
     monitor,
     pole_free,
+    solve_holonomic,
     time_span,
 )
 
@@ -311,6 +312,8 @@ def _states(
         if P is not None
         else {}
     )
+    for k in range(len(Q) if system._holonomic else 0):  # each member's start on f(q, t0) = 0
+        solve_holonomic(system, Q[k], {name: float(v[k]) for name, v in params.items()}, t0)
     if system.g:
         _dependent_velocities(system, Q, QD, params, t0)
     entry = registry.get(model)
@@ -491,7 +494,10 @@ def simulate_ensemble(
         coordinates, the integrated velocities, multipliers), or ``N``
         mappings like ``simulate``'s ``initial`` (dependent velocities follow
         from the constraints, computed for all members in one vectorised
-        step; an error names the member, ``initial_states[k]``, and the key).
+        step; an error names the member, ``initial_states[k]``, and the key;
+        the dependent coordinates of holonomic constraints are solved from
+        ``f(q, t0) = 0`` for each member, as :func:`simulate` does, the given
+        values the first guess).  An array in layout order is taken as it is.
         An array for a multiplier model (all velocities integrated) must
         satisfy the constraints.
     parameters : mapping

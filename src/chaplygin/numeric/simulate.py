@@ -32,6 +32,7 @@ import math
 import os
 import tempfile
 import time
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -171,7 +172,14 @@ class Trajectory:
         ``jacobi_integral`` (:attr:`energy_column`).  For rheonomic or affine constraints or
         non-potential forces it is E and not an invariant (:attr:`energy_conserved`).
     constraint_residual : ndarray
-        ``max_β |Σ_s A_βs q̇_s + A_β0|`` at each sample.
+        ``max_β |Σ_s A_βs q̇_s + A_β0|`` at each sample (the holonomic relations' time
+        derivatives among them).
+    holonomic_residual : ndarray
+        ``max_k |f_k(q, t)|`` of the holonomic constraints at each sample (empty for a
+        system without them): the drift of the motion off ``f = 0``.
+    notes : list of str
+        What :func:`simulate` changed or assumed, e.g. a dependent coordinate of a holonomic
+        constraint solved at the start (``z: 0.3 → 0.2955``).
     status, message : str
         ``"success"`` or ``"failed"``, and why.
     failure : str
@@ -198,6 +206,10 @@ class Trajectory:
     energy_conserved: bool = True
     #: the monitored quantity's column: ``"energy"``, or ``"jacobi_integral"`` (:func:`monitor`)
     energy_column: str = "energy"
+    #: ``max_k |f_k(q(t), t)|`` of the holonomic constraints (empty without them)
+    holonomic_residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: what the run changed or assumed (a coordinate solved from a holonomic constraint)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def energy_label(self) -> str:
@@ -216,7 +228,9 @@ class Trajectory:
                 return table[name]
         if name == self.energy_column:
             return self.energy
-        if name in ("t", "constraint_residual"):
+        if name in ("t", "constraint_residual") or (
+            name == "holonomic_residual" and self.holonomic_residual.size
+        ):
             return getattr(self, name)
         if name == "energy":
             raise KeyError(
@@ -235,6 +249,7 @@ class Trajectory:
             *self.velocities,
             self.energy_column,
             "constraint_residual",
+            *(["holonomic_residual"] if self.holonomic_residual.size else []),
             *self.multipliers,
         ]
 
@@ -294,6 +309,12 @@ class Trajectory:
             ("samples", str(len(self.t))),
             (f"max {self.energy_label}", f"{self.energy_drift():.3g}"),
             ("max constraint residual", f"{residual:.3g}"),
+            *(
+                [("max holonomic residual", f"{float(np.max(self.holonomic_residual)):.3g}")]
+                if self.holonomic_residual.size
+                else []
+            ),
+            *(("note", note) for note in self.notes),
         ]
         text = _html.fields((label, _html.escape(value)) for label, value in rows)
         if len(self.t):
@@ -429,7 +450,11 @@ def _lookup(system: System, key: Any) -> tuple[str, int]:
 
 
 def initial_state(
-    system: System, initial: Mapping[Any, float], params: Mapping[str, float], t0: float
+    system: System,
+    initial: Mapping[Any, float],
+    params: Mapping[str, float],
+    t0: float,
+    notes: list[str] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Full coordinates and velocities at ``t0`` from the user's initial data.
 
@@ -437,6 +462,8 @@ def initial_state(
     numbers; dependent velocities follow from the constraints (a given one must
     agree with them).  A configuration where the constraints cannot be solved
     for the dependent velocities (a pole of ``q̇_dep = B q̇_σ + B_0``) is refused.
+    The dependent coordinates of holonomic constraints are solved from ``f(q, t0) = 0``
+    (:func:`solve_holonomic`); each value changed is told in ``notes``.
     """
     n = system.n
     q = np.full(n, np.nan)
@@ -453,6 +480,9 @@ def initial_state(
             f"initial: missing {', '.join(missing)}; give every coordinate and the independent "
             f"velocities ({', '.join(names[i] + chr(39) for i in system._ind)})."
         )
+    changed = solve_holonomic(system, q, params, t0)
+    if notes is not None:
+        notes += changed
     if not system.g:
         return q, qd
     # A_dep q̇_dep = −(A_ind q̇_σ + A_0), solved numerically (no symbolic B needed)
@@ -480,6 +510,100 @@ def initial_state(
             )
         qd[i] = implied
     return q, qd
+
+
+#: |f| below which a holonomic constraint holds at the start (the given value is then kept)
+HOLONOMIC_TOL = 1e-10
+
+
+#: the holonomic constraints' NumPy functions by system (kept off the System: it stays picklable)
+_HOLONOMIC_FUNCTIONS: weakref.WeakKeyDictionary[Any, Any] = weakref.WeakKeyDictionary()
+
+
+def _holonomic_functions(system: System) -> Any:
+    """``(f, ∂f/∂q_dep)`` of the holonomic constraints as NumPy functions of
+    ``(t, q_1 … q_n, parameters)``, made once per system."""
+    found = _HOLONOMIC_FUNCTIONS.get(system)
+    if found is None:
+        import sympy as sp
+
+        from chaplygin.core._symbols import TIME
+
+        v = system._vars
+        fs = sp.Matrix([f for _, f in system._holonomic])
+        jac = fs.jacobian([v.x[i] for i, _ in system._holonomic])
+        args = [TIME, *v.x, *system.parameters]
+        found = (sp.lambdify(args, fs, "numpy"), sp.lambdify(args, jac, "numpy"))
+        _HOLONOMIC_FUNCTIONS[system] = found
+    return found
+
+
+def solve_holonomic(system: System, q: np.ndarray, params: Mapping[str, float], t0: float) -> list[str]:
+    """Solve the holonomic constraints ``f(q, t0) = 0`` for their dependent coordinates, in place.
+
+    The given values are the first guess of a Newton search (SciPy's ``root``, with the
+    Jacobian ``∂f/∂q_dep``); where they satisfy ``|f| ≤`` :data:`HOLONOMIC_TOL` already they
+    are kept.  Returns a note per value changed (``z: 0.3 → 0.2955…``).  Raises
+    :class:`InputError` where no solution is found, or ``∂f/∂q_dep`` is singular there.
+    """
+    if not system._holonomic:
+        return []
+    dep = [i for i, _ in system._holonomic]
+    names = [c.func.__name__ for c in system.coordinates]
+    f, jac = _holonomic_functions(system)
+    p = [params[s.name] for s in system.parameters]
+
+    def at(values: np.ndarray, fun: Any) -> np.ndarray:
+        x = q.copy()
+        x[dep] = values
+        with np.errstate(all="ignore"):
+            return np.asarray(fun(t0, *x, *p), dtype=float)
+
+    what = ", ".join(f"{names[i]}: {system.to_user(e)} = 0" for i, e in system._holonomic)
+    guess = q[dep].copy()
+    if np.all(np.abs(at(guess, f)) <= HOLONOMIC_TOL):
+        solved = guess
+    else:
+        from scipy.optimize import root
+
+        res = root(lambda u: at(u, f).ravel(), guess, jac=lambda u: at(u, jac), method="hybr")
+        solved = np.asarray(res.x, dtype=float)
+        if not np.all(np.isfinite(solved)) or not np.all(np.abs(at(solved, f)) <= HOLONOMIC_TOL):
+            given = ", ".join(f"{names[i]} = {q[i]:.6g}" for i in dep)
+            raise InputError(
+                f"initial: the holonomic constraints ({what}) have no solution for "
+                f"{', '.join(names[i] for i in dep)} near the given {given} (Newton's method "
+                f"stopped at |f| = {np.max(np.abs(at(solved, f))):.3g}); give values closer to a solution."
+            )
+    jacobian = at(solved, jac)
+    if not _solvable(jacobian, range(len(dep))):
+        at_ = ", ".join(f"{names[i]} = {v:.6g}" for i, v in zip(dep, solved))
+        raise InputError(
+            f"initial: the holonomic constraints ({what}) do not fix "
+            f"{', '.join(names[i] for i in dep)} at {at_}: ∂f/∂q_dep is singular there. Start "
+            "away from this configuration, or key the relations by other coordinates."
+        )
+    notes = [
+        f"{names[i]} solved from the holonomic constraint at the start: {q[i]:.12g} → {v:.12g}"
+        for i, v in zip(dep, solved)
+        if v != q[i]
+    ]
+    q[dep] = solved
+    return notes
+
+
+def holonomic_residual(system: System, tr: Trajectory, params: Mapping[str, float]) -> np.ndarray:
+    """``max_k |f_k(q(t), t)|`` at every sample of ``tr`` (empty for a system without relations)."""
+    if not system._holonomic:
+        return np.zeros(0)
+    if not len(tr.t):
+        return np.zeros(0)
+    f, _ = _holonomic_functions(system)
+    cols = [tr.coordinates[c.func.__name__] for c in system.coordinates]
+    with np.errstate(all="ignore"):
+        out = f(tr.t, *cols, *(params[s.name] for s in system.parameters))
+    values = np.array([np.broadcast_to(np.asarray(r, dtype=float).ravel(), tr.t.shape) for r in out])
+    return np.max(np.abs(values), axis=0)
 
 
 def _finite(value: Any, what: str, accepted: str) -> float:
@@ -906,7 +1030,8 @@ def simulate(
     auto = backend == "auto"
     backend = choose_backend(backend, method)
     params = _parameters(system, parameters)
-    q, qd = initial_state(system, initial, params, t0)
+    notes: list[str] = []
+    q, qd = initial_state(system, initial, params, t0, notes)
     _check_mass(system, q, qd, params, t0)
     if method in SYMMETRIC_METHODS:  # fixed-step symmetric methods: chaplygin.numeric.symmetric
         tr = _simulate_symmetric(
@@ -926,6 +1051,7 @@ def simulate(
         )
         if progress is not None and len(tr.t):
             progress(float(tr.t[-1]))
+        tr.notes = notes
         return _watch(system, tr, params, reduced=True)
     if step is not None:
         raise ChaplyginError(
@@ -989,6 +1115,7 @@ def simulate(
             method=method,
             max_step=max_step,
         )
+    tr.notes = notes
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p, pole=pole)
 
 
@@ -1122,6 +1249,7 @@ def _watch(
     """
     watched = monitor(system)  # (how the energy column reads)
     tr.energy_conserved, tr.energy_column = watched.conserved, watched.column
+    tr.holonomic_residual = holonomic_residual(system, tr, params)
     k_bad, why, kind = len(tr.t), "", ""
     names = list(tr.coordinates)
     vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
@@ -1156,6 +1284,7 @@ def _watch(
         for key in table:
             table[key] = table[key][keep]
     tr.t, tr.energy, tr.constraint_residual = tr.t[keep], tr.energy[keep], tr.constraint_residual[keep]
+    tr.holonomic_residual = tr.holonomic_residual[keep]
     tr.status, tr.failure = "failed", kind
     entry = registry.get(tr.model)
     tr.message = why + (
