@@ -1,0 +1,266 @@
+"""Steady motions and stability conditions, symbolically: what SymPy can do for a small reduced model.
+
+* :func:`steady_family`: the equilibrium equations of a reduced model (the rates of the coordinates
+  that are not ignorable and the accelerations vanish) solved for some unknowns in terms of the
+  others: a family of steady motions over its parameters;
+* :func:`stability_conditions`: the characteristic polynomial of the reduced model's Jacobian at a
+  (symbolic) steady motion, its zero roots (the family's, the integrals') factored out, and the
+  conditions for linear stability as SymPy inequalities: Routh–Hurwitz (asymptotic stability), or,
+  for a polynomial in λ² (a conservative system's), that every root ``s = λ²`` be real and negative.
+
+The numerical side (the exact Jacobian, the verdict, root loci) is
+:mod:`chaplygin.numeric.stability`, which also finds the ignorable coordinates passed here.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import sympy as sp
+from sympy.physics.vector.printing import vsstrrepr
+
+from chaplygin.core._fast import jacobian
+from chaplygin.errors import ChaplyginError, InputError
+from chaplygin.models import registry
+
+if TYPE_CHECKING:
+    from chaplygin.core.system import System
+
+__all__ = ["StabilityConditions", "SteadyFamily", "stability_conditions", "steady_family"]
+
+
+def _names(system: System) -> dict[str, sp.Symbol]:
+    """Internal symbols by the names points use: ``"q"`` and ``"q'"``."""
+    v = system._vars
+    out = {}
+    for q, x, xd in zip(system.coordinates, v.x, v.xd):
+        out[q.func.__name__] = x
+        out[q.func.__name__ + "'"] = xd
+    return out
+
+
+def _reduced_rates(
+    system: System, model: str, ignorable: Sequence[str]
+) -> tuple[list[sp.Symbol], list[sp.Expr]]:
+    """The reduced variables (internal symbols) of a reduced model and their rates."""
+    if not registry.get(model).reduced:
+        raise ChaplyginError(f"the symbolic route needs a reduced model, not {model!r}.")
+    eqs = system.equations(model)
+    v = system._vars
+    subs = system._velocity_substitution
+    drop = [v.x[i] for i, q in enumerate(system.coordinates) if q.func.__name__ in ignorable]
+    zero = dict.fromkeys(drop, 0)
+    variables: list[sp.Symbol] = []
+    rates: list[sp.Expr] = []
+    for i, q in enumerate(system.coordinates):
+        if q.func.__name__ not in ignorable:
+            variables.append(v.x[i])
+            rates.append(subs.get(v.xd[i], v.xd[i]))
+    accelerations = eqs._accelerations
+    for i in system._ind:
+        variables.append(v.xd[i])
+        rates.append(accelerations[v.xdd[i]])
+    return variables, [sp.sympify(r).xreplace(zero) for r in rates]
+
+
+@dataclass
+class SteadyFamily:
+    """A family of steady motions: ``solutions`` (each a mapping of solved variables to
+    expressions in the others), over ``parameters`` (the variables left free), from ``equations``
+    (the reduced equilibrium equations that are not identically zero)."""
+
+    system: str
+    model: str
+    equations: list[sp.Expr]
+    solutions: list[dict[str, sp.Expr]]
+    parameters: tuple[str, ...]
+    fixed: dict[str, sp.Expr]
+
+    def __str__(self) -> str:
+        lines = [f"Steady motions of {self.system} ({self.model} model)"]
+        lines += [f"  held: {k} = {v}" for k, v in self.fixed.items()]
+        lines += [f"  equation: {vsstrrepr(e)} = 0" for e in self.equations]
+        for k, sol in enumerate(self.solutions, 1):
+            lines.append(f"  family {k}: " + "; ".join(f"{name} = {vsstrrepr(e)}" for name, e in sol.items()))
+        lines.append(f"  parameters: {', '.join(self.parameters) or 'none'}")
+        return "\n".join(lines)
+
+
+def _with_budget(fn: Any, seconds: float) -> Any:
+    """``fn()``, or None when it takes longer than ``seconds`` (it then finishes unseen in a daemon thread)."""
+    out: list[Any] = []
+    worker = threading.Thread(target=lambda: out.append(fn()), daemon=True)
+    worker.start()
+    worker.join(seconds)
+    return out[0] if out else None
+
+
+def steady_family(
+    system: System,
+    model: str,
+    ignorable: Sequence[str],
+    *,
+    solve_for: Sequence[str] | None = None,
+    fixed: Mapping[str, Any] | None = None,
+    time_budget: float = 20.0,
+) -> SteadyFamily:
+    """The steady motions of a reduced model, solved by SymPy (see the module's notes).
+
+    Parameters
+    ----------
+    ignorable : sequence of str
+        The ignorable coordinates (their values drop out; they move uniformly).
+    solve_for : sequence of str, optional
+        The unknowns to solve for (``"phi'"``); by default the last velocities, one per equation.
+    fixed : mapping, optional
+        Values (numbers or SymPy expressions) given to some variables first.
+    time_budget : float
+        Seconds SymPy may spend solving; beyond it a :class:`ChaplyginError` says so.
+    """
+    names = _names(system)
+    variables, rates = _reduced_rates(system, model, ignorable)
+    by_symbol = {s: name for name, s in names.items()}
+    held = {}
+    for name, value in (fixed or {}).items():
+        if name not in names or names[name] not in variables:
+            raise InputError(
+                f"fixed: {name!r} is not a reduced variable; they are {', '.join(by_symbol[x] for x in variables)}."
+            )
+        held[names[name]] = sp.sympify(value, strict=True)
+    # shape coordinates at rest: their rates vanish; independent velocities among them are zero
+    at_rest = {}
+    for x, r in zip(variables, rates):
+        if x in system._vars.x and r in system._vars.xd:
+            at_rest[r] = 0
+    subs = {**at_rest, **held}
+    equations = []
+    for x, r in zip(variables, rates):
+        if x in system._vars.x and r in at_rest:
+            continue
+        e = sp.numer(sp.together(sp.sympify(r).xreplace(subs)))
+        e = sp.factor_terms(sp.expand(e))
+        if e != 0:
+            equations.append(e)
+    unknowns = [x for x in variables if x not in subs]
+    if solve_for is not None:
+        chosen = []
+        for name in solve_for:
+            if name not in names or names[name] not in unknowns:
+                raise InputError(
+                    f"solve_for: {name!r} is not an unknown here; the unknowns are {', '.join(by_symbol[x] for x in unknowns)}."
+                )
+            chosen.append(names[name])
+    else:
+        velocities = [x for x in unknowns if x in system._vars.xd]
+        chosen = (velocities or unknowns)[-len(equations) :] if equations else []
+    solutions = []
+    if equations:
+        found = _with_budget(lambda: sp.solve(equations, chosen, dict=True), time_budget)
+        if found is None:
+            raise ChaplyginError(
+                f"steady_motions: SymPy did not solve the {len(equations)} equilibrium equation(s) for "
+                f"{', '.join(by_symbol[x] for x in chosen)} within {time_budget:g} s; give a guess for a Newton search."
+            )
+        solutions = [
+            {by_symbol[k]: system.to_user(sp.factor_terms(v)) for k, v in sol.items()} for sol in found
+        ]
+    return SteadyFamily(
+        system.name,
+        model,
+        [system.to_user(e) for e in equations],
+        solutions,
+        tuple(by_symbol[x] for x in unknowns if x not in chosen),
+        {**{by_symbol[k]: 0 for k in at_rest}, **{by_symbol[k]: v for k, v in held.items()}},
+    )
+
+
+@dataclass
+class StabilityConditions:
+    """Linear stability conditions of a steady motion, symbolically.
+
+    ``polynomial``: the characteristic polynomial ``det(λI − J)`` (in ``lam``); ``zero_roots``: the
+    multiplicity of ``λ = 0`` factored out; ``reduced``: what is left; ``route``: ``"hurwitz"``
+    (every Hurwitz determinant positive: asymptotic stability) or ``"even"`` (a polynomial in
+    ``s = λ²``: every root real and negative: all eigenvalues on the imaginary axis);
+    ``conditions``: the inequalities.
+    """
+
+    polynomial: sp.Expr
+    lam: sp.Symbol
+    zero_roots: int
+    reduced: sp.Expr
+    route: str
+    conditions: list[sp.Rel]
+
+    def __str__(self) -> str:
+        lines = [
+            f"characteristic polynomial: {vsstrrepr(sp.factor(self.polynomial))}",
+            f"zero roots factored out: {self.zero_roots}",
+            f"route: {'roots in s = lam**2 real and negative' if self.route == 'even' else 'Routh-Hurwitz'}",
+        ]
+        lines += [f"  {vsstrrepr(c)}" for c in self.conditions]
+        return "\n".join(lines)
+
+
+def stability_conditions(
+    system: System, point: Mapping[str, Any], model: str, ignorable: Sequence[str]
+) -> StabilityConditions:
+    """The conditions for linear stability at ``point`` (names to numbers or SymPy expressions)
+    of a reduced model, from its symbolic Jacobian (see the module's notes)."""
+    names = _names(system)
+    variables, rates = _reduced_rates(system, model, ignorable)
+    values = {}
+    for name, value in point.items():
+        if name not in names or names[name] not in variables:
+            raise InputError(
+                f"point: {name!r} is not a reduced variable of the {model} model; they are "
+                f"{', '.join(k for k, s in names.items() if s in variables)}."
+            )
+        values[names[name]] = sp.sympify(value, strict=True)
+    missing = [k for k, s in names.items() if s in variables and s not in values]
+    if missing:
+        raise InputError(f"point: missing {', '.join(missing)}.")
+    J = jacobian(rates, variables).xreplace(values)
+    J = J.applyfunc(lambda e: sp.cancel(sp.trigsimp(e)))
+    residual = [sp.cancel(sp.sympify(r).xreplace(values)) for r in rates]
+    if any(sp.simplify(r) != 0 for r in residual):
+        raise InputError(
+            f"point: not a steady motion of the {model} model (the reduced rates do not vanish)."
+        )
+    lam = sp.Symbol("lam")
+    poly = sp.Poly(sp.expand(J.charpoly(lam).as_expr()), lam)
+    coeffs = poly.all_coeffs()[::-1]  # a_0, a_1, ...
+    zeros = 0
+    while zeros < len(coeffs) - 1 and sp.simplify(coeffs[zeros]) == 0:
+        zeros += 1
+    rest = [sp.factor(c) for c in coeffs[zeros:]]
+    reduced = sp.Add(*(c * lam**k for k, c in enumerate(rest)))
+    degree = len(rest) - 1
+    odd = [rest[k] for k in range(1, degree + 1, 2)]
+    user = lambda e: system.to_user(sp.factor(e))  # noqa: E731
+    if all(sp.simplify(c) == 0 for c in odd):
+        b = [rest[k] for k in range(0, degree + 1, 2)]  # q(s) = Σ b_k s^k
+        if len(b) == 2:
+            conditions = [sp.StrictGreaterThan(user(b[0] * b[1]), 0)]
+        elif len(b) == 3:
+            conditions = [
+                sp.StrictGreaterThan(user(b[1] ** 2 - 4 * b[0] * b[2]), 0),
+                sp.StrictGreaterThan(user(b[1] * b[2]), 0),
+                sp.StrictGreaterThan(user(b[0] * b[2]), 0),
+            ]
+        else:
+            conditions = [sp.StrictGreaterThan(user(c * b[-1]), 0) for c in b[:-1]]
+        route = "even"
+    else:
+        monic = [sp.cancel(c / rest[-1]) for c in rest]
+        n = degree
+        a = [monic[n - k] for k in range(n + 1)]  # a[0] = 1, a[k]: coefficient of lam**(n-k)
+        H = sp.Matrix(n, n, lambda i, j: a[2 * j - i + 1] if 0 <= 2 * j - i + 1 <= n else 0)
+        conditions = [sp.StrictGreaterThan(user(H[:k, :k].det()), 0) for k in range(1, n + 1)]
+        route = "hurwitz"
+    return StabilityConditions(
+        system.to_user(poly.as_expr()), lam, zeros, system.to_user(reduced), route, conditions
+    )
