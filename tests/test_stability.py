@@ -227,3 +227,101 @@ def test_bad_points_are_named() -> None:
     forced = chaplygin.System([x], x.diff(t) ** 2 / 2, {}, potential_energy=x * sp.cos(t))
     with pytest.raises(ChaplyginError, match="explicitly on the time"):
         chaplygin.linearize(forced, "chetaev", {})
+
+
+# ---------------------------------------------------------------- holonomic relations
+def _cartesian_pendulum() -> chaplygin.System:
+    """A pendulum of length L = 2 in Cartesian coordinates: x² + y² = L², y dependent."""
+    x, y = dynamicsymbols("x y")
+    m, g = sp.symbols("m g", positive=True)
+    L = 2
+    T = m / 2 * (x.diff(t) ** 2 + y.diff(t) ** 2)
+    try:  # the holonomic constraints of issue 29 item 1, where they are merged
+        return chaplygin.System([x, y], T, [], potential_energy=m * g * y, holonomic={y: x**2 + y**2 - L**2})
+    except TypeError:
+        pendulum = chaplygin.System(
+            [x, y], T, [x * x.diff(t) + y * y.diff(t)], dependent=[y], potential_energy=m * g * y
+        )
+        X, Y = pendulum._vars.x
+        pendulum._holonomic = ((1, X**2 + Y**2 - L**2),)  # the internal interface, as holo builds it
+        return pendulum
+
+
+@pytest.mark.parametrize("model", ["chetaev", "voronets"])
+def test_holonomic_relation_eliminates_its_coordinate(model: str) -> None:
+    pendulum = _cartesian_pendulum()
+    params = {"m": 0.5, "g": 9.81}
+    hanging = chaplygin.stability(pendulum, {"x": 0, "y": -2.0, "x'": 0}, params, model=model)
+    assert hanging.variables == ("x", "x'")
+    omega = np.sqrt(9.81 / 2.0)  # small oscillations of a pendulum
+    np.testing.assert_allclose(np.sort_complex(hanging.eigenvalues), [-1j * omega, 1j * omega], rtol=1e-12)
+    assert hanging.kind == "linearly stable"
+    upside_down = chaplygin.stability(pendulum, {"x": 0, "y": 2.0, "x'": 0}, params, model=model)
+    np.testing.assert_allclose(np.sort(upside_down.eigenvalues.real), [-omega, omega], rtol=1e-12)
+    assert upside_down.kind == "unstable"
+
+
+# ---------------------------------------------------------------- the vakonomic disk
+def test_vakonomic_upright_disk_is_lindelofs() -> None:
+    """Lindelöf's threshold ω² > m g r A/(C + m r²)² and frequency (docs/gallery/rolling-disk.md,
+    derived there by hand) in the vakonomic model with μ at Lindelöf's values (c = 0)."""
+    disk = examples.rolling_disk()
+    m, r, A, C, g = (COIN[k] for k in "mrACg")
+    critical = np.sqrt(m * g * r * A) / (C + m * r**2)
+    for factor in (0.8, 1.3, 2.5):
+        spin = factor * critical
+        point = {"psi": 0, "theta": 0, "psi'": 0, "theta'": 0, "phi'": spin, "mu_1": -m * r * spin, "mu_2": 0}
+        vak = chaplygin.stability(disk, point, COIN, model="vakonomic")
+        rate2 = (m * g * r - (C + m * r**2) ** 2 * spin**2 / A) / (A + m * r**2)
+        rate = np.sqrt(complex(rate2))
+        np.testing.assert_allclose(_nonzero(vak.eigenvalues), np.sort_complex([rate, -rate]), rtol=1e-9)
+        assert vak.kind == ("linearly stable" if factor > 1 else "unstable")
+        # energy and the vakonomic constants c_1, c_2 are integrals: dI·J = 0 (a check of both)
+        assert vak.integrals == {"energy": True, "c_1": True, "c_2": True}
+        assert len(vak.zeros) == 5 and not any("not explained" in z for z in vak.zeros)
+        lindelof = chaplygin.stability(
+            disk, {k: point[k] for k in ("theta", "psi'", "theta'", "phi'")}, COIN, model="lindelof"
+        )
+        np.testing.assert_allclose(_nonzero(lindelof.eigenvalues), _nonzero(vak.eigenvalues), rtol=1e-9)
+
+
+def test_sleigh_routh_hurwitz_condition() -> None:
+    v = sp.Symbol("v")
+    cond = chaplygin.stability_conditions(examples.chaplygin_sleigh(), {"theta": 0, "x'": v, "theta'": 0})
+    m, I, a = sp.symbols("m I a", positive=True)
+    assert cond.route == "hurwitz" and cond.zero_roots == 2 and len(cond.conditions) == 1
+    assert sp.simplify(cond.conditions[0].lhs / (a * v)).is_positive  # a v > 0: the centre of mass leads
+
+
+def test_caller_integrals_and_displays(tmp_path) -> None:
+    sleigh = examples.chaplygin_sleigh()
+    m, I, a = SLEIGH["m"], SLEIGH["I"], SLEIGH["a"]
+
+    def energy(state: dict) -> float:  # T on the constraint, by hand
+        xd, yd, thd, th = state["x'"], state["y'"], state["theta'"], state["theta"]
+        return (
+            m / 2 * (xd**2 + yd**2)
+            + m * a * thd * (-xd * np.sin(th) + yd * np.cos(th))
+            + (I + m * a**2) / 2 * thd**2
+        )
+
+    point = {"theta": 0.2, "x'": 1.0, "theta'": 0}
+    result = chaplygin.stability(
+        sleigh, point, SLEIGH, integrals={"T": energy, "spin": lambda s: s["theta'"]}
+    )
+    assert result.integrals == {"energy": True, "T": True, "spin": False}
+    assert "integral spin: NOT annihilating J" in str(result) and "<pre>" in result._repr_html_()
+    locus = chaplygin.root_locus(sleigh, point, "x'", np.linspace(-1, 1, 5), SLEIGH)
+    np.testing.assert_allclose(
+        locus.eigenvalues.real.min(axis=1)[3:], -m * a * np.array([0.5, 1]) / np.cos(0.2) / (I + m * a**2)
+    )
+    # at rest, θ' makes a Jordan chain (θ drifts) that no integral explains: the energy's
+    # differential vanishes there
+    assert locus.kinds == ["unstable"] * 2 + ["undetermined"] + ["asymptotically stable"] * 2
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    locus.plot().savefig(tmp_path / "locus.png")
+    assert (tmp_path / "locus.png").stat().st_size > 0
+    assert "x' = 0.5" in str(locus)

@@ -42,28 +42,24 @@ def _names(system: System) -> dict[str, sp.Symbol]:
     return out
 
 
-def _reduced_rates(
+def _reduced(
     system: System, model: str, ignorable: Sequence[str]
-) -> tuple[list[sp.Symbol], list[sp.Expr]]:
-    """The reduced variables (internal symbols) of a reduced model and their rates."""
+) -> tuple[list[sp.Symbol], list[sp.Expr], sp.Matrix, sp.Matrix]:
+    """The reduced variables (internal symbols) of a reduced model: the coordinates that are not
+    ignorable, then the independent velocities; the rates of those coordinates; and ``M``, ``F`` of
+    the model (``M·q̈_σ = F``), the ignorable coordinates set to 0 (they drop out)."""
     if not registry.get(model).reduced:
         raise ChaplyginError(f"the symbolic route needs a reduced model, not {model!r}.")
     eqs = system.equations(model)
     v = system._vars
     subs = system._velocity_substitution
-    drop = [v.x[i] for i, q in enumerate(system.coordinates) if q.func.__name__ in ignorable]
-    zero = dict.fromkeys(drop, 0)
-    variables: list[sp.Symbol] = []
-    rates: list[sp.Expr] = []
-    for i, q in enumerate(system.coordinates):
-        if q.func.__name__ not in ignorable:
-            variables.append(v.x[i])
-            rates.append(subs.get(v.xd[i], v.xd[i]))
-    accelerations = eqs._accelerations
-    for i in system._ind:
-        variables.append(v.xd[i])
-        rates.append(accelerations[v.xdd[i]])
-    return variables, [sp.sympify(r).xreplace(zero) for r in rates]
+    zero = {v.x[i]: 0 for i, q in enumerate(system.coordinates) if q.func.__name__ in ignorable}
+    kept = [i for i, q in enumerate(system.coordinates) if q.func.__name__ not in ignorable]
+    variables = [v.x[i] for i in kept] + [v.xd[i] for i in system._ind]
+    rates = [sp.sympify(subs.get(v.xd[i], v.xd[i])).xreplace(zero) for i in kept]
+    order = [eqs._unknowns.index(v.xdd[i]) for i in system._ind]
+    M = eqs._M.extract(list(range(eqs._M.rows)), order).xreplace(zero)
+    return variables, rates, M, eqs._F.xreplace(zero)
 
 
 @dataclass
@@ -114,34 +110,32 @@ def steady_family(
     ignorable : sequence of str
         The ignorable coordinates (their values drop out; they move uniformly).
     solve_for : sequence of str, optional
-        The unknowns to solve for (``"phi'"``); by default the last velocities, one per equation.
+        The unknowns to solve for (``"phi'"``); by default the last reduced variables (the
+        velocities, then the coordinates), one per equation.
     fixed : mapping, optional
         Values (numbers or SymPy expressions) given to some variables first.
     time_budget : float
         Seconds SymPy may spend solving; beyond it a :class:`ChaplyginError` says so.
     """
     names = _names(system)
-    variables, rates = _reduced_rates(system, model, ignorable)
+    variables, rates, _, F = _reduced(system, model, ignorable)
     by_symbol = {s: name for name, s in names.items()}
     held = {}
     for name, value in (fixed or {}).items():
         if name not in names or names[name] not in variables:
             raise InputError(
-                f"fixed: {name!r} is not a reduced variable; they are {', '.join(by_symbol[x] for x in variables)}."
+                f"fixed: {name!r} is not a reduced variable; they are "
+                f"{', '.join(by_symbol[x] for x in variables)}."
             )
         held[names[name]] = sp.sympify(value, strict=True)
-    # shape coordinates at rest: their rates vanish; independent velocities among them are zero
-    at_rest = {}
-    for x, r in zip(variables, rates):
-        if x in system._vars.x and r in system._vars.xd:
-            at_rest[r] = 0
+    # the coordinates at rest: an independent velocity among their rates is zero, a dependent one's
+    # rate (B q̇_σ) is an equation; every acceleration vanishes, so (M nonsingular) F = 0
+    xd = set(system._vars.xd)
+    at_rest = {r: 0 for r in rates if r in xd}
     subs = {**at_rest, **held}
     equations = []
-    for x, r in zip(variables, rates):
-        if x in system._vars.x and r in at_rest:
-            continue
-        e = sp.numer(sp.together(sp.sympify(r).xreplace(subs)))
-        e = sp.factor_terms(sp.expand(e))
+    for e in [*(r for r in rates if r not in xd), *F]:
+        e = sp.factor_terms(sp.expand(sp.numer(sp.together(sp.sympify(e).xreplace(subs)))))
         if e != 0:
             equations.append(e)
     unknowns = [x for x in variables if x not in subs]
@@ -154,8 +148,7 @@ def steady_family(
                 )
             chosen.append(names[name])
     else:
-        velocities = [x for x in unknowns if x in system._vars.xd]
-        chosen = (velocities or unknowns)[-len(equations) :] if equations else []
+        chosen = unknowns[-len(equations) :] if equations else []  # the last velocities first
     solutions = []
     if equations:
         found = _with_budget(lambda: sp.solve(equations, chosen, dict=True), time_budget)
@@ -211,7 +204,7 @@ def stability_conditions(
     """The conditions for linear stability at ``point`` (names to numbers or SymPy expressions)
     of a reduced model, from its symbolic Jacobian (see the module's notes)."""
     names = _names(system)
-    variables, rates = _reduced_rates(system, model, ignorable)
+    variables, rates, M, F = _reduced(system, model, ignorable)
     values = {}
     for name, value in point.items():
         if name not in names or names[name] not in variables:
@@ -223,13 +216,16 @@ def stability_conditions(
     missing = [k for k, s in names.items() if s in variables and s not in values]
     if missing:
         raise InputError(f"point: missing {', '.join(missing)}.")
-    J = jacobian(rates, variables).xreplace(values)
-    J = J.applyfunc(lambda e: sp.cancel(sp.trigsimp(e)))
-    residual = [sp.cancel(sp.sympify(r).xreplace(values)) for r in rates]
-    if any(sp.simplify(r) != 0 for r in residual):
+    tidy = lambda e: sp.cancel(sp.trigsimp(sp.sympify(e).xreplace(values)))  # noqa: E731
+    if any(tidy(r) != 0 for r in [*rates, *F]):
         raise InputError(
             f"point: not a steady motion of the {model} model (the reduced rates do not vanish)."
         )
+    # where F = 0 the accelerations' Jacobian is M⁻¹ ∂F/∂z: nothing is inverted symbolically
+    # before the point is substituted
+    kinematic = jacobian(rates, variables).applyfunc(tidy)
+    dynamic = M.applyfunc(tidy).LUsolve(jacobian(list(F), variables).applyfunc(tidy))
+    J = kinematic.col_join(dynamic).applyfunc(sp.cancel)
     lam = sp.Symbol("lam")
     poly = sp.Poly(sp.expand(J.charpoly(lam).as_expr()), lam)
     coeffs = poly.all_coeffs()[::-1]  # a_0, a_1, ...
