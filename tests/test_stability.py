@@ -14,6 +14,8 @@ Every expected value comes from a closed form or an independent derivation, neve
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -183,6 +185,17 @@ def test_steady_turning_family_is_the_classical_relation() -> None:
     numbers = dict(zip((m, r, A, C, g), (COIN[k] for k in "mrACg")))
     closed = float(phid.subs(numbers).subs({Om: rate}).subs({th: lean}))
     assert found.point["phi'"] == pytest.approx(closed, rel=1e-12) and found.family_dimension == 2
+    # the relation's steady turns along the turning rate: each is accepted as steady (to 1e-8)
+    relation = sp.lambdify((Om, th), phid.subs(numbers))
+    turns = chaplygin.root_locus(
+        disk,
+        {},
+        "psi'",
+        [1.5, 3.0, 6.0],
+        COIN,
+        points=lambda w: {"theta": lean, "theta'": 0, "phi'": relation(w, lean)},
+    )
+    assert turns.eigenvalues.shape == (3, 4) and turns.parameter == "psi'"
 
 
 # ---------------------------------------------------------------- the rattleback
@@ -311,6 +324,7 @@ def test_caller_integrals_and_displays(tmp_path) -> None:
     )
     assert result.integrals == {"energy": True, "T": True, "spin": False}
     assert "integral spin: NOT annihilating J" in str(result) and "<pre>" in result._repr_html_()
+    assert json.loads(json.dumps(result.to_dict()))["integrals"] == {"energy": True, "T": True, "spin": False}
     locus = chaplygin.root_locus(sleigh, point, "x'", np.linspace(-1, 1, 5), SLEIGH)
     np.testing.assert_allclose(
         locus.eigenvalues.real.min(axis=1)[3:], -m * a * np.array([0.5, 1]) / np.cos(0.2) / (I + m * a**2)

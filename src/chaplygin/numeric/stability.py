@@ -493,6 +493,25 @@ class Stability:
     tolerance: float
     residual: float = field(default=0.0)
 
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (JSON-ready): the point, the eigenvalues as ``[re, im]`` pairs, the zeros,
+        the integrals' checks, the verdict and the tolerance."""
+        return {
+            "system": self.system,
+            "model": self.model,
+            "point": dict(self.point),
+            "variables": list(self.variables),
+            "ignorable_rates": dict(self.ignorable),
+            "eigenvalues": [[float(z.real), float(z.imag)] for z in self.eigenvalues],
+            "family_dimension": self.family_dimension,
+            "zeros": list(self.zeros),
+            "integrals": dict(self.integrals),
+            "kind": self.kind,
+            "verdict": self.verdict,
+            "tolerance": self.tolerance,
+            "residual": self.residual,
+        }
+
     @property
     def stable(self) -> bool | None:
         """True (asymptotically or linearly stable), False (unstable), None (undetermined)."""
