@@ -177,6 +177,10 @@ def test_steady_turning_family_is_the_classical_relation() -> None:
         A * Om**2 * sp.sin(th) * sp.cos(th) - (C + m * r**2) * s * Om * sp.cos(th) - m * g * r * sp.sin(th)
     )
     assert sp.simplify(relation) == 0
+    # upright: rolling straight (psi' = 0, any spin) or spinning about a vertical diameter
+    upright = chaplygin.steady_motions(disk, fixed={"theta": 0})
+    assert upright.solutions == [{"phi'": 0}] and upright.parameters == ("psi'",)
+    assert sp.factor(upright.equations[0]) == (C + m * r**2) * phi.diff(t) * psi.diff(t)
     # the Newton search, from a guess off the family, lands on it (lean and turning rate held)
     lean, rate = 0.3, 2.0
     found = chaplygin.steady_motions(

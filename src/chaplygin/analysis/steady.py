@@ -66,7 +66,13 @@ def _reduced(
 class SteadyFamily:
     """A family of steady motions: ``solutions`` (each a mapping of solved variables to
     expressions in the others), over ``parameters`` (the variables left free), from ``equations``
-    (the reduced equilibrium equations that are not identically zero)."""
+    (the reduced equilibrium equations that are not identically zero), with ``fixed`` the values
+    given first (the coordinates at rest have zero velocity).
+
+    The solutions are SymPy's generic ones: a branch that exists only where a denominator
+    vanishes (the upright disk's ``ψ' = 0``, where any spin is steady) is not among them; give it
+    in ``fixed`` to see it.
+    """
 
     system: str
     model: str

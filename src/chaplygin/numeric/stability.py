@@ -794,7 +794,7 @@ def steady_motions(
     *,
     model: str = "chetaev",
     form: str = "classic",
-    fixed: Sequence[str] = (),
+    fixed: Sequence[str] | Mapping[str, Any] = (),
     solve_for: Sequence[str] | None = None,
     time_budget: float = 20.0,
 ) -> Any:
@@ -815,19 +815,38 @@ def steady_motions(
         for the vakonomic one with ``c = 0``).
     parameters : mapping
         A number for every parameter (the Newton search); optional for the symbolic route.
-    fixed : sequence of str
-        Variables kept at their guessed values: the family's parameters.
+    fixed : sequence of str, or mapping
+        The Newton search: the variables kept at their guessed values (the family's parameters).
+        The symbolic route: values (numbers or SymPy expressions) given to some variables before
+        solving, e.g. ``{"theta": 0}``.
+    solve_for : sequence of str, optional
+        The symbolic route's unknowns (see :func:`chaplygin.analysis.steady.steady_family`).
+    time_budget : float
+        Seconds SymPy may spend solving (the symbolic route); a solve that takes longer is
+        abandoned with a :class:`~chaplygin.errors.ChaplyginError` (it finishes unseen in a
+        background thread, as Python cannot stop it).
+
+    Returns
+    -------
+    SteadyMotion or SteadyFamily
+        One steady motion (with a guess), or the family solved by SymPy (without).
     """
     if guess is None:
         from chaplygin.analysis.steady import steady_family
 
         reduced = _reduced_model(system, model)
         lin = linearize(system, reduced, parameters or _sample_parameters(system, reduced))
-        return steady_family(system, reduced, lin.ignorable, solve_for=solve_for, time_budget=time_budget)
+        held = dict(fixed) if isinstance(fixed, Mapping) else {}
+        if fixed and not held:
+            raise InputError("fixed: without a guess, give values: a mapping such as {'theta': 0}.")
+        return steady_family(
+            system, reduced, lin.ignorable, solve_for=solve_for, fixed=held, time_budget=time_budget
+        )
     from scipy.optimize import root
 
     lin = linearize(system, model, parameters, form=form)
     y0 = lin.state_at(guess)
+    fixed = list(fixed)
     for name in fixed:
         if name not in lin.variables:
             raise InputError(
