@@ -209,7 +209,7 @@ def test_rattleback_spin_locus_against_newton_euler() -> None:
     body = examples.rattleback()
     params = examples.get("rattleback").parameters
     assert params == KL
-    spins = np.array([-5.0, -1.0, 1.0, 5.0])
+    spins = np.array([-5.0, -1.0, 1.0, 5.0, -30.0, -300.0])
     locus = chaplygin.root_locus(
         body, {"theta": 0, "phi": 0, "theta'": 0, "phi'": 0}, "psi'", spins, params, model="chaplygin"
     )
@@ -222,7 +222,8 @@ def test_rattleback_spin_locus_against_newton_euler() -> None:
             np.sort_complex(locus.eigenvalues[k]), np.sort_complex(-locus.eigenvalues[3 - k]), atol=1e-8
         )
     assert growth[3] > 5 * growth[0] > 0  # n D > 0 grows ten times faster
-    assert locus.kinds == ["unstable"] * 4
+    # Kane & Levinson's rattleback: the slow sense is not stable either, even spun fast
+    assert locus.kinds == ["unstable"] * 6 and growth[5] < growth[4]
     chetaev = chaplygin.stability(body, {"theta": 0, "phi": 0, "theta'": 0, "phi'": 0, "psi'": 5.0}, params)
     np.testing.assert_allclose(chetaev.eigenvalues, locus.eigenvalues[3], rtol=1e-8, atol=1e-8)
 

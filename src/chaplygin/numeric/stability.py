@@ -535,7 +535,8 @@ class Stability:
             for name, ok in self.integrals.items()
         ]
         out.append(
-            f"  (zero below {self.tolerance:.2g} = {ZERO_RTOL:g} x |J|; steady-motion residual {self.residual:.2g})"
+            f"  (zero below {self.tolerance:.2g} = rtol x |J|, J balanced; steady-motion residual "
+            f"{self.residual:.2g})"
         )
         out.append(f"  verdict: {self.verdict}")
         return out
@@ -548,6 +549,16 @@ class Stability:
 
         head, *rest = self._lines()
         return _html.heading(head) + "<pre>" + _html.escape("\n".join(r.strip() for r in rest)) + "</pre>"
+
+
+def _balancing(J: np.ndarray) -> np.ndarray:
+    """The diagonal ``D`` of ``D⁻¹ J D`` balanced (``scipy.linalg.matrix_balance``, no permutation)."""
+    if not J.size:
+        return np.ones(0)
+    from scipy.linalg import matrix_balance
+
+    _, T = matrix_balance(J, permute=False)
+    return np.diag(T).copy()
 
 
 def _nullity(m: np.ndarray, tol: float) -> int:
@@ -579,9 +590,16 @@ def _verdict(
     gradients: Mapping[str, np.ndarray],
     tol_rel: float = ZERO_RTOL,
 ) -> tuple[np.ndarray, np.ndarray, int, list[str], dict[str, bool], str, str, float]:
+    # balanced first (a diagonal similarity, LAPACK's gebal): the reduced variables mix angles,
+    # rates and multipliers whose scales differ by orders of magnitude, and every tolerance below
+    # is relative to the norm, which balancing brings near the spectral radius
+    D = _balancing(J)
+    J = J * (1.0 / D)[:, None] * D[None, :]
+    gradients = {name: grad * D for name, grad in gradients.items()}
     scale = float(np.linalg.norm(J, 2)) if J.size else 0.0
     tol = tol_rel * max(scale, 1e-300)
     values, vectors = np.linalg.eig(J) if J.size else (np.zeros(0, dtype=complex), np.zeros((0, 0)))
+    vectors = D[:, None] * vectors
     family, n0 = _zero_multiplicity(J, tol_rel)
     zero = np.zeros(len(values), dtype=bool)
     zero[np.argsort(np.abs(values), kind="stable")[:n0]] = True
@@ -940,9 +958,10 @@ class RootLocus:
         else:
             axes = ax
             fig = axes[0].figure
-        for k in range(self.eigenvalues.shape[1]):
-            axes[0].plot(self.values, self.eigenvalues[:, k].real, ".", ms=3)
-            axes[1].plot(self.values, self.eigenvalues[:, k].imag, ".", ms=3)
+        # one colour: the eigenvalues are sorted at each value, not followed along the locus
+        along = np.repeat(self.values, self.eigenvalues.shape[1])
+        axes[0].plot(along, self.eigenvalues.real.ravel(), ".", ms=3, color="C0")
+        axes[1].plot(along, self.eigenvalues.imag.ravel(), ".", ms=3, color="C0")
         axes[0].axhline(0.0, color="0.5", lw=0.8)
         axes[0].set_ylabel("Re λ")
         axes[1].set_ylabel("Im λ")
