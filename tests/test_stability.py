@@ -344,3 +344,19 @@ def test_caller_integrals_and_displays(tmp_path) -> None:
     locus.plot().savefig(tmp_path / "locus.png")
     assert (tmp_path / "locus.png").stat().st_size > 0
     assert "x' = 0.5" in str(locus)
+
+
+def test_damped_oscillator_routh_hurwitz() -> None:
+    """x'' + c x' + k x = 0: λ² + c λ + k, asymptotically stable iff c > 0 and k > 0 (Hurwitz:
+    Δ1 = c, Δ2 = c k)."""
+    x = dynamicsymbols("x")
+    c, k = sp.symbols("c k", real=True)
+    oscillator = chaplygin.System(
+        [x], x.diff(t) ** 2 / 2, {}, potential_energy=k * x**2 / 2, forces={x: -c * x.diff(t)}
+    )
+    cond = chaplygin.stability_conditions(oscillator, {"x": 0, "x'": 0})
+    assert cond.route == "hurwitz" and cond.zero_roots == 0
+    assert [sp.factor(r.lhs) for r in cond.conditions] == [c, c * k]
+    result = chaplygin.stability(oscillator, {"x": 0, "x'": 0}, {"c": 0.5, "k": 4.0})
+    np.testing.assert_allclose(np.sort_complex(result.eigenvalues), np.roots([1, 0.5, 4.0])[::-1], rtol=1e-12)
+    assert result.kind == "asymptotically stable" and result.integrals == {}

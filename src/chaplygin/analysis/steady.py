@@ -183,8 +183,9 @@ class StabilityConditions:
     ``polynomial``: the characteristic polynomial ``det(λI − J)`` (in ``lam``); ``zero_roots``: the
     multiplicity of ``λ = 0`` factored out; ``reduced``: what is left; ``route``: ``"hurwitz"``
     (every Hurwitz determinant positive: asymptotic stability) or ``"even"`` (a polynomial in
-    ``s = λ²``: every root real and negative: all eigenvalues on the imaginary axis);
-    ``conditions``: the inequalities.
+    ``s = λ²``: every root real, negative and simple: all eigenvalues on the imaginary axis; for
+    more than two roots in ``s`` only the necessary conditions, every coefficient of the sign of
+    the leading one: ``"even, necessary only"``); ``conditions``: the inequalities.
     """
 
     polynomial: sp.Expr
@@ -198,7 +199,12 @@ class StabilityConditions:
         lines = [
             f"characteristic polynomial: {vsstrrepr(sp.factor(self.polynomial))}",
             f"zero roots factored out: {self.zero_roots}",
-            f"route: {'roots in s = lam**2 real and negative' if self.route == 'even' else 'Routh-Hurwitz'}",
+            "route: "
+            + {
+                "even": "roots in s = lam**2 real and negative",
+                "even, necessary only": "roots in s = lam**2 real and negative: necessary conditions only",
+                "hurwitz": "Routh-Hurwitz",
+            }[self.route],
         ]
         lines += [f"  {vsstrrepr(c)}" for c in self.conditions]
         return "\n".join(lines)
@@ -255,7 +261,7 @@ def stability_conditions(
             ]
         else:
             conditions = [sp.StrictGreaterThan(user(c * b[-1]), 0) for c in b[:-1]]
-        route = "even"
+        route = "even" if len(b) <= 3 else "even, necessary only"
     else:
         monic = [sp.cancel(c / rest[-1]) for c in rest]
         n = degree
