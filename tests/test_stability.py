@@ -241,6 +241,10 @@ def test_bad_points_are_named() -> None:
         chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0}, {"m": 1, "I": 1})
     with pytest.raises(InputError, match=r"y' = 3 violates the constraints"):
         chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0, "y'": 3}, SLEIGH)
+    with pytest.raises(InputError, match=r"cannot be solved there \(a pole"):
+        chaplygin.stability(sleigh, {"theta": np.pi / 2, "x'": 1, "theta'": 0}, SLEIGH)
+    with pytest.raises(ChaplyginError, match=r"no steady motion .* near the guess"):
+        chaplygin.steady_motions(sleigh, {"theta": 0, "x'": 1, "theta'": 0.5}, SLEIGH, fixed=["x'", "theta'"])
     x = dynamicsymbols("x")
     forced = chaplygin.System([x], x.diff(t) ** 2 / 2, {}, potential_energy=x * sp.cos(t))
     with pytest.raises(ChaplyginError, match="explicitly on the time"):

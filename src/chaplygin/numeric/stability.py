@@ -231,9 +231,9 @@ class Linearization:
         G, H, R = np.zeros((g, 2 * n + 1)), np.zeros((len(self._hol), n)), np.zeros(len(self._hol))
         with np.errstate(all="ignore"):
             self._module.fill(0.0, y, self._p, M, F, V, dM, dF, dV, dE, dI, G, H, R)
-            x = np.linalg.solve(M, F)
+            x = _solve(M, F)
             rhs = dF.T - np.einsum("zij,j->iz", dM.reshape(size, dim, dim), x)
-            dx = np.linalg.solve(M, rhs)
+            dx = _solve(M, rhs)
         f = np.concatenate([V, x[:k]])
         J = np.vstack([dV.T, dx[:k]])
         return _Point(f, J, dE, dI, G, H, R)
@@ -245,13 +245,11 @@ class Linearization:
         P[self._free, range(len(self._free))] = 1.0
         if self._hol:
             H = point.H
-            P[self._hol] = -np.linalg.solve(H[:, self._hol], H[:, self._free_q] @ P[self._free_q])
+            P[self._hol] = -_solve(H[:, self._hol], H[:, self._free_q] @ P[self._free_q])
         if self._multiplier_model and s.g:
             A, Gq = point.G[:, :n], point.G[:, n + 1 :]
             dep, ind = list(s._dep), list(s._ind)
-            P[[n + i for i in dep]] = -np.linalg.solve(
-                A[:, dep], Gq @ P[:n] + A[:, ind] @ P[[n + i for i in ind]]
-            )
+            P[[n + i for i in dep]] = -_solve(A[:, dep], Gq @ P[:n] + A[:, ind] @ P[[n + i for i in ind]])
         return P
 
     def _restricted(self, y: np.ndarray) -> tuple[_Point, np.ndarray, np.ndarray]:
@@ -260,9 +258,10 @@ class Linearization:
         P = self._tangent(point)
         return point, (point.J @ P)[self._free], P
 
-    def admissible(self, values: Mapping[int, float], *, velocities: bool = True) -> np.ndarray:
-        """The full state from the free variables' values (by state index): dependent velocities
-        from the constraints (multiplier models)."""
+    def admissible(self, values: Mapping[int, float]) -> np.ndarray:
+        """The full state from the free variables' values (by state index): the holonomic
+        relations' coordinates by Newton's method from the values given, the dependent velocities
+        from the constraints (multiplier models); NaN where they cannot be solved (a pole)."""
         y = np.zeros(self._size)
         for i, value in values.items():
             y[i] = value
@@ -271,12 +270,17 @@ class Linearization:
             point = self._evaluate(y)
             if np.max(np.abs(point.R)) <= 1e-14 * max(1.0, float(np.max(np.abs(y[:n])))):
                 break
-            y[self._hol] -= np.linalg.solve(point.H[:, self._hol], point.R)
-        if self._multiplier_model and s.g and velocities:
+            y[self._hol] -= _solve(point.H[:, self._hol], point.R)
+        if self._multiplier_model and s.g:
+            from chaplygin.numeric.simulate import _solvable
+
             G = self._evaluate(y).G
             A, A0 = G[:, :n], G[:, n]
             dep, ind = list(s._dep), list(s._ind)
-            y[[n + i for i in dep]] = np.linalg.solve(A[:, dep], -(A[:, ind] @ y[[n + i for i in ind]] + A0))
+            if not _solvable(A, dep):  # the criterion of simulate's initial states
+                y[[n + i for i in dep]] = np.nan
+            else:
+                y[[n + i for i in dep]] = _solve(A[:, dep], -(A[:, ind] @ y[[n + i for i in ind]] + A0))
         return y
 
     def reduced(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -315,6 +319,12 @@ class Linearization:
         dependent = [names[self._n + i] for i in self.system._dep] if self._multiplier_model else []
         given = {names[i]: v for i, v in values.items() if names[i] in dependent}
         y = self.admissible({i: v for i, v in values.items() if names[i] not in dependent})
+        if not np.all(np.isfinite(y)):
+            raise InputError(
+                f"point: the constraints of {self.system.name} cannot be solved there (a pole of the solved "
+                f"constraints{' or of the holonomic relations' if self._hol else ''}); choose other "
+                "dependent coordinates, or another point."
+            )
         off = [names[i] for i in self._hol if abs(y[i] - values[i]) > 1e-9 * max(1.0, abs(values[i]))]
         if off:
             raise InputError(
@@ -328,6 +338,14 @@ class Linearization:
                     f"point: {name} = {value:g} violates the constraints, which give {name} = {implied:.12g}."
                 )
         return y
+
+
+def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a⁻¹ b``, NaN where ``a`` is singular (every caller checks for non-finite results)."""
+    try:
+        return np.linalg.solve(a, b)
+    except np.linalg.LinAlgError:
+        return np.full(np.shape(b), np.nan)
 
 
 def _name(system: System, key: Any, names: Sequence[str]) -> str:
@@ -383,11 +401,8 @@ def _ignorable(lin: Linearization, coordinates: int) -> list[int]:
     found = 0
     for _ in range(12):
         values = {i: rng.uniform(0.3, 1.3) for i in [*lin._free, *lin._hol]}
-        try:
-            y = lin.admissible(values)
-            _, Jr, _ = lin._restricted(y)
-        except np.linalg.LinAlgError:
-            continue
+        y = lin.admissible(values)
+        _, Jr, _ = lin._restricted(y)
         if not np.all(np.isfinite(Jr)):
             continue
         depends |= np.abs(Jr) > STRUCTURE_RTOL * max(1.0, float(np.max(np.abs(Jr))))
