@@ -108,6 +108,7 @@ def test_upright_disk_symbolic_condition_is_the_formula() -> None:
     s = sp.Symbol("s")
     cond = chaplygin.stability_conditions(disk, {"theta": 0, "psi'": 0, "theta'": 0, "phi'": s})
     assert cond.zero_roots == 2 and cond.route == "even" and len(cond.conditions) == 1
+    assert "<pre>" in cond._repr_html_() and "roots in s = lam**2" in str(cond)
     m, r, A, C, g = sp.symbols("m r A C g", positive=True)
     formula = C * (C + m * r**2) * s**2 - m * g * r * A
     ratio = sp.simplify(cond.conditions[0].lhs / formula)
@@ -180,6 +181,7 @@ def test_steady_turning_family_is_the_classical_relation() -> None:
     # upright: rolling straight (psi' = 0, any spin) or spinning about a vertical diameter
     upright = chaplygin.steady_motions(disk, fixed={"theta": 0})
     assert upright.solutions == [{"phi'": 0}] and upright.parameters == ("psi'",)
+    assert "family 1: phi&#x27; = 0" in upright._repr_html_()
     assert sp.factor(upright.equations[0]) == (C + m * r**2) * phi.diff(t) * psi.diff(t)
     # the Newton search, from a guess off the family, lands on it (lean and turning rate held)
     lean, rate = 0.3, 2.0
@@ -189,6 +191,7 @@ def test_steady_turning_family_is_the_classical_relation() -> None:
     numbers = dict(zip((m, r, A, C, g), (COIN[k] for k in "mrACg")))
     closed = float(phid.subs(numbers).subs({Om: rate}).subs({th: lean}))
     assert found.point["phi'"] == pytest.approx(closed, rel=1e-12) and found.family_dimension == 2
+    assert "held fixed: theta, psi&#x27;" in found._repr_html_()
     # the relation's steady turns along the turning rate: each is accepted as steady (to 1e-8)
     relation = sp.lambdify((Om, th), phid.subs(numbers))
     turns = chaplygin.root_locus(

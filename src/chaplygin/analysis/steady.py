@@ -90,6 +90,12 @@ class SteadyFamily:
         lines.append(f"  parameters: {', '.join(self.parameters) or 'none'}")
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        from chaplygin import _html
+
+        head, *rest = str(self).splitlines()
+        return _html.heading(head) + "<pre>" + _html.escape("\n".join(rest)) + "</pre>"
+
 
 def _with_budget(fn: Any, seconds: float) -> Any:
     """``fn()``, or None when it takes longer than ``seconds`` (it then finishes unseen in a daemon thread)."""
@@ -208,6 +214,12 @@ class StabilityConditions:
         ]
         lines += [f"  {vsstrrepr(c)}" for c in self.conditions]
         return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        from chaplygin import _html
+
+        head, *rest = str(self).splitlines()
+        return _html.heading(head) + "<pre>" + _html.escape("\n".join(rest)) + "</pre>"
 
 
 def stability_conditions(

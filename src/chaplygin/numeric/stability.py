@@ -560,10 +560,7 @@ class Stability:
         return "\n".join(self._lines())
 
     def _repr_html_(self) -> str:
-        from chaplygin import _html
-
-        head, *rest = self._lines()
-        return _html.heading(head) + "<pre>" + _html.escape("\n".join(r.strip() for r in rest)) + "</pre>"
+        return _html_pre("\n".join(self._lines()))
 
 
 def _balancing(J: np.ndarray) -> np.ndarray:
@@ -597,6 +594,14 @@ def _zero_multiplicity(J: np.ndarray, rtol: float) -> tuple[int, int]:
             break
         algebraic = found
     return geometric, algebraic
+
+
+def _html_pre(text: str) -> str:
+    """A result's text for Jupyter: its first line as the heading, the rest preformatted."""
+    from chaplygin import _html
+
+    head, *rest = text.splitlines()
+    return _html.heading(head) + "<pre>" + _html.escape("\n".join(r.strip() for r in rest)) + "</pre>"
 
 
 def _verdict(
@@ -811,6 +816,9 @@ class SteadyMotion:
     family_dimension: int
     residual: float
 
+    def _repr_html_(self) -> str:
+        return _html_pre(str(self))
+
     def __str__(self) -> str:
         point = ", ".join(f"{k} = {v + 0.0:.12g}" for k, v in self.point.items())
         return (
@@ -955,6 +963,9 @@ class RootLocus:
     eigenvalues: np.ndarray
     kinds: list[str]
     variables: tuple[str, ...]
+
+    def _repr_html_(self) -> str:
+        return _html_pre(str(self))
 
     def __str__(self) -> str:
         lines = [f"Root locus of {self.system} ({self.model} model) against {self.parameter}"]
