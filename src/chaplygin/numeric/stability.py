@@ -7,8 +7,9 @@ exact to rounding, with no finite differences::
 
     ∂x/∂y_k = M⁻¹ (∂F/∂y_k − (∂M/∂y_k) x)
 
-where ``∂M/∂y_k``, ``∂F/∂y_k`` and ``∂q̇/∂y_k`` are differentiated once (SymEngine) and generated
-as code with common subexpressions (:mod:`chaplygin.numeric.codegen`), then evaluated per point.
+where ``∂(F − M·X)/∂y_k`` (at ``X = x``) and ``∂q̇/∂y_k`` are differentiated once (SymEngine) and
+generated as code with common subexpressions (:func:`chaplygin.numeric.codegen.model_blocks`, the
+code ``chaplygin export --jacobian`` prints), then evaluated per point.
 
 Three reductions follow:
 
@@ -88,12 +89,18 @@ def _constants_of_motion(eqs: Equations) -> list[tuple[str, sp.Expr]]:
 
 
 def _generated(eqs: Equations) -> ModuleType:
-    """The module whose ``fill(t, y, p, M, F, V, dM, dF, dV, dE, dI, G, H, R)`` evaluates, at ``(y, p)``:
-    the model's ``M``, ``F`` and velocities ``V = q̇``; their derivatives by each ``y_k``
-    (``dM[k]``, ``dF[k]``, ``dV[k]``); the energy's gradient ``dE``; the gradients ``dI`` of the
-    model's own integrals (:func:`_constants_of_motion`); for a multiplier model
-    ``G = [A | A₀ | ∂(A q̇ + A₀)/∂q]``; the holonomic relations' values ``R = f`` and ``H = ∂f/∂q``.  Derived once
-    per equations object (SymEngine), printed with the code generator's common subexpressions."""
+    """The module that evaluates the linearisation of ``eqs`` at ``(y, p)``, with three functions:
+
+    * ``fill(t, y, p, M, F, V)``: the model's ``M·x = F`` and its velocities ``V = q̇``;
+    * ``dfill(t, y, p, x, R, dV)``: ``R[j] = ∂(F − M·X)/∂y_j`` at ``X = x`` and ``dV[j] = ∂V/∂y_j``
+      (:func:`chaplygin.numeric.codegen.model_blocks`, what ``chaplygin export --jacobian`` prints);
+    * ``efill(t, y, p, dE, dI, G, H, R)``: the gradients of the energy and of the model's own
+      integrals (:func:`_constants_of_motion`); for a multiplier model
+      ``G = [A | A₀ | ∂(A q̇ + A₀)/∂q]``; the holonomic relations' values ``R = f`` and
+      ``H = ∂f/∂q``.
+
+    Derived once per equations object (SymEngine), printed with the code generator's common
+    subexpressions."""
     cached = eqs.__dict__.get("_linearised")
     if cached is not None:
         return cached
@@ -107,41 +114,33 @@ def _generated(eqs: Equations) -> ModuleType:
         _Fill,
         _plain,
         _python_body,
+        model_blocks,
         monitored,
     )
 
     s = eqs.system
     _, to_num, velocities, _ = state_symbols(eqs)
+    _, main, derivatives, _, _ = model_blocks(eqs, True)
+    assert derivatives is not None
     v = s._vars
     state = sorted((x for x in to_num if str(to_num[x].base) == "y"), key=lambda x: int(to_num[x].indices[0]))
-    size, n, dim = len(state), s.n, eqs._M.shape[0]
+    size, n = len(state), s.n
     multiplier_model = not registry.MODELS[eqs.model].reduced
     energy = monitored(s, s._T, s._U, v.xd).xreplace(dict(zip(v.xd, velocities)))
     rows = [[*list(s._A.row(b)), s._A0[b]] for b in range(s.g)] if multiplier_model else []
     holonomic = [f for _, f in getattr(s, "_holonomic", ())]
     own = [c for _, c in _constants_of_motion(eqs)]
-    base = [*eqs._M, *eqs._F, *velocities]
-    if any(sp.sympify(e).has(TIME) for e in [*base, energy, *(a for r in rows for a in r), *holonomic]):
+    if any(sp.sympify(e).has(TIME) for e in [*eqs._M, *eqs._F, *velocities, *holonomic]):
         raise ChaplyginError(
             f"{s.name}: the {eqs.model} equations depend explicitly on the time t; steady motions and "
             "their stability are computed here for autonomous systems only."
         )
     flat_rows = [a for r in rows for a in r]
-    items = _common([*base, energy, *own, *flat_rows, *holonomic, *state, *v.x, *v.xd])
-    cut = np.cumsum([0, len(base), 1, len(own), len(flat_rows), len(holonomic), size, n, n])
-    base_n, (energy_n,), own_n, rows_n, hol_n, state_n, x_n, xd_n = (
-        items[i:j] for i, j in itertools.pairwise(cut)
-    )
-    exprs = list(base_n)
-    targets = [("M", i, dim) for i in range(dim * dim)] + [("F", i, 0) for i in range(dim)]
-    targets += [("V", i, 0) for i in range(n)]
-    for z, y_k in enumerate(state_n):
-        exprs += [e.diff(y_k) for e in base_n]
-        targets += [("dM", z * dim * dim + i, dim * dim) for i in range(dim * dim)]
-        targets += [("dF", z * dim + i, dim) for i in range(dim)]
-        targets += [("dV", z * n + i, n) for i in range(n)]
-    exprs += [energy_n.diff(y_k) for y_k in state_n]
-    targets += [("dE", z, 0) for z in range(size)]
+    items = _common([energy, *own, *flat_rows, *holonomic, *state, *v.x, *v.xd])
+    cut = np.cumsum([0, 1, len(own), len(flat_rows), len(holonomic), size, n, n])
+    (energy_n,), own_n, rows_n, hol_n, state_n, x_n, xd_n = (items[i:j] for i, j in itertools.pairwise(cut))
+    exprs = [energy_n.diff(y_k) for y_k in state_n]
+    targets = [("dE", z, 0) for z in range(size)]
     for k, c in enumerate(own_n):
         exprs += [c.diff(y_k) for y_k in state_n]
         targets += [("dI", k * size + z, size) for z in range(size)]
@@ -154,13 +153,17 @@ def _generated(eqs: Equations) -> ModuleType:
     for k, f in enumerate(hol_n):
         exprs += [f, *(f.diff(x) for x in x_n)]
         targets += [("R", k, 0)] + [("H", k * n + j, n) for j in range(n)]
-    plain = _plain(to_num)
-    block = _Block(_at(exprs, plain), targets, "c_", skip_zero=len(exprs))
-    body = _python_body(_Fill(block), [_assignments(block)])
+    extra = _Block(_at(exprs, _plain(to_num)), targets, "e_", skip_zero=len(exprs))
+
+    def body(block: _Block) -> str:
+        return "\n".join(_python_body(_Fill(block), [_assignments(block)]))
+
     source = (
         f'"""Generated by chaplygin: the exact linearisation of the {eqs.model}/{eqs.form} equations '
         f'(chaplygin.numeric.stability)."""\n\nimport math\n\nimport numpy as np\n\n\n'
-        "def fill(t, y, p, M, F, V, dM, dF, dV, dE, dI, G, H, R):\n" + "\n".join(body) + "\n"
+        f"def fill(t, y, p, M, F, V):\n{body(main)}\n\n\n"
+        f"def dfill(t, y, p, x, R, dV):\n{body(derivatives)}\n\n\n"
+        f"def efill(t, y, p, dE, dI, G, H, R):\n{body(extra)}\n"
     )
     module = import_source(source, "linear")
     eqs.__dict__["_linearised"] = module
@@ -226,14 +229,16 @@ class Linearization:
         n, dim, size, k = self._n, self._dim, self._size, self._k
         g = self.system.g if self._multiplier_model else 0
         M, F, V = np.zeros((dim, dim)), np.zeros(dim), np.zeros(n)
-        dM, dF, dV = np.zeros((size, dim * dim)), np.zeros((size, dim)), np.zeros((size, n))
+        dR, dV = np.zeros((size, dim)), np.zeros((size, n))
         dE, dI = np.zeros(size), np.zeros((len(self.integrals), size))
         G, H, R = np.zeros((g, 2 * n + 1)), np.zeros((len(self._hol), n)), np.zeros(len(self._hol))
+        module = self._module
         with np.errstate(all="ignore"):
-            self._module.fill(0.0, y, self._p, M, F, V, dM, dF, dV, dE, dI, G, H, R)
+            module.fill(0.0, y, self._p, M, F, V)
             x = _solve(M, F)
-            rhs = dF.T - np.einsum("zij,j->iz", dM.reshape(size, dim, dim), x)
-            dx = _solve(M, rhs)
+            module.dfill(0.0, y, self._p, x, dR, dV)  # M ∂x/∂y_j = ∂(F − M·X)/∂y_j at X = x
+            dx = _solve(M, dR.T)
+            module.efill(0.0, y, self._p, dE, dI, G, H, R)
         f = np.concatenate([V, x[:k]])
         J = np.vstack([dV.T, dx[:k]])
         return _Point(f, J, dE, dI, G, H, R)
@@ -466,6 +471,11 @@ def _complex(z: complex, digits: int = 6, zero: float = 0.0) -> str:
     return f"{re:.{digits}g} {'+' if im >= 0 else '-'} {abs(im):.{digits}g}i"
 
 
+def _small(value: float) -> str:
+    """A residual as text: rounding noise (below 1e-12) as such, not as a machine's last digits."""
+    return "below 1e-12" if value < 1e-12 else f"{value:.2g}"
+
+
 def _mode(vector: np.ndarray, names: Sequence[str]) -> str:
     """A mode as its largest components, the largest scaled to 1."""
     k = int(np.argmax(np.abs(vector)))
@@ -551,7 +561,7 @@ class Stability:
         ]
         out.append(
             f"  (zero below {self.tolerance:.2g} = rtol x |J|, J balanced; steady-motion residual "
-            f"{self.residual:.2g})"
+            f"{_small(self.residual)})"
         )
         out.append(f"  verdict: {self.verdict}")
         return out
@@ -824,7 +834,7 @@ class SteadyMotion:
         return (
             f"Steady motion of {self.system} ({self.model} model): {point}\n"
             f"  held fixed: {', '.join(self.fixed) or 'nothing'}; family of steady motions of dimension "
-            f"{self.family_dimension} through it; residual {self.residual:.2g}"
+            f"{self.family_dimension} through it; residual {_small(self.residual)}"
         )
 
 
