@@ -115,9 +115,8 @@ def test_upright_disk_symbolic_condition_is_the_formula() -> None:
     assert ratio.free_symbols <= {m, r, A, C, g} and ratio.is_positive
 
 
-def _kanes_disk_jacobian(spin: float, p: dict) -> np.ndarray:
-    """The rolling disk in KanesMethod (u = q', x' and y' dependent), linearised by SymPy about
-    upright rolling with spin ``spin``."""
+def _kanes_disk(p: dict) -> tuple[KanesMethod, list, list, dict]:
+    """The rolling disk in KanesMethod (u = q', x' and y' dependent through the no-slip constraints)."""
     q = dynamicsymbols("psi theta phi x y")
     u = dynamicsymbols("u1:6")
     psi, theta, phi, x, y = q
@@ -145,23 +144,53 @@ def _kanes_disk_jacobian(spin: float, p: dict) -> np.ndarray:
         velocity_constraints=[sp.expand(slip.dot(N.x)), sp.expand(slip.dot(N.y))],
     )
     km.kanes_equations([disk], [(G, -m * g * N.z)])
-    values = dict(zip((m, r, A, C, g), (p[k] for k in "mrACg")))
-    op = [{qi: 0 for qi in q}, {u[0]: 0, u[1]: 0, u[2]: spin, u[3]: p["r"] * spin, u[4]: 0}]
-    op.append({ui.diff(t): 0 for ui in u})
-    A_lin = km.linearize(op_point=op, A_and_B=True, linear_solver="CRAMER")[0]
-    return np.array(A_lin.subs(values).evalf(), dtype=float)
+    return km, q, u, dict(zip((m, r, A, C, g), (p[k] for k in "mrACg")))
 
 
 def test_upright_disk_against_kanes_method_linearize() -> None:
+    km, q, u, values = _kanes_disk(COIN)
     spin = 2.5
-    expected = _nonzero(np.linalg.eigvals(_kanes_disk_jacobian(spin, COIN)))
+    op = [{qi: 0 for qi in q}, {u[0]: 0, u[1]: 0, u[2]: spin, u[3]: COIN["r"] * spin, u[4]: 0}]
+    op.append({ui.diff(t): 0 for ui in u})
+    A_lin = km.linearize(op_point=op, A_and_B=True, linear_solver="CRAMER")[0]
+    expected = _nonzero(np.linalg.eigvals(np.array(A_lin.subs(values).evalf(), dtype=float)))
     disk = examples.rolling_disk()
     for model in ("chetaev", "chaplygin"):
-        result = chaplygin.stability(
-            disk, {"theta": 0, "psi'": 0, "theta'": 0, "phi'": spin}, COIN, model=model
-        )
+        point = {"theta": 0, "psi'": 0, "theta'": 0, "phi'": spin}
+        result = chaplygin.stability(disk, point, COIN, model=model)
         np.testing.assert_allclose(_nonzero(result.eigenvalues), expected, rtol=1e-9)
     assert expected.size == 2 and np.all(np.abs(expected.real) < 1e-9)  # the wobble: ±iω
+
+
+def test_turning_disk_against_kanes_method() -> None:
+    """A steady turn: KanesMethod's equations (M_full, F_full, solved numerically here) differenced
+    in the reduced variables (theta, psi', theta', phi') at heading 0, against the exact Jacobian."""
+    km, q, u, values = _kanes_disk(COIN)
+    psi, theta, phi, x, y = q
+    z = sp.symbols("z0:10")
+    plain = dict(zip([*q, *u], z))
+    M = sp.lambdify(z, km.mass_matrix_full.xreplace(plain).subs(values), "numpy", cse=True)
+    F = sp.lambdify(z, km.forcing_full.xreplace(plain).subs(values), "numpy", cse=True)
+    r = COIN["r"]
+
+    def rates(s: np.ndarray) -> np.ndarray:  # (theta, psi', theta', phi') at psi = 0
+        state = [0.0, s[0], 0.0, 0.0, 0.0, s[1], s[2], s[3], r * s[3], 0.0]  # x' = r phi', y' = 0
+        d = np.linalg.solve(np.array(M(*state), dtype=float), np.array(F(*state), dtype=float).ravel())
+        return np.array([d[1], d[5], d[6], d[7]])  # theta', u1', u2', u3'
+
+    disk = examples.rolling_disk()
+    turn = chaplygin.steady_motions(
+        disk, {"theta": 0.3, "psi'": 2.0, "theta'": 0, "phi'": 0.0}, COIN, fixed=["theta", "psi'"]
+    ).point
+    s0 = np.array([turn["theta"], turn["psi'"], 0.0, turn["phi'"]])
+    assert np.max(np.abs(rates(s0))) < 1e-12  # steady in KanesMethod's equations too
+    h = 1e-6
+    J = np.column_stack([(rates(s0 + h * e) - rates(s0 - h * e)) / (2 * h) for e in np.eye(4)])
+    expected = _nonzero(np.linalg.eigvals(J), tol=1e-5)
+    for model in ("chetaev", "chaplygin"):
+        result = chaplygin.stability(disk, turn, COIN, model=model)
+        np.testing.assert_allclose(_nonzero(result.eigenvalues), expected, rtol=1e-6)
+    assert result.kind == "unstable" and expected.size == 2  # the slow turn falls
 
 
 # ---------------------------------------------------------------- the steady turning of the disk
