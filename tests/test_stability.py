@@ -7,7 +7,7 @@ Every expected value comes from a closed form or an independent derivation, neve
 * the upright rolling disk: ``λ² = [m g r − C (C + m r²) ω²/A]/(A + m r²)`` (Routh 1905, art. 244;
   McDonald 2000, §2.5), and ``KanesMethod.linearize`` on the disk built in the test;
 * the steady turning of the disk: ``A Ω² sin θ cos θ − (C + m r²) s Ω cos θ − m g r sin θ = 0``
-  (O'Reilly 1996, eq. (4.3); McDonald 2000, §2.2);
+  (Routh 1905, art. 244; O'Reilly 1996; McDonald 2000, §2.2);
 * the rattleback: an independent Newton–Euler model (``tests/test_bodies.py``), and reversibility
   (time reversal maps the spin n to −n and λ to −λ).
 """
@@ -269,6 +269,8 @@ def test_bad_points_are_named() -> None:
         chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0.5}, SLEIGH)
     with pytest.raises(InputError, match=r"'speed' is not a variable"):
         chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0, "speed": 1}, SLEIGH)
+    with pytest.raises(InputError, match=r"parameters: a = 'big' is not a number"):
+        chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0}, {**SLEIGH, "a": "big"})
     with pytest.raises(InputError, match=r"no value for a"):
         chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0}, {"m": 1, "I": 1})
     with pytest.raises(InputError, match=r"y' = 3 violates the constraints"):

@@ -452,11 +452,23 @@ def linearize(
         ``"lindelof"`` (the constraints substituted into T).
     parameters : mapping
         A number for every parameter.
+
+    Returns
+    -------
+    Linearization
+        Its :meth:`~Linearization.reduced` gives the reduced rates and Jacobian at a state, its
+        ``variables`` and ``ignorable`` name what was kept and what was dropped.
+
+    Raises
+    ------
+    ChaplyginError
+        For an unknown model, a model that does not apply, a system with explicit time, or a
+        parameter missing or not a number.
     """
     registry.get(model, form)
     eqs = system.equations(model, form)
     cache = eqs.__dict__.setdefault("_linearizations", {})
-    key = tuple(sorted((str(k), float(v)) for k, v in (parameters or {}).items()))
+    key = tuple(sorted((str(k), repr(v)) for k, v in (parameters or {}).items()))
     if key not in cache:
         cache[key] = Linearization(eqs, parameters)
     return cache[key]
