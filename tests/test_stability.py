@@ -279,6 +279,14 @@ def test_bad_points_are_named() -> None:
         chaplygin.stability(sleigh, {"theta": np.pi / 2, "x'": 1, "theta'": 0}, SLEIGH)
     with pytest.raises(ChaplyginError, match=r"no steady motion .* near the guess"):
         chaplygin.steady_motions(sleigh, {"theta": 0, "x'": 1, "theta'": 0.5}, SLEIGH, fixed=["x'", "theta'"])
+    with pytest.raises(InputError, match=r"values: give numbers for x'"):
+        chaplygin.root_locus(sleigh, {"theta": 0, "theta'": 0}, "x'", ["fast"], SLEIGH)
+    with pytest.raises(InputError, match=r"rtol = 0: give a number between 0 and 1"):
+        chaplygin.stability(sleigh, {"theta": 0, "x'": 1, "theta'": 0}, SLEIGH, rtol=0)
+    with pytest.raises(InputError, match=r"point: phi' = 'w': give a number or a SymPy expression"):
+        chaplygin.stability_conditions(
+            examples.rolling_disk(), {"theta": 0, "psi'": 0, "theta'": 0, "phi'": "w"}
+        )
     x = dynamicsymbols("x")
     forced = chaplygin.System([x], x.diff(t) ** 2 / 2, {}, potential_energy=x * sp.cos(t))
     with pytest.raises(ChaplyginError, match="explicitly on the time"):

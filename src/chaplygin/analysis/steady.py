@@ -62,6 +62,15 @@ def _reduced(
     return variables, rates, M, eqs._F.xreplace(zero)
 
 
+def _value(what: str, value: Any) -> sp.Expr:
+    """A number or a SymPy expression (never text: chaplygin does not parse user strings)."""
+    if isinstance(value, sp.Expr):
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return sp.Integer(value) if isinstance(value, int) else sp.Float(value)
+    raise InputError(f"{what} = {value!r}: give a number or a SymPy expression (text is not parsed).")
+
+
 @dataclass
 class SteadyFamily:
     """A family of steady motions: ``solutions`` (each a mapping of solved variables to
@@ -139,7 +148,7 @@ def steady_family(
                 f"fixed: {name!r} is not a reduced variable; they are "
                 f"{', '.join(by_symbol[x] for x in variables)}."
             )
-        held[names[name]] = sp.sympify(value, strict=True)
+        held[names[name]] = _value(f"fixed: {name}", value)
     # the coordinates at rest: an independent velocity among their rates is zero, a dependent one's
     # rate (B q̇_σ) is an equation; every acceleration vanishes, so (M nonsingular) F = 0
     xd = set(system._vars.xd)
@@ -236,7 +245,7 @@ def stability_conditions(
                 f"point: {name!r} is not a reduced variable of the {model} model; they are "
                 f"{', '.join(k for k, s in names.items() if s in variables)}."
             )
-        values[names[name]] = sp.sympify(value, strict=True)
+        values[names[name]] = _value(f"point: {name}", value)
     missing = [k for k, s in names.items() if s in variables and s not in values]
     if missing:
         raise InputError(f"point: missing {', '.join(missing)}.")

@@ -776,6 +776,8 @@ def stability(
     """
     lin = linearize(system, model, parameters, form=form)
     y = lin.state_at(point)
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 < rtol < 1:
+        raise InputError(f"rtol = {rtol!r}: give a number between 0 and 1 (the default is {ZERO_RTOL:g}).")
     return _stability_at(lin, y, integrals, rtol)
 
 
@@ -1049,7 +1051,12 @@ def root_locus(
     the generated code, two small solves and an eigenvalue problem.  Varying a parameter
     recompiles nothing either: the generated code takes the parameters as an argument.
     """
-    grid = np.asarray(values, dtype=float)
+    try:
+        grid = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(f"values: give numbers for {vary}, not {values!r}.") from None
+    if not grid.size or not np.all(np.isfinite(grid)):
+        raise InputError(f"values: give at least one finite number for {vary}.")
     lin = linearize(system, model, parameters, form=form)
     is_parameter = vary in lin.parameters
     if not is_parameter:
