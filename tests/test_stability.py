@@ -406,3 +406,23 @@ def test_damped_oscillator_routh_hurwitz() -> None:
     result = chaplygin.stability(oscillator, {"x": 0, "x'": 0}, {"c": 0.5, "k": 4.0})
     np.testing.assert_allclose(np.sort_complex(result.eigenvalues), np.roots([1, 0.5, 4.0])[::-1], rtol=1e-12)
     assert result.kind == "asymptotically stable" and result.integrals == {}
+
+
+def test_linearisation_is_kept_in_the_disk_cache(monkeypatch, tmp_path) -> None:
+    """An equal system linearised again (a new System object, as in a new process) differentiates
+    nothing: the generated code comes from the cache of compiled models."""
+    from chaplygin.numeric import stability as module
+
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path))
+    monkeypatch.delenv("CHAPLYGIN_MODEL_CACHE", raising=False)
+    point = {"theta": 0.2, "x'": 1.0, "theta'": 0.1}
+    first = chaplygin.linearize(examples.chaplygin_sleigh(), "chetaev", SLEIGH)
+    expected = first.reduced(first.state_at(point))
+
+    def differentiate(eqs):
+        raise AssertionError("differentiated again")
+
+    monkeypatch.setattr(module, "_linearisation_source", differentiate)
+    again = chaplygin.linearize(examples.chaplygin_sleigh(), "chetaev", SLEIGH)
+    for a, b in zip(again.reduced(again.state_at(point)), expected):
+        np.testing.assert_array_equal(a, b)
