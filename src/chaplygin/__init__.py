@@ -51,6 +51,17 @@ if TYPE_CHECKING:
     from chaplygin.numeric.comparison import Comparison, compare
     from chaplygin.numeric.ensemble import Ensemble, simulate_ensemble
     from chaplygin.numeric.simulate import Trajectory, simulate
+    from chaplygin.numeric.stability import (
+        Linearization,
+        RootLocus,
+        Stability,
+        SteadyMotion,
+        linearize,
+        root_locus,
+        stability,
+        stability_conditions,
+        steady_motions,
+    )
 
 #: where each public name lives; imported on first use, so that ``import chaplygin``
 #: (and the command line, whose cached answers need no SymPy) starts fast
@@ -86,6 +97,20 @@ _HOME = {
     "Ensemble": "chaplygin.numeric.ensemble",
     "compare": "chaplygin.numeric.comparison",
     "Comparison": "chaplygin.numeric.comparison",
+    **{
+        name: "chaplygin.numeric.stability"
+        for name in (
+            "Linearization",
+            "RootLocus",
+            "Stability",
+            "SteadyMotion",
+            "linearize",
+            "root_locus",
+            "stability",
+            "stability_conditions",
+            "steady_motions",
+        )
+    },
     "from_mechanics": "chaplygin.io.mechanics",
     "show_rolling": "chaplygin.apps.bodyview",
     "SystemFile": "chaplygin.io.files",
@@ -131,11 +156,15 @@ __all__ = [
     "EquivalenceReport",
     "InputError",
     "IntegrabilityReport",
+    "Linearization",
     "ModelComparison",
     "ModelError",
     "Paraboloid",
     "Revolution",
+    "RootLocus",
     "Sphere",
+    "Stability",
+    "SteadyMotion",
     "SupportFunction",
     "System",
     "SystemDefinitionError",
@@ -152,11 +181,16 @@ __all__ = [
     "examples",
     "from_mechanics",
     "initial_state",
+    "linearize",
     "load",
     "loads",
     "motion",
     "rolling_body",
+    "root_locus",
     "show_rolling",
     "simulate",
     "simulate_ensemble",
+    "stability",
+    "stability_conditions",
+    "steady_motions",
 ]

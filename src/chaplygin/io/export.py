@@ -95,50 +95,13 @@ def export(
         raise ChaplyginError(
             f"prefix={prefix!r}: give letters, digits and '_' (not starting with a digit), e.g. 'sphere_'."
         )
+    from chaplygin.numeric.codegen import model_blocks
+
     eqs = system.equations(model, form)
-    layout, main, derivatives, dim, k = _blocks(eqs, jacobian)
+    layout, main, derivatives, dim, k = model_blocks(eqs, jacobian)
     if to == "c":
         return _c_source(eqs, layout, main, derivatives, dim, k, prefix)
     return _python_source(eqs, layout, main, derivatives, dim, k, prefix)
-
-
-# ------------------------------------------------------------------ what is computed
-def _blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block | None, int, int]:
-    """The layout; the block filling ``M`` (row-major), ``F`` and the velocities ``V``; with
-    ``jacobian``, the block filling ``R[j, r] = ∂(F − M·x)_r/∂y_j`` and ``dV[j, i] = ∂V_i/∂y_j``
-    (``x`` given); ``M``'s size; ``K``, the entries of ``x`` that are derivatives of ``y``."""
-    import sympy as sp
-
-    from chaplygin.core._fast import jacobian as differentiate
-    from chaplygin.numeric._layout import state_symbols
-    from chaplygin.numeric.codegen import _at, _Block, _plain
-
-    layout, to_num, velocities, k = state_symbols(eqs)
-    plain = _plain(to_num)
-    n, dim = eqs.system.n, eqs._M.shape[0]
-    M, F = list(eqs._M), list(eqs._F)
-    targets = (
-        [("M", i, dim) for i in range(dim * dim)]
-        + [("F", i, 0) for i in range(dim)]
-        + [("V", i, 0) for i in range(n)]
-    )
-    main = _Block(_at([*M, *F, *velocities], plain), targets, "c_", skip_zero=dim * dim)
-    if not jacobian:
-        return layout, main, None, dim, k
-    y = sp.IndexedBase("y")
-    state = sorted((value.indices[0], symbol) for symbol, value in to_num.items() if value.base == y)
-    variables = [symbol for _, symbol in state]
-    x = [sp.Symbol(f"x[{c}]") for c in range(dim)]
-    residual = [F[r] - sum((M[r * dim + c] * x[c] for c in range(dim)), sp.S.Zero) for r in range(dim)]
-    d = differentiate([*residual, *velocities], variables)  # rows: residual then V; columns: y_j
-    size = len(variables)
-    exprs = [d[r, j] for j in range(size) for r in range(dim)] + [
-        d[dim + i, j] for j in range(size) for i in range(n)
-    ]
-    targets = [("R", j * dim + r, dim) for j in range(size) for r in range(dim)] + [
-        ("dV", j * n + i, n) for j in range(size) for i in range(n)
-    ]
-    return layout, main, _Block(_at(exprs, plain), targets, "d_", skip_zero=len(targets)), dim, k
 
 
 def _header(

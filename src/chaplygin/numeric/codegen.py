@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import heapq
 import inspect
+import itertools
 import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -60,6 +61,7 @@ __all__ = [
     "cache_dir",
     "compile_equations",
     "compile_model",
+    "model_blocks",
 ]
 
 BACKENDS = ("numpy", "numba", "jax", "c")
@@ -259,6 +261,49 @@ def _main_block(
     residual = [sum((A[b * n + j] * velocities[j] for j in range(n)), A0[b]) for b in range(g)]
     exprs = _at([*M, *F, *velocities, energy, *residual], plain)
     return _Block(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim)
+
+
+def model_blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block | None, int, int]:
+    """The layout; the block filling ``M`` (row-major), ``F`` and the velocities ``V``; with
+    ``jacobian``, the block filling ``R[j, r] = ∂(F − M·x)_r/∂y_j`` and ``dV[j, i] = ∂V_i/∂y_j``
+    (``x`` given: the solution of ``M·x = F``, so that ``M·∂x/∂y_j = R[j]``); ``M``'s size; ``K``,
+    the entries of ``x`` that are derivatives of ``y``.  What :func:`chaplygin.io.export.export`
+    prints and :mod:`chaplygin.numeric.stability` evaluates."""
+    from chaplygin.core._fast import jacobian as differentiate
+
+    layout, to_num, velocities, k = state_symbols(eqs)
+    plain = _plain(to_num)
+    n, dim = eqs.system.n, eqs._M.shape[0]
+    y = sp.IndexedBase("y")
+    state = sorted((value.indices[0], symbol) for symbol, value in to_num.items() if value.base == y)
+    variables = [symbol for _, symbol in state]
+    x = [sp.Symbol(f"x[{c}]") for c in range(dim)]
+    size = len(variables)
+    # converted to SymEngine once and differentiated there (SymPy's only where SymEngine cannot)
+    fast = native([*eqs._M, *eqs._F, *velocities, *variables, *x]) if jacobian else None
+    items = fast if fast is not None else [*eqs._M, *eqs._F, *velocities, *variables, *x]
+    cut = np.cumsum([0, dim * dim, dim, n, size, dim])
+    M, F, V, y_k, x = (items[i:j] for i, j in itertools.pairwise(cut))
+    targets = (
+        [("M", i, dim) for i in range(dim * dim)]
+        + [("F", i, 0) for i in range(dim)]
+        + [("V", i, 0) for i in range(n)]
+    )
+    main = _Block(_at([*M, *F, *V], plain), targets, "c_", skip_zero=dim * dim)
+    if not jacobian:
+        return layout, main, None, dim, k
+    residual = [F[r] - sum((M[r * dim + c] * x[c] for c in range(dim)), 0) for r in range(dim)]
+    if fast is not None:
+        exprs = [residual[r].diff(y_k[j]) for j in range(size) for r in range(dim)]
+        exprs += [V[i].diff(y_k[j]) for j in range(size) for i in range(n)]
+    else:
+        d = differentiate([*residual, *V], variables)  # rows: residual then V; columns: y_j
+        exprs = [d[r, j] for j in range(size) for r in range(dim)]
+        exprs += [d[dim + i, j] for j in range(size) for i in range(n)]
+    targets = [("R", j * dim + r, dim) for j in range(size) for r in range(dim)] + [
+        ("dV", j * n + i, n) for j in range(size) for i in range(n)
+    ]
+    return layout, main, _Block(_at(exprs, plain), targets, "d_", skip_zero=len(targets)), dim, k
 
 
 @dataclass(frozen=True)
