@@ -329,3 +329,37 @@ def test_parse_at_never_evaluates() -> None:
     for text in ("phi'=__import__('os')", "phi'=1+1", "phi'=w"):
         with pytest.raises(ChaplyginError, match="is not a number"):
             _steady.parse_at(text)
+
+
+# ---------------------------------------------------------------- the report's section
+def test_report_section_has_the_eigenvalues_verdicts_and_root_locus(tmp_path: Path) -> None:
+    page = tmp_path / "disk.html"
+    args = ["report", DISK, "-o", page, "-t", "0.5", "-n", "11", "--at", "theta=0, psi'=0, phi'=1.5"]
+    result = runner.invoke(app, [str(a) for a in [*args, "--vary", "phi'=1:2:3"]])
+    assert result.exit_code == 0, result.output
+    html = page.read_text(encoding="utf-8")
+    section = html.split('<section id="stability"><h2>Steady motion and stability</h2>')[1].split(
+        "</section>"
+    )[0]
+    assert '<a href="#stability">stability</a>' in html
+    true, lindelof = upright(1.5), upright(1.5, lindelof=True)  # unstable, and stable: both models
+    assert f'<td class="num">{true.real:.6g}<br>0<br>0<br>{-true.real:.6g}</td>' in section
+    assert f"0 + {lindelof.imag:.6g}i" in section
+    assert '<span class="verdict fails">unstable</span>' in section
+    assert '<span class="verdict holds">linearly stable</span>' in section
+    assert section.count("<svg") == 1 and 'id="figure-locus"' in section
+    assert f"0 + {upright(2.0).imag:.5g}i" in section  # the locus's numbers at phi' = 2
+    plain = runner.invoke(
+        app, [str(a) for a in ["report", DISK, "-o", tmp_path / "p.html", "-t", "0.5", "-n", "11"]]
+    )
+    assert plain.exit_code == 0 and 'id="stability"' not in (tmp_path / "p.html").read_text(encoding="utf-8")
+
+
+def test_report_refuses_stability_options_without_at(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["report", DISK, "-o", str(tmp_path / "r.html"), "--vary", "phi'=1:2:3"])
+    assert result.exit_code == 2 and "--vary goes with --at" in " ".join(
+        result.stderr.replace("│", " ").split()
+    )
+    bad = runner.invoke(app, ["report", DISK, "-o", str(tmp_path / "r.html"), "--at", "theta=0, phi'=1"])
+    assert bad.exit_code == 1 and "no value for psi'" in bad.stderr
+    assert list(tmp_path.iterdir()) == []

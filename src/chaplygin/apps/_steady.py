@@ -39,14 +39,18 @@ __all__ = [
     "AT_SYNTAX",
     "SCHEMA",
     "Assessed",
+    "Study",
     "assess",
     "conditions",
+    "describe",
     "document",
     "eigenvalue",
     "loci",
+    "locus_csv",
     "locus_figure",
     "locus_rows",
     "parse_at",
+    "study",
     "text",
 ]
 
@@ -82,7 +86,8 @@ def parse_at(text: str, option: str = "--at", symbols: bool = False) -> dict[str
     return out
 
 
-def _motion(model: str) -> str:
+def describe(model: str) -> str:
+    """``"the true motion"`` or ``"the vakonomic motion"``: what a model of the registry describes."""
     return "the true motion" if registry.get(model).is_true_motion else "the vakonomic motion"
 
 
@@ -360,7 +365,7 @@ def _values(point: Mapping[str, Any]) -> str:
 def _block(row: Assessed) -> list[str]:
     s = row.stability
     drift = ", ".join(f"{k}' = {eigenvalue(v, 1e-12)}" for k, v in s.ignorable.items())
-    lines = [f"{row.model} ({_motion(row.model)}): {s.kind}"]
+    lines = [f"{row.model} ({describe(row.model)}): {s.kind}"]
     if row.found is not None:
         lines.append(
             f"  found by a Newton search from --at, holding {', '.join(row.found.fixed) or 'nothing'}: "
@@ -411,14 +416,14 @@ def text(
             lines.append(f"  {r.model:<{width}}  {r.stability.kind:<21}  {first}")
     for model, lc in (locus or {}).items():
         lines.append(
-            f"root locus of {model} ({_motion(model)}) against {lc.parameter}: eigenvalues, largest real part first"
+            f"root locus of {model} ({describe(model)}) against {lc.parameter}: eigenvalues, largest real part first"
         )
         for value, kind, roots in locus_rows(lc):
             lines.append(
                 f"  {lc.parameter} = {value:<10.6g} {kind:<21}  {', '.join(eigenvalue(z, 1e-9, 5) for z in roots)}"
             )
     for model, cond in (found or {}).items():
-        lines.append(f"stability conditions of {model} ({_motion(model)}):")
+        lines.append(f"stability conditions of {model} ({describe(model)}):")
         lines += [f"  {line}" for line in str(cond).splitlines()]
     return "\n".join(lines)
 
@@ -529,3 +534,41 @@ def locus_figure(locus: Mapping[str, Any]) -> Any:
     for k, lc in enumerate(locus.values()):
         lc.plot(ax=axes[:, k])
     return fig
+
+
+@dataclass
+class Study:
+    """What the report's "Steady motion and stability" section shows (:func:`study`): the point
+    as given, the parameters, one :class:`Assessed` per model and the root loci (or None)."""
+
+    at: dict[str, float]
+    parameters: dict[str, float]
+    rows: list[Assessed]
+    locus: dict[str, Any] | None
+
+
+def study(
+    system: System,
+    at: Mapping[str, float],
+    parameters: Mapping[str, float],
+    models: Sequence[str] | None = None,
+    vary: tuple[str, Sequence[float]] | None = None,
+    fixed: Sequence[str] | None = None,
+) -> Study:
+    """The stability of the steady motion ``at`` in ``models`` (default: the true motion and,
+    where it applies, Lindelöf's), and with ``vary = (name, values)`` the root loci; ``fixed``
+    asks for a Newton search (``--find``) holding those variables."""
+    chosen = list(models or _default_models(system))
+    name, values = vary if vary is not None else (None, None)
+    rows: list[Assessed] = []
+    if name is None or name in at or name in parameters:  # else the point lacks the varied value
+        rows = assess(system, at, parameters, chosen, fixed)
+    locus = None
+    if name is not None:
+        locus = loci(system, at, parameters, chosen, name, np.asarray(values, dtype=float), fixed)
+    return Study(dict(at), dict(parameters), rows, locus)
+
+
+def _default_models(system: System) -> list[str]:
+    true = registry.true_motion(system)
+    return [true, "lindelof"] if registry.get("lindelof").obstruction(system) is None else [true]

@@ -1525,6 +1525,28 @@ def _stability_outputs(out: Path | None, plot: Path | None, vary: Any) -> None:
         )
 
 
+def _steady_request(
+    at: str | None, vary: str | None, find: bool, fixed: str | None
+) -> tuple[dict[str, float], Any, list[str] | None] | None:
+    """``report``'s ``--at``, ``--vary``, ``--find`` and ``--fixed``: the point, the root locus's
+    ``(name, values)`` and the variables held (None: no Newton search); None without ``--at``."""
+    from chaplygin.apps import _steady
+
+    if at is None:
+        for name, given in (("--vary", vary), ("--fixed", fixed), ("--find", find or None)):
+            if given is not None:
+                raise typer.BadParameter(f"{name} goes with --at (the steady motion).", param_hint=name)
+        return None
+    try:
+        point = _steady.parse_at(at)
+    except ChaplyginError as exc:
+        raise typer.BadParameter(str(exc).removeprefix("--at: "), param_hint="--at") from None
+    if fixed is not None and not find:
+        raise typer.BadParameter("--fixed goes with --find (a Newton search).", param_hint="--fixed")
+    held = [n.strip() for n in fixed.split(",")] if fixed else []
+    return {k: float(v) for k, v in point.items()}, _vary(vary), held if find else None
+
+
 @app.command(cls=_Command, epilog=GLOSSARY)
 def stability(
     file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
@@ -1676,18 +1698,43 @@ def report(
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
     time_limit: float = _time_limit_option(),
+    at: str | None = typer.Option(
+        None,
+        "--at",
+        "-a",
+        metavar="NAME=NUMBER,...",
+        help="Add the section 'Steady motion and stability': the steady motion there (as `chaplygin "
+        "stability --at`), in the --models or the true motion and Lindelöf's.",
+    ),
+    vary: str | None = typer.Option(
+        None, "--vary", metavar="NAME=START:STOP:COUNT", help="With --at: a root locus in that section."
+    ),
+    find: bool = typer.Option(False, "--find", help="With --at: find the steady motion by a Newton search."),
+    fixed: str | None = typer.Option(
+        None, "--fixed", metavar="NAME,...", help="With --find: the variables held at their --at values."
+    ),
 ) -> None:
-    """Write one self-contained HTML report: system, integrability, equations, simulations."""
+    """Write one self-contained HTML report: system, integrability, equations, simulations; with
+    --at, a steady motion's stability."""
     from chaplygin.apps.report import STAGES, report_comparison, write_report
 
     specs = [_model_spec(m) for m in models.split(",")] if models else None
     _overrides(param, "--param"), _overrides(initial, "--initial")
+    steady = _steady_request(at, vary, find, fixed)
     with _failures():
         _refuse_existing([out], force)
         loaded = _load(file)
         params, start = _numbers(loaded, param, initial)
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
         created = _created(out)
+        found = None
+        if steady is not None:
+            from chaplygin.apps._steady import study
+
+            with _Steps(1, "report: stability") as steps:
+                steps.step("report: the steady motion's stability")
+                names = list(dict.fromkeys(n for n, _ in specs)) if specs else None
+                found = study(loaded.system, steady[0], params, names, steady[1], steady[2])
         with _Steps(len(STAGES) + 1, "report") as steps:
             steps.step("report: simulating")  # first, to know whether every run reaches t_end
             comparison = report_comparison(
@@ -1711,6 +1758,7 @@ def report(
                 initial=start,
                 comparison=comparison,
                 progress=_report_progress(steps),
+                stability=found,
             )
         _emit(f"wrote {out}: the simulations run to t = {t_end:g} ({samples} samples)")
         if created is not None:
