@@ -92,7 +92,7 @@ def describe(model: str) -> str:
 
 
 def _point(
-    lin: Any, at: Mapping[str, Any], known: Sequence[str], model: str, vary: str | None = None
+    system: System, lin: Any, at: Mapping[str, Any], model: str, vary: str | None = None
 ) -> tuple[dict[str, Any], list[str]]:
     """The point of one model from ``--at`` (names that ``lin``'s state lacks left out), and the
     velocities defaulted to 0; an :class:`InputError` naming what is missing."""
@@ -107,10 +107,18 @@ def _point(
     missing = [name for name in variables if name not in point and name != vary]
     if missing:
         ignorable = ", ".join(lin.ignorable) or "none"
+        coordinates = {q.func.__name__ for q in system.coordinates}
+        multipliers = [name for name in missing if name.rstrip("'") not in coordinates]
+        hint = (
+            f" The multipliers {', '.join(multipliers)} have no default: give them, or use --model "
+            "lindelof (the vakonomic motion with every c_β = 0, which has none)."
+            if multipliers
+            else ""
+        )
         raise InputError(
             f"--at: no value for {', '.join(missing)}: a steady motion of the {model} model is given by "
             f"{', '.join(variables)} (a velocity q' with q among them may be left out: it is 0; the "
-            f"ignorable coordinates {ignorable} may be left out)."
+            f"ignorable coordinates {ignorable} may be left out).{hint}"
         )
     return point, defaulted
 
@@ -178,7 +186,7 @@ def assess(
     _check_names(system, at, {m: lin.state for m, lin in lins.items()})
     out = []
     for model, lin in lins.items():
-        point, defaulted = _point(lin, at, lin.state, model)
+        point, defaulted = _point(system, lin, at, model)
         found = None
         try:
             if fixed is not None:
@@ -230,7 +238,7 @@ def loci(
                 f"--vary: {vary!r} is not a reduced variable of the {model} model (ignorable there, or "
                 f"not in its state); vary one of {', '.join(lin.variables)} or a parameter."
             )
-        point, _ = _point(lin, at, lin.state, model, vary)
+        point, _ = _point(system, lin, at, model, vary)
         follow = _Follow(system, model, point, parameters, vary, fixed)
         try:
             if fixed is not None:
@@ -297,7 +305,7 @@ def conditions(
         sample = {p.name: 1.0 for p in system.parameters}
         sample.update({c.name: 1.0 for c in system.equations(reduced).constants})
         lin = linearize(system, reduced, sample)
-        given, _ = _point(lin, {k: v for k, v in point.items() if k in lin.state}, lin.state, reduced)
+        given, _ = _point(system, lin, {k: v for k, v in point.items() if k in lin.state}, reduced)
         given = {k: sp.nsimplify(v) if isinstance(v, float) else v for k, v in given.items()}
         try:
             out[model] = _within(
