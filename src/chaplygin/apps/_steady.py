@@ -140,7 +140,10 @@ def _reworded(exc: ChaplyginError, where: str = "") -> ChaplyginError:
     text = str(exc).replace("steady_motions(system, guess=...)", "--find (a Newton search from --at)")
     text = text.replace("try another guess or fix other variables", "try another --at or other --fixed")
     text = _API_NAMES.sub(lambda m: _OPTIONS[m[1]] + ": ", text)
-    return type(exc)(f"{where}{text}")
+    try:
+        return type(exc)(f"{where}{text}")
+    except TypeError:  # a subclass whose constructor takes more than the message
+        return ChaplyginError(f"{where}{text}")
 
 
 #: the API's names for what the command line calls by its options

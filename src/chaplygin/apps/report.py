@@ -14,6 +14,8 @@ network, that holds
   energy drift and constraint drift;
 * for a rolling body (:func:`chaplygin.bodies.rolling_body`), the body drawn rolling in 3-D,
   the models side by side (:mod:`chaplygin.apps.bodyview`);
+* with a steady motion (``chaplygin report --at``), its eigenvalues, named zero eigenvalues and
+  verdict in each model, and a root locus (:mod:`chaplygin.apps._steady`);
 * for the paper's sphere, the paper's printed equations (49)-(62) beside the derived ones,
   line by line: agree, differ by a transcription error, or differ in substance
   (:func:`paper_table`).
@@ -1199,11 +1201,29 @@ def _paper_section(table: PaperTable) -> str:
     return "\n".join(out)
 
 
+def _stability_row(row: Any) -> str:
+    """One model's row of the stability table (an :class:`chaplygin.apps._steady.Assessed`)."""
+    from chaplygin.apps._steady import describe, eigenvalue
+
+    s = row.stability
+    cls = {True: "holds", False: "fails"}.get(s.stable, "")
+    point = _esc(", ".join(f"{k} = {v + 0.0:.6g}" for k, v in s.point.items()))
+    if row.found is not None:
+        point += f'<br><span class="note">found by a Newton search, holding {_esc(", ".join(row.found.fixed))}</span>'
+    values = "<br>".join(_esc(eigenvalue(z, s.tolerance)) for z in s.eigenvalues)
+    zeros = "<br>".join(_esc(f"{s.zeros.count(r)} {r}") for r in dict.fromkeys(s.zeros)) or "none"
+    verdict = f'<span class="verdict {cls}">{_esc(s.kind)}</span>{_esc(s.verdict.removeprefix(s.kind))}'
+    return (
+        f'<tr><td><code>{_esc(row.model)}</code><br><span class="note">{_esc(describe(row.model))}</span></td>'
+        f'<td>{point}</td><td class="num">{values}</td><td>{zeros}</td><td>{verdict}</td></tr>'
+    )
+
+
 def _stability_section(found: Any) -> str:
     """The steady motion asked for (``chaplygin report --at``; :func:`chaplygin.apps._steady.study`):
     one row per model with its eigenvalues, named zero eigenvalues and verdict, and the root
     loci as a figure, their numbers one click away."""
-    from chaplygin.apps._steady import describe, eigenvalue, locus_figure, locus_rows
+    from chaplygin.apps._steady import eigenvalue, locus_figure, locus_rows
 
     out = ['<section id="stability"><h2>Steady motion and stability</h2>']
     at = ", ".join(f"{k} = {v:.10g}" for k, v in found.at.items())
@@ -1218,22 +1238,7 @@ def _stability_section(found: Any) -> str:
             "<table><tr><th>model</th><th>point</th><th>eigenvalues</th><th>zero eigenvalues</th>"
             "<th>verdict</th></tr>"
         )
-        for row in found.rows:
-            s = row.stability
-            cls = {True: "holds", False: "fails"}.get(s.stable, "")
-            values = "<br>".join(_esc(eigenvalue(z, s.tolerance)) for z in s.eigenvalues)
-            zeros = "<br>".join(_esc(f"{s.zeros.count(r)} {r}") for r in dict.fromkeys(s.zeros)) or "none"
-            out.append(
-                f'<tr><td><code>{_esc(row.model)}</code><br><span class="note">{_esc(describe(row.model))}</span></td>'
-                f"<td>{_esc(', '.join(f'{k} = {v + 0.0:.6g}' for k, v in s.point.items()))}"
-                + (
-                    f'<br><span class="note">found by a Newton search, holding {_esc(", ".join(row.found.fixed))}</span>'
-                    if row.found is not None
-                    else ""
-                )
-                + f'</td><td class="num">{values}</td><td>{zeros}</td>'
-                f'<td><span class="verdict {cls}">{_esc(s.kind)}</span>{_esc(s.verdict.removeprefix(s.kind))}</td></tr>'
-            )
+        out += [_stability_row(row) for row in found.rows]
         out.append("</table>")
     if found.locus:
         name = next(iter(found.locus.values())).parameter
