@@ -194,6 +194,7 @@ def test_conditions_are_the_published_threshold() -> None:
     }
     for model, threshold in thresholds.items():
         assert found[model]["zero_roots"] == 2 and found[model]["route"] == "even"
+        assert found[model]["from"] == model
         reduced = sp.sympify(found[model]["reduced"], locals=names).subs(lam**2, s)
         (square,) = sp.solve(reduced, s)  # the nonzero λ² of the upright disk
         assert sp.simplify(square.subs(w, sp.sqrt(threshold))) == 0, model  # zero at the threshold

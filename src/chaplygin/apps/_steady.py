@@ -405,7 +405,7 @@ def text(
     parameters: Mapping[str, float],
     rows: Sequence[Assessed],
     locus: Mapping[str, Any] | None = None,
-    found: Mapping[str, Any] | None = None,
+    symbolic: Mapping[str, Any] | None = None,
 ) -> str:
     """What ``chaplygin stability`` prints: the parameters, a block per model (the point, the
     reduced variables, eigenvalues, the named zero eigenvalues, the verdict), the root loci's
@@ -433,8 +433,11 @@ def text(
             lines.append(
                 f"  {lc.parameter} = {value:<10.6g} {kind:<21}  {', '.join(eigenvalue(z, 1e-9, 5) for z in roots)}"
             )
-    for model, cond in (found or {}).items():
-        lines.append(f"stability conditions of {model} ({describe(model)}):")
+    for model, cond in (symbolic or {}).items():
+        reduced = _reduced(system, model)
+        via = f"; from the {reduced} equations" if reduced != model else ""
+        via += ", the member with every c_β = 0" if via and reduced == "lindelof" else ""
+        lines.append(f"stability conditions of {model} ({describe(model)}{via}):")
         lines += [f"  {line}" for line in str(cond).splitlines()]
     return "\n".join(lines)
 
@@ -454,7 +457,7 @@ def document(
     at: Mapping[str, Any],
     rows: Sequence[Assessed],
     locus: Mapping[str, Any] | None = None,
-    found: Mapping[str, Any] | None = None,
+    symbolic: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The JSON document of ``chaplygin stability --format json`` (schema :data:`SCHEMA`);
     eigenvalues are ``[real, imaginary]`` pairs."""
@@ -506,16 +509,17 @@ def document(
             for model, lc in locus.items()
         },
         "conditions": None
-        if not found
+        if not symbolic
         else {
             model: {
+                "from": _reduced(system, model),
                 "polynomial": file_syntax(c.polynomial),
                 "zero_roots": int(c.zero_roots),
                 "reduced": file_syntax(c.reduced),
                 "route": c.route,
                 "conditions": [file_syntax(x) for x in c.conditions],
             }
-            for model, c in found.items()
+            for model, c in symbolic.items()
         },
     }
 
