@@ -55,6 +55,10 @@ COMMANDS = {
         "chaplygin.apps.sweep.sweep",
     ),
     "demo": (["demo", "-o", "{bad}/demo.html"], "chaplygin.numeric.comparison.compare"),
+    "stability": (
+        ["stability", "example:rolling-disk", "--at", "theta=0, psi'=0, phi'=2.5", "-o", "{bad}/s.json"],
+        "chaplygin.apps._steady.assess",
+    ),
 }
 
 

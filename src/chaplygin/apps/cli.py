@@ -1,6 +1,6 @@
 """The ``chaplygin`` command line (typer + rich).
 
-Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``report``, ``demo``,
+Commands: ``derive``, ``check``, ``simulate``, ``compare``, ``sweep``, ``stability``, ``report``, ``demo``,
 ``export``, ``models`` and ``examples list|show``; the help of each command that takes a model
 ends with the models' glossary (:mod:`chaplygin.models.registry`).  ``FILE`` is a TOML system
 file (:mod:`chaplygin.io.files`) or ``example:NAME`` for a built-in example.
@@ -1501,6 +1501,210 @@ def sweep(
             raise typer.Exit(STOPPED_EARLY)
 
 
+# ====================================================================== stability
+class StabilityFormat(str, Enum):
+    text = "text"
+    json = "json"
+
+
+def _stability_models(text: str | None, system: Any) -> list[str]:
+    """``--model a,b``: models of the registry, each once; default the true motion."""
+    if text is None:
+        return [registry.true_motion(system)]
+    names = [m.strip() for m in text.split(",")]
+    for name in names:
+        _model_name(name)
+    twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
+    if twice is not None:
+        raise typer.BadParameter(f"{twice} is listed twice; name each model once.", param_hint="--model")
+    return names
+
+
+def _vary(text: str | None) -> tuple[str, Any] | None:
+    """``--vary NAME=START:STOP:COUNT`` (or ``NAME=V1,V2,…``), in the syntax of ``sweep --grid``."""
+    if text is None:
+        return None
+    from chaplygin.apps.sweep import parse_grid
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # linspace to inf: refused below
+            return parse_grid(text)
+    except ChaplyginError as exc:
+        words = str(exc).replace("--grid ", "")
+        raise typer.BadParameter(words, param_hint="--vary") from None
+
+
+def _stability_outputs(out: Path | None, plot: Path | None, vary: Any) -> None:
+    """``--out`` ends in .json or .csv (a root locus), ``--plot`` in .png, .svg or .pdf (a root locus)."""
+    if out is not None and out.suffix.lower() not in (".json", ".csv"):
+        raise typer.BadParameter(f"{out}: give a .json or .csv file.", param_hint="--out")
+    if out is not None and out.suffix.lower() == ".csv" and vary is None:
+        raise typer.BadParameter(
+            f"{out}: a .csv holds a root locus; give --vary, or a .json file.", param_hint="--out"
+        )
+    if plot is not None and plot.suffix.lower().lstrip(".") not in {f.value for f in FigureFormat}:
+        raise typer.BadParameter(f"{plot}: give a .png, .svg or .pdf file.", param_hint="--plot")
+    if plot is not None and vary is None:
+        raise typer.BadParameter(
+            "the figure is a root locus: give --vary NAME=START:STOP:COUNT.", param_hint="--plot"
+        )
+
+
+def _steady_request(
+    at: str | None, vary: str | None, find: bool, fixed: str | None
+) -> tuple[dict[str, float], Any, list[str] | None] | None:
+    """``report``'s ``--at``, ``--vary``, ``--find`` and ``--fixed``: the point, the root locus's
+    ``(name, values)`` and the variables held (None: no Newton search); None without ``--at``."""
+    from chaplygin.apps import _steady
+
+    if at is None:
+        for name, given in (("--vary", vary), ("--fixed", fixed), ("--find", find or None)):
+            if given is not None:
+                raise typer.BadParameter(f"{name} goes with --at (the steady motion).", param_hint=name)
+        return None
+    try:
+        point = _steady.parse_at(at)
+    except ChaplyginError as exc:
+        raise typer.BadParameter(str(exc).removeprefix("--at: "), param_hint="--at") from None
+    if fixed is not None and not find:
+        raise typer.BadParameter("--fixed goes with --find (a Newton search).", param_hint="--fixed")
+    held = [n.strip() for n in fixed.split(",")] if fixed else []
+    return {k: float(v) for k, v in point.items()}, _vary(vary), held if find else None
+
+
+@app.command(cls=_Command, epilog=GLOSSARY)
+def stability(
+    file: str = typer.Argument(..., metavar="FILE", help=FILE_HELP),
+    at: str = typer.Option(
+        ...,
+        "--at",
+        "-a",
+        metavar="NAME=NUMBER,...",
+        help="The steady motion: coordinates, velocities (NAME') and multipliers, e.g. \"theta=0, psi'=0, "
+        "phi'=2.5\"; a velocity q' of a coordinate q that is not ignorable may be left out (it is 0), "
+        "an ignorable coordinate too.",
+    ),
+    model: str | None = typer.Option(
+        None,
+        "--model",
+        "-m",
+        metavar="MODEL,...",
+        help="The models, comma-separated, side by side (chetaev,vakonomic,lindelof); default: the true "
+        "motion (chaplygin for a Chaplygin system, else voronets).",
+    ),
+    param: list[str] | None = _param_option(),
+    find: bool = typer.Option(
+        False, "--find", help="Find the steady motion by a Newton search from --at, holding --fixed."
+    ),
+    fixed: str | None = typer.Option(
+        None, "--fixed", metavar="NAME,...", help="With --find: the variables held at their --at values."
+    ),
+    vary: str | None = typer.Option(
+        None,
+        "--vary",
+        metavar="NAME=START:STOP:COUNT",
+        help="A root locus: the eigenvalues at each value of a variable of the point or a parameter "
+        "(or NAME=V1,V2,...); with --find the steady motion is found at each value.",
+    ),
+    plot: Path | None = typer.Option(
+        None, "--plot", help="With --vary: the root locus as a figure (.png, .svg, .pdf)."
+    ),
+    conditions: bool = typer.Option(
+        False,
+        "--conditions",
+        help="Also the characteristic polynomial and the stability conditions, symbolically; a value "
+        "of --at may then be a name (phi'=w).",
+    ),
+    time_limit: float = typer.Option(
+        60.0, "--time-limit", min=0.0, help="Seconds SymPy may spend on --conditions per model; 0: no limit."
+    ),
+    fmt: StabilityFormat = typer.Option(StabilityFormat.text, "--format", "-f", help="Output format."),
+    out: Path | None = typer.Option(
+        None,
+        "--out",
+        "-o",
+        help="Also write the result: .json (the --format json document) or .csv (the root locus).",
+    ),
+    force: bool = typer.Option(False, "--force", help="Overwrite existing outputs."),
+) -> None:
+    """The linear stability of a steady motion in one or more models: eigenvalues, the zero
+    eigenvalues named (the family of steady motions, integrals), the verdict; root loci.
+    """
+    from chaplygin.apps import _steady
+
+    _overrides(param, "--param")
+    try:
+        given = _steady.parse_at(at, symbols=conditions)
+    except ChaplyginError as exc:
+        raise typer.BadParameter(str(exc).removeprefix("--at: "), param_hint="--at") from None
+    if fixed is not None and not find:
+        raise typer.BadParameter("--fixed goes with --find (a Newton search).", param_hint="--fixed")
+    held = [n.strip() for n in fixed.split(",")] if fixed else []
+    grid = _vary(vary)
+    _stability_outputs(out, plot, grid)
+    symbolic = [k for k, v in given.items() if isinstance(v, str)]
+    if symbolic and (find or grid is not None):
+        raise typer.BadParameter(
+            f"{symbolic[0]} is given a name: the numerical part needs numbers (drop --find/--vary).",
+            param_hint="--at",
+        )
+    with _failures():
+        _refuse_existing([p for p in (out, plot) if p is not None], force)
+        loaded = _load(file)
+        system = loaded.system
+        params = {**dict(loaded.parameters or {}), **_overrides(param, "--param")}
+        models = _stability_models(model, system)
+        numbers = {k: float(v) for k, v in given.items() if not isinstance(v, str)}
+        with _Steps(len(models) * (1 + (grid is not None) + conditions), "stability") as steps:
+            rows: list[Any] = []
+            if not symbolic and (grid is None or grid[0] in numbers or grid[0] in params):
+                steps.step(f"linearising {', '.join(models)}")
+                rows = _steady.assess(system, numbers, params, models, held if find else None)
+            locus = None
+            if grid is not None:
+                steps.step(f"root locus against {grid[0]}")
+                locus = _steady.loci(
+                    system, numbers, params, models, grid[0], grid[1], held if find else None
+                )
+            found = None
+            if conditions:
+                steps.step("the symbolic stability conditions")
+                found = _steady.conditions(system, given, models, time_limit or None)
+        doc = _steady.document(system, params, given, rows, locus, found)
+        written = []
+        if out is not None:
+            from chaplygin.numeric.simulate import _atomic_write
+
+            body = (
+                json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
+                if out.suffix.lower() == ".json"
+                else _steady.locus_csv(locus or {})
+            )
+            _atomic_write(out, lambda fh: fh.write(body.encode("utf-8")), text=False)
+            written.append(out)
+        if plot is not None and locus is not None:
+            from chaplygin.numeric.simulate import _atomic_write
+
+            fig = _steady.locus_figure(locus)
+            fmt_ = plot.suffix.lower().lstrip(".")
+            _atomic_write(
+                plot, lambda fh: fig.savefig(fh, format=fmt_, metadata=_figure_metadata(fmt_)), text=False
+            )
+            written.append(plot)
+        if fmt is StabilityFormat.json:
+            _emit(json.dumps(doc, indent=2, ensure_ascii=False))
+        else:
+            _emit(_steady.text(system, params, rows, locus, found))
+        for path in written:
+            _emit(f"wrote {path}")
+
+
+def _figure_metadata(fmt: str) -> dict[str, Any]:
+    """No date in an SVG or PDF figure: the same command writes the same file."""
+    return {"Date": None} if fmt in ("svg", "pdf") else {}
+
+
 # ====================================================================== report
 def _report_progress(steps: _Steps) -> Any:
     return lambda stage: steps.step(f"report: {stage}")
@@ -1520,18 +1724,43 @@ def report(
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),
     time_limit: float = _time_limit_option(),
+    at: str | None = typer.Option(
+        None,
+        "--at",
+        "-a",
+        metavar="NAME=NUMBER,...",
+        help="Add the section 'Steady motion and stability': the steady motion there (as `chaplygin "
+        "stability --at`), in the --models or the true motion and Lindelöf's.",
+    ),
+    vary: str | None = typer.Option(
+        None, "--vary", metavar="NAME=START:STOP:COUNT", help="With --at: a root locus in that section."
+    ),
+    find: bool = typer.Option(False, "--find", help="With --at: find the steady motion by a Newton search."),
+    fixed: str | None = typer.Option(
+        None, "--fixed", metavar="NAME,...", help="With --find: the variables held at their --at values."
+    ),
 ) -> None:
-    """Write one self-contained HTML report: system, integrability, equations, simulations."""
+    """Write one self-contained HTML report: system, integrability, equations, simulations; with
+    --at, a steady motion's stability."""
     from chaplygin.apps.report import STAGES, report_comparison, write_report
 
     specs = [_model_spec(m) for m in models.split(",")] if models else None
     _overrides(param, "--param"), _overrides(initial, "--initial")
+    steady = _steady_request(at, vary, find, fixed)
     with _failures():
         _refuse_existing([out], force)
         loaded = _load(file)
         params, start = _numbers(loaded, param, initial)
         chosen = [f"{n}/{f}" if f != "classic" else n for n, f in specs] if specs else None
         created = _created(out)
+        found = None
+        if steady is not None:
+            from chaplygin.apps._steady import study
+
+            with _Steps(1, "report: stability") as steps:
+                steps.step("report: the steady motion's stability")
+                names = list(dict.fromkeys(n for n, _ in specs)) if specs else None
+                found = study(loaded.system, steady[0], params, names, steady[1], steady[2])
         with _Steps(len(STAGES) + 1, "report") as steps:
             steps.step("report: simulating")  # first, to know whether every run reaches t_end
             comparison = report_comparison(
@@ -1555,6 +1784,7 @@ def report(
                 initial=start,
                 comparison=comparison,
                 progress=_report_progress(steps),
+                stability=found,
             )
         _emit(f"wrote {out}: the simulations run to t = {t_end:g} ({samples} samples)")
         if created is not None:

@@ -14,6 +14,8 @@ network, that holds
   energy drift and constraint drift;
 * for a rolling body (:func:`chaplygin.bodies.rolling_body`), the body drawn rolling in 3-D,
   the models side by side (:mod:`chaplygin.apps.bodyview`);
+* with a steady motion (``chaplygin report --at``), its eigenvalues, named zero eigenvalues and
+  verdict in each model, and a root locus (:mod:`chaplygin.apps._steady`);
 * for the paper's sphere, the paper's printed equations (49)-(62) beside the derived ones,
   line by line: agree, differ by a transcription error, or differ in substance
   (:func:`paper_table`).
@@ -1205,6 +1207,66 @@ def _paper_section(table: PaperTable) -> str:
     return "\n".join(out)
 
 
+def _stability_row(row: Any) -> str:
+    """One model's row of the stability table (an :class:`chaplygin.apps._steady.Assessed`)."""
+    from chaplygin.apps._steady import describe, eigenvalue
+
+    s = row.stability
+    cls = {True: "holds", False: "fails"}.get(s.stable, "")
+    point = _esc(", ".join(f"{k} = {v + 0.0:.6g}" for k, v in s.point.items()))
+    if row.found is not None:
+        point += f'<br><span class="note">found by a Newton search, holding {_esc(", ".join(row.found.fixed))}</span>'
+    values = "<br>".join(_esc(eigenvalue(z, s.tolerance)) for z in s.eigenvalues)
+    zeros = "<br>".join(_esc(f"{s.zeros.count(r)} {r}") for r in dict.fromkeys(s.zeros)) or "none"
+    verdict = f'<span class="verdict {cls}">{_esc(s.kind)}</span>{_esc(s.verdict.removeprefix(s.kind))}'
+    return (
+        f'<tr><td><code>{_esc(row.model)}</code><br><span class="note">{_esc(describe(row.model))}</span></td>'
+        f'<td>{point}</td><td class="num">{values}</td><td>{zeros}</td><td>{verdict}</td></tr>'
+    )
+
+
+def _stability_section(found: Any) -> str:
+    """The steady motion asked for (``chaplygin report --at``; :func:`chaplygin.apps._steady.study`):
+    one row per model with its eigenvalues, named zero eigenvalues and verdict, and the root
+    loci as a figure, their numbers one click away."""
+    from chaplygin.apps._steady import eigenvalue, locus_figure, locus_rows
+
+    out = ['<section id="stability"><h2>Steady motion and stability</h2>']
+    at = ", ".join(f"{k} = {v:.10g}" for k, v in found.at.items())
+    out.append(
+        f"<p>The steady motion at <code>{_esc(at)}</code> (a velocity q&#8242; of a coordinate q that is "
+        "not ignorable is 0 where not given), linearised exactly in each model's reduced variables "
+        "(<code>chaplygin.stability</code>). Zero eigenvalues that come from the family of steady "
+        "motions or from integrals are named, and do not make the motion unstable.</p>"
+    )
+    if found.rows:
+        out.append(
+            "<table><tr><th>model</th><th>point</th><th>eigenvalues</th><th>zero eigenvalues</th>"
+            "<th>verdict</th></tr>"
+        )
+        out += [_stability_row(row) for row in found.rows]
+        out.append("</table>")
+    if found.locus:
+        name = next(iter(found.locus.values())).parameter
+        out.append(
+            f"<p>Root locus: the eigenvalues against <code>{_esc(name)}</code>, real parts above, "
+            "imaginary parts below, one column per model.</p>"
+        )
+        out.append(f'<div class="figure" id="figure-locus">{_svg(locus_figure(found.locus))}</div>')
+        for model, lc in found.locus.items():
+            rows = "".join(
+                f'<tr><td class="num">{value:.6g}</td><td>{_esc(kind)}</td>'
+                f'<td class="num">{_esc(", ".join(eigenvalue(z, 1e-9, 5) for z in roots))}</td></tr>'
+                for value, kind, roots in locus_rows(lc)
+            )
+            out.append(
+                f"<details><summary>the numbers: <code>{_esc(model)}</code></summary><table>"
+                f"<tr><th>{_esc(name)}</th><th>verdict</th><th>eigenvalues</th></tr>{rows}</table></details>"
+            )
+    out.append("</section>")
+    return "\n".join(out)
+
+
 def _not_simulated(src: _Source) -> str:
     """Why the report of ``src`` has no simulation ("" where it has the numbers for one)."""
     missing = [p.name for p in src.system.parameters if p.name not in src.parameters]
@@ -1264,6 +1326,7 @@ def render_report(
     paper: bool | PaperTable | None = None,
     progress: Callable[[str], None] | None = None,
     generator: str = GENERATOR,
+    stability: Any = None,
 ) -> str:
     """The report as one HTML string (see :func:`write_report` for the arguments)."""
     from chaplygin._version import __version__
@@ -1292,6 +1355,8 @@ def render_report(
 
     body = body_section(system, comparison)  # a rolling body drawn rolling; "" for others
     parts.append(body)
+    if stability is not None:
+        parts.append(_stability_section(stability))
     stage("paper")
     if paper is None:
         paper = is_paper_sphere(system)
@@ -1314,6 +1379,7 @@ def render_report(
             '<a href="#models">models</a> · <a href="#equations">equations</a> · '
             '<a href="#simulation">simulation</a>'
             + (' · <a href="#body">the body rolling</a>' if body else "")
+            + (' · <a href="#stability">stability</a>' if stability is not None else "")
             + (' · <a href="#paper">the paper\'s equations</a>' if paper is not False else "")
             + "</nav>",
             *parts,
@@ -1358,6 +1424,9 @@ def write_report(
         used as it is.
     progress : callable, optional
         Called with the name of each stage (:data:`STAGES`) as it starts.
+    stability : Study, optional
+        A steady motion's stability in some models, and root loci
+        (:func:`chaplygin.apps._steady.study`): the section "Steady motion and stability".
     """
     from chaplygin.numeric.simulate import _atomic_write
 
