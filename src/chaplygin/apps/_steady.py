@@ -31,6 +31,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
+from chaplygin.numeric.stability import residual_text
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -381,7 +382,7 @@ def _block(row: Assessed) -> list[str]:
         lines.append(
             f"  found by a Newton search from --at, holding {', '.join(row.found.fixed) or 'nothing'}: "
             f"a family of steady motions of dimension {row.found.family_dimension} through it, residual "
-            f"{row.found.residual:.2g}"
+            f"{residual_text(row.found.residual)}"
         )
     lines.append(f"  point: {_values(s.point)}")
     if row.defaulted:

@@ -501,7 +501,7 @@ def _complex(z: complex, digits: int = 6, zero: float = 0.0) -> str:
     return f"{re:.{digits}g} {'+' if im >= 0 else '-'} {abs(im):.{digits}g}i"
 
 
-def _small(value: float) -> str:
+def residual_text(value: float) -> str:
     """A residual as text: rounding noise (below 1e-12) as such, not as a machine's last digits."""
     return "below 1e-12" if value < 1e-12 else f"{value:.2g}"
 
@@ -591,7 +591,7 @@ class Stability:
         ]
         out.append(
             f"  (zero below {self.tolerance:.2g} = rtol x |J|, J balanced; steady-motion residual "
-            f"{_small(self.residual)})"
+            f"{residual_text(self.residual)})"
         )
         out.append(f"  verdict: {self.verdict}")
         return out
@@ -866,7 +866,7 @@ class SteadyMotion:
         return (
             f"Steady motion of {self.system} ({self.model} model): {point}\n"
             f"  held fixed: {', '.join(self.fixed) or 'nothing'}; family of steady motions of dimension "
-            f"{self.family_dimension} through it; residual {_small(self.residual)}"
+            f"{self.family_dimension} through it; residual {residual_text(self.residual)}"
         )
 
 
