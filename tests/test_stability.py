@@ -103,6 +103,31 @@ def test_upright_disk_against_the_closed_form() -> None:
             assert result.family_dimension == 2 and set(result.ignorable) == {"psi", "phi", "x", "y"}
 
 
+def test_crossings_of_the_imaginary_axis_are_the_thresholds() -> None:
+    """RootLocus.crossings: the sleigh's eigenvalue -m a v/(I + m a²) crosses at v = 0 exactly
+    (unstable behind, stable ahead); the upright coin's real pair meets the family's zeros at
+    ω² = m g r A/(C(C + m r²)) (a Jordan block there limits the precision, as documented)."""
+    sleigh = chaplygin.root_locus(
+        examples.chaplygin_sleigh(), {"theta": 0, "x'": 1, "theta'": 0}, "x'", np.linspace(-1, 1.1, 8), SLEIGH
+    )
+    [at_rest] = sleigh.crossings()
+    assert (at_rest.value, at_rest.eigenvalue, at_rest.change) == (0.0, 0j, -1)
+    assert at_rest.kind == "a real eigenvalue" and "leave the right half-plane" in str(at_rest)
+    m, r, A, C, g = (COIN[k] for k in "mrACg")
+    critical = np.sqrt(m * g * r * A / (C * (C + m * r**2)))
+    disk = chaplygin.root_locus(
+        examples.rolling_disk(),
+        {"theta": 0, "psi'": 0, "theta'": 0, "phi'": 1},
+        "spin",
+        np.linspace(-4, 4, 9),
+        COIN,
+        points=lambda w: {"theta": 0, "psi'": 0, "theta'": 0, "phi'": w},
+    )
+    found = disk.crossings()
+    assert [c.change for c in found] == [1, -1]
+    np.testing.assert_allclose([c.value for c in found], [-critical, critical], rtol=1e-6)
+
+
 def test_upright_disk_symbolic_condition_is_the_formula() -> None:
     disk = examples.rolling_disk()
     s = sp.Symbol("s")

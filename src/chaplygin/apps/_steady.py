@@ -434,6 +434,7 @@ def text(
             lines.append(
                 f"  {lc.parameter} = {value:<10.6g} {kind:<21}  {', '.join(eigenvalue(z, 1e-9, 5) for z in roots)}"
             )
+        lines += [f"  crossing at {lc.parameter} = {c}" for c in lc.crossings()]
     for model, cond in (symbolic or {}).items():
         reduced = _reduced(system, model)
         via = f"; from the {reduced} equations" if reduced != model else ""
@@ -506,6 +507,15 @@ def document(
                 "values": [float(v) for v in lc.values],
                 "kinds": list(lc.kinds),
                 "eigenvalues": [_pairs(row) for row in lc.eigenvalues],
+                "crossings": [
+                    {
+                        "value": c.value,
+                        "eigenvalue": _pairs([c.eigenvalue])[0],
+                        "kind": c.kind,
+                        "change": c.change,
+                    }
+                    for c in lc.crossings()
+                ],
             }
             for model, lc in locus.items()
         },
