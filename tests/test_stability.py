@@ -125,7 +125,28 @@ def test_crossings_of_the_imaginary_axis_are_the_thresholds() -> None:
     )
     found = disk.crossings()
     assert [c.change for c in found] == [1, -1]
-    np.testing.assert_allclose([c.value for c in found], [-critical, critical], rtol=1e-6)
+    np.testing.assert_allclose([c.value for c in found], [-critical, critical], rtol=1e-9)
+
+
+def test_a_small_eigenvalue_beside_the_familys_zero_is_not_a_zero() -> None:
+    """The bicycle's reduced Jacobian (phi, delta, phi', delta', theta_R') just past its capsize
+    speed, at 6.05 m/s: the family's zero and a real eigenvalue 0.0042.  The nullity of J² called
+    the 0.0042 a second zero (a Jordan chain) and the motion asymptotically stable."""
+    from chaplygin.numeric.stability import _verdict
+
+    J = np.zeros((5, 5))
+    J[0, 2] = J[1, 3] = 1.0
+    J[2, :4] = [9.489774446773565, -33.19158838103705, -0.6384108213244296, -1.9996181639034798]
+    J[3, :4] = [11.71947687196337, -41.26094800546167, 22.24467166159521, -18.66343644097035]
+    growth = max(np.linalg.eigvals(J).real)
+    assert 0.004 < growth < 0.0045  # numpy's eig: the capsize mode grows
+    _, _, family, zeros, _, kind, verdict, _ = _verdict(J, ("phi", "delta", "phi'", "delta'", "theta_R'"), {})
+    assert (family, len(zeros), kind) == (1, 1, "unstable") and "0.0042" in verdict
+    # a true Jordan chain (rounded) is still one: two zeros, the family's dimension 1
+    S = np.array([[1.0, 0.3, -0.7], [0.2, 1.1, 0.5], [-0.4, 0.6, 0.9]])
+    jordan = S @ np.array([[0.0, 20.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -3.0]]) @ np.linalg.inv(S)
+    _, _, family, zeros, _, kind, _, _ = _verdict(jordan, ("a", "b", "c"), {})
+    assert (family, len(zeros), kind) == (1, 2, "undetermined")  # no integral explains the chain
 
 
 def test_upright_disk_symbolic_condition_is_the_formula() -> None:
