@@ -240,7 +240,9 @@ class Linearization:
             velocities = list(range(n, n + len(s._ind)))
         mus = list(range(n + len(layout.velocities), self._size))
         self._free = self._free_q + velocities + mus
-        ignorable = _ignorable(self, len(self._free_q))
+        # coordinates and multipliers may be ignorable (a holonomic relation's μ enters only as μ̇)
+        candidates = [*range(len(self._free_q)), *range(len(self._free) - len(mus), len(self._free))]
+        ignorable = _ignorable(self, candidates)
         self._kept = [j for j in range(len(self._free)) if j not in ignorable]
         self.ignorable: tuple[str, ...] = tuple(self.state[self._free[j]] for j in ignorable)
         self.variables: tuple[str, ...] = tuple(self.state[self._free[j]] for j in self._kept)
@@ -419,10 +421,12 @@ def _parameter_vector(system: System, names: Sequence[str], given: Mapping[Any, 
     return np.array([values[name] for name in names], dtype=float)
 
 
-def _ignorable(lin: Linearization, coordinates: int) -> list[int]:
-    """The free coordinates (positions ``< coordinates`` among the free variables) whose value no
-    other variable's rate depends on: the largest such set, from the Jacobian's structure at three
-    random admissible states (an entry below :data:`STRUCTURE_RTOL` of the largest is zero)."""
+def _ignorable(lin: Linearization, candidates: Sequence[int]) -> list[int]:
+    """The free coordinates and multipliers (``candidates``: positions among the free variables)
+    whose value no other variable's rate depends on: the largest such set, from the Jacobian's
+    structure at three random admissible states (an entry below :data:`STRUCTURE_RTOL` of the
+    largest is zero).  A holonomic relation's vakonomic multiplier is one: it enters the
+    equations only through its rate, as Chetaev's λ."""
     rng = np.random.default_rng(29)
     depends = np.zeros((len(lin._free), len(lin._free)), dtype=bool)
     found = 0
@@ -441,7 +445,7 @@ def _ignorable(lin: Linearization, coordinates: int) -> list[int]:
             f"{lin.system.name}: the {lin.model} equations could not be evaluated at any random state "
             "(singular mass matrix or constraints everywhere sampled)."
         )
-    dropped = set(range(coordinates))
+    dropped = set(candidates)
     changed = True
     while changed:
         changed = False
