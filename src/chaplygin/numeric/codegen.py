@@ -619,6 +619,9 @@ C_FILL_FROM_LINES = 200
 
 #: ``reduction="auto"`` reduces numerically from this many coordinates on
 NUMERIC_REDUCTION_FROM = 9
+#: ... or from this many constraints on (the Whipple bicycle: 8 coordinates, 5 constraints,
+#: whose symbolic Voronets equations did not finish in 10 minutes and 19 GB)
+NUMERIC_REDUCTION_FROM_CONSTRAINTS = 4
 REDUCTIONS = ("auto", "symbolic", "numeric")
 
 
@@ -643,7 +646,8 @@ def compile_model(
         the same accelerations at every admissible state, without the symbolic
         elimination whose size grows fast with the number of constraints.
         ``"auto"`` chooses ``"numeric"`` from :data:`NUMERIC_REDUCTION_FROM`
-        coordinates on (never for the ``jax`` backend).  Other models ignore it.
+        coordinates or :data:`NUMERIC_REDUCTION_FROM_CONSTRAINTS` constraints on (never for
+        the ``jax`` backend).  Other models ignore it.
 
     Notes
     -----
@@ -686,7 +690,13 @@ def _model_key(
         entry.reduced
         and entry.is_true_motion
         and backend != "jax"
-        and (reduction == "numeric" or (reduction == "auto" and system.n >= NUMERIC_REDUCTION_FROM))
+        and (
+            reduction == "numeric"
+            or (
+                reduction == "auto"
+                and (system.n >= NUMERIC_REDUCTION_FROM or system.g >= NUMERIC_REDUCTION_FROM_CONSTRAINTS)
+            )
+        )
     )
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
     return _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT), numeric
