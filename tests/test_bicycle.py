@@ -15,12 +15,13 @@ from __future__ import annotations
 from functools import cache
 
 import mpmath as mp
+import numpy as np
 import pytest
 import symengine as se
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
-from chaplygin import examples
+from chaplygin import System, examples, simulate
 from chaplygin.core._sampling import vanishes
 from chaplygin.errors import ChaplyginError
 
@@ -39,6 +40,11 @@ WEAVE_SPEED = 4.29238253634111
 CAPSIZE_SPEED = 6.02426201538837
 
 mp.mp.dps = 40
+
+
+@cache
+def catalogue_bike() -> System:  # one symbolic bicycle for the tests below
+    return examples.get("whipple-bicycle").system()
 
 
 @cache
@@ -238,7 +244,7 @@ def test_pitch_relation_holds_upright_and_is_the_last_constraint() -> None:
     phi, theta, delta = dynamicsymbols("phi theta delta")
     f = examples.whipple_pitch_relation()
     assert sp.simplify(f.subs({phi: 0, theta: 0, delta: 0})) == 0
-    bike = examples.get("whipple-bicycle").system()
+    bike = catalogue_bike()
     assert [q.name for q in bike.dependent] == ["x", "y", "psi", "theta_F", "theta"]
     assert [q.name for q in bike.independent] == ["phi", "delta", "theta_R"]
     assert vanishes(bike.implicit_constraints[4] - f.diff(dynamicsymbols._t))
@@ -263,8 +269,51 @@ def test_bicycle_true_motion_compiles_by_the_numeric_reduction() -> None:
     Voronets equations of the bicycle did not finish in 10 minutes)."""
     from chaplygin.numeric import codegen
 
-    bike = examples.get("whipple-bicycle").system()
+    bike = catalogue_bike()
     assert bike.n < codegen.NUMERIC_REDUCTION_FROM
     assert codegen._model_key(bike, "voronets", "classic", "numba", None, "auto")[1]
     sleighs = examples.sleigh_chain(2)  # 3 constraints: still symbolic
     assert not codegen._model_key(sleighs, "voronets", "classic", "numba", None, "auto")[1]
+
+
+def test_cli_simulate_does_not_derive_what_it_reduces_numerically(monkeypatch, tmp_path) -> None:
+    """``chaplygin simulate example:whipple-bicycle`` runs Voronets' equations by the numeric
+    reduction: it must not derive them symbolically first (that took minutes); here the run
+    itself is stubbed, and a symbolic derivation of the reduced model is refused."""
+    from typer.testing import CliRunner
+
+    from chaplygin.apps.cli import app
+    from chaplygin.core.system import System
+    from chaplygin.numeric import simulate as simulate_module
+
+    derive = System.equations
+
+    def equations(self, model="chetaev", form="classic", **kwargs):
+        assert model not in ("voronets", "chaplygin"), f"derived {model} symbolically"
+        return derive(self, model, form, **kwargs)
+
+    def stub(*args, **kwargs):
+        raise ChaplyginError("stubbed run")
+
+    monkeypatch.setattr(System, "equations", equations)
+    monkeypatch.setattr(simulate_module, "simulate", stub)
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(app, ["simulate", "example:whipple-bicycle", "-t", "1", "-o", str(out)])
+    assert "stubbed run" in result.output, result.output
+
+
+def test_catalogue_bicycle_is_self_stable_at_5_m_per_s() -> None:
+    """From the catalogue's state (5 m/s, leaning 0.05 rad), the true motion's lean dies away
+    (5 m/s lies between the weave and capsize speeds: every eigenvalue has a negative real part),
+    the energy is conserved and the rolling constraints hold along the run."""
+    entry = examples.get("whipple-bicycle")
+    bike = catalogue_bike()
+    run = simulate(bike, "voronets", 5.0, entry.initial, entry.parameters, samples=11)
+    assert run.success, run.message
+    lean = np.abs(run["phi"])
+    assert lean[-1] < 0.4 * entry.initial["phi"] and lean[-3:].max() < 0.5 * lean[:3].max()
+    assert run.energy_drift() < 1e-9
+    assert np.max(np.abs(run.constraint_residual)) < 1e-9
+    # the forward speed stays about 5 m/s (the wheel's rate moves little while it weaves)
+    speed = -entry.parameters["r_R"] * run["theta_R'"]
+    assert np.all(np.abs(speed - 5.0) < 0.1)

@@ -60,6 +60,7 @@ __all__ = [
     "cache_dir",
     "compile_equations",
     "compile_model",
+    "reduces_numerically",
 ]
 
 BACKENDS = ("numpy", "numba", "jax", "c")
@@ -677,16 +678,13 @@ def is_compiled(
     return _modelcache.load_model(key) is not None
 
 
-def _model_key(
-    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
-) -> tuple[str | None, bool]:
-    """The disk-cache key of a compiled model (None: not cached), and whether it is the numeric
-    reduction; an unknown model, form, backend or reduction is refused here."""
-    if reduction not in REDUCTIONS:
-        raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
-    entry = registry.get(model, form)  # refuses an unknown model or form before anything is looked up
-    _check_backend(backend)
-    numeric = (
+def reduces_numerically(
+    system: System, model: str, form: str = "classic", backend: str = "auto", reduction: str = "auto"
+) -> bool:
+    """Whether :func:`compile_model` compiles ``model`` by the numeric reduction, from the
+    Chetaev matrices, so that the model's symbolic equations are never needed to run it."""
+    entry = registry.get(model, form)
+    return (
         entry.reduced
         and entry.is_true_motion
         and backend != "jax"
@@ -698,6 +696,18 @@ def _model_key(
             )
         )
     )
+
+
+def _model_key(
+    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
+) -> tuple[str | None, bool]:
+    """The disk-cache key of a compiled model (None: not cached), and whether it is the numeric
+    reduction; an unknown model, form, backend or reduction is refused here."""
+    if reduction not in REDUCTIONS:
+        raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
+    registry.get(model, form)  # refuses an unknown model or form before anything is looked up
+    _check_backend(backend)
+    numeric = reduces_numerically(system, model, form, backend, reduction)
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
     return _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT), numeric
 
