@@ -46,6 +46,8 @@ SPEEDS = [10.0 * k / 99 for k in range(100)]  # 0 … 10 m/s; 5 m/s is added as 
 
 def sympy_route() -> dict:
     """SymPy's ``KanesMethod`` + ``linearize`` bicycle; eigenvalues at every speed."""
+    import math
+
     import numpy as np
     import sympy as sp
     from sympy.physics.mechanics import KanesMethod, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
@@ -61,18 +63,22 @@ def sympy_route() -> dict:
     x_B, x_H = sp.symbols("x_B x_H", positive=True)
     z_B, z_H, I_Bxz, I_Hxz = sp.symbols("z_B z_H I_Bxz I_Hxz", real=True)
 
+    # as in SymPy's test: each frame turned so that one of its axes is the steer axis (B.z, down),
+    # the paper's axes only as fixed frames for the inertias, and the lengths given by their
+    # components along the steer-axis frames (symbols, their numbers computed below)
+    d_B, d_S, d_H, d_F = (sp.symbols(f"{k}_x {k}_z", real=True) for k in ("d_B", "d_S", "d_H", "d_F"))
     N = ReferenceFrame("N")  # z down
     Y = N.orientnew("Y", "Axis", [psi, N.z])
     L = Y.orientnew("L", "Axis", [phi, Y.x])
-    B = L.orientnew("B", "Axis", [theta, L.y])
-    Hs = B.orientnew("Hs", "Axis", [lam, B.y])  # z along the steer axis
-    Hd = Hs.orientnew("Hd", "Axis", [delta, Hs.z])
-    H = Hd.orientnew("H", "Axis", [-lam, Hd.y])  # the front frame, = B when δ = 0
+    B = L.orientnew("B", "Axis", [theta + lam, L.y])  # the rear frame; B.z down the steer axis
+    B_paper = B.orientnew("B_paper", "Axis", [-lam, B.y])
+    H = B.orientnew("H", "Axis", [delta, B.z])  # the front frame
+    H_paper = H.orientnew("H_paper", "Axis", [-lam, H.y])
     R, F = ReferenceFrame("R"), ReferenceFrame("F")  # the wheels: their angles are ignorable
     Y.set_ang_vel(N, u_psi * N.z)
     L.set_ang_vel(Y, u_phi * Y.x)
     B.set_ang_vel(L, u_theta * L.y)
-    H.set_ang_vel(B, u_delta * Hs.z)
+    H.set_ang_vel(B, u_delta * B.z)
     R.set_ang_vel(B, u_R * B.y)
     F.set_ang_vel(H, u_F * H.y)
 
@@ -80,13 +86,13 @@ def sympy_route() -> dict:
     P.set_vel(N, 0)
     R_o = P.locatenew("R_o", -r_R * L.z)
     R_o.v2pt_theory(P, N, R)
-    B_o = R_o.locatenew("B_o", x_B * B.x + (z_B + r_R) * B.z)
+    B_o = R_o.locatenew("B_o", d_B[0] * B.x + d_B[1] * B.z)
     B_o.v2pt_theory(R_o, N, B)
-    S = R_o.locatenew("S", (w + c) * B.x + r_R * B.z)  # on the steer axis
+    S = R_o.locatenew("S", d_S[0] * B.x + d_S[1] * B.z)  # where the steer axis meets the ground
     S.v2pt_theory(R_o, N, B)
-    H_o = S.locatenew("H_o", (x_H - w - c) * H.x + z_H * H.z)
+    H_o = S.locatenew("H_o", d_H[0] * H.x + d_H[1] * H.z)
     H_o.v2pt_theory(S, N, H)
-    F_o = S.locatenew("F_o", -c * H.x - r_F * H.z)
+    F_o = S.locatenew("F_o", d_F[0] * H.x + d_F[1] * H.z)
     F_o.v2pt_theory(S, N, H)
     down = (N.z - N.z.dot(H.y) * H.y).normalize()
     Q = F_o.locatenew("Q", r_F * down)  # the front contact
@@ -94,8 +100,8 @@ def sympy_route() -> dict:
 
     bodies = [
         RigidBody("R", R_o, R, m_R, (inertia(B, I_Rxx, I_Ryy, I_Rxx), R_o)),
-        RigidBody("B", B_o, B, m_B, (inertia(B, I_Bxx, I_Byy, I_Bzz, 0, 0, I_Bxz), B_o)),
-        RigidBody("H", H_o, H, m_H, (inertia(H, I_Hxx, I_Hyy, I_Hzz, 0, 0, I_Hxz), H_o)),
+        RigidBody("B", B_o, B, m_B, (inertia(B_paper, I_Bxx, I_Byy, I_Bzz, 0, 0, I_Bxz), B_o)),
+        RigidBody("H", H_o, H, m_H, (inertia(H_paper, I_Hxx, I_Hyy, I_Hzz, 0, 0, I_Hxz), H_o)),
         RigidBody("F", F_o, F, m_F, (inertia(H, I_Fxx, I_Fyy, I_Fxx), F_o)),
     ]
     loads = [(b.masscenter, b.mass * g * N.z) for b in bodies]
@@ -125,6 +131,14 @@ def sympy_route() -> dict:
         I_Bzz: 2.8, I_Bxz: 2.4, I_Hxx: 0.05892, I_Hyy: 0.06, I_Hzz: 0.00708, I_Hxz: -0.00756,
         x_B: 0.3, z_B: -0.9, x_H: 0.9, z_H: -0.7,
     }  # fmt: skip
+    # offsets (a, b) in the paper's axes, from the rear wheel's centre or the steer axis's foot,
+    # as components along the steer-axis frames: (a cos λ − b sin λ, a sin λ + b cos λ)
+    cl, sl = math.cos(math.pi / 10), math.sin(math.pi / 10)
+    for d, (a, b) in zip(
+        (d_B, d_S, d_H, d_F),
+        ((0.3, -0.9 + 0.3), (1.02 + 0.08, 0.3), (0.9 - 1.02 - 0.08, -0.7), (-0.08, -0.35)),
+    ):
+        values.update({d[0]: a * cl - b * sl, d[1]: a * sl + b * cl})
     # A is over the independent states [ψ, φ, δ, u_φ, u_δ, u_R]; kept: φ, δ, u_φ, u_δ
     keep = [1, 2, 3, 4]
     A4 = sp.lambdify(v, A.xreplace(values).extract(keep, keep), "numpy")
