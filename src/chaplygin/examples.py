@@ -32,6 +32,7 @@ from chaplygin.errors import ChaplyginError
 from chaplygin.io.mechanics import from_mechanics
 
 __all__ = [
+    "WHIPPLE_BENCHMARK",
     "ExampleEntry",
     "catalogue",
     "chaplygin_ball",
