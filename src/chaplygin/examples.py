@@ -823,8 +823,9 @@ def whipple_bicycle(**parameters: sp.Expr | float) -> System:
     vanishes (4 rolling constraints, dependent ``x, y, ψ, θ_F``), and the front wheel touches
     the ground, the holonomic relation :func:`whipple_pitch_relation` ``f(φ, θ, δ) = 0``, given
     here differentiated in time (dependent ``θ``). The independent coordinates are the roll
-    ``φ``, the steer ``δ`` and the rear wheel's angle ``θ_R``; the forward speed is
-    ``v = −r_R θ̇_R``.
+    ``φ``, the steer ``δ`` and the rear wheel's angle ``θ_R``; the rear contact moves forward at
+    ``v = −r_R (θ̇_R + θ̇)`` (the wheel's angle is measured from the rear frame), ``−r_R θ̇_R`` at
+    constant pitch, as in the upright straight run.
 
     Parameters
     ----------
