@@ -47,6 +47,17 @@ def test_rolling_disk_from_mechanics(gravity_as_load: bool) -> None:
     assert equivalent(reference, eqs, reference.equations("chaplygin"), symbolic=False)
 
 
+def test_from_mechanics_keeps_the_bodies_expressions() -> None:
+    """T and the constraints go to System as the bodies give them: System reads them through
+    SymEngine, and SymPy's expand of them was most of from_mechanics' time (the Whipple
+    bicycle: 5.8 s → 1.0 s to build); the derived equations are the same (the test above)."""
+    disk = Mechanics()
+    built = mechanics_disk(False)
+    assert built.kinetic_energy == disk.disk.kinetic_energy(disk.N)
+    assert built.kinetic_energy != sp.expand(built.kinetic_energy)
+    assert built._given_constraints == tuple(disk.slip[:2])  # the vertical one vanishes
+
+
 def test_knife_edge_from_mechanics() -> None:
     x, y, phi = q = dynamicsymbols("x y phi")
     m, J = sp.symbols("m J", positive=True)

@@ -7,7 +7,7 @@ replace with numbers by passing them as arguments.
 :func:`catalogue` lists them by name (``rolling-sphere``, ``knife-edge``,
 ``vertical-rolling-disk``, ``rolling-disk``, ``chaplygin-sleigh``,
 ``turntable-ball``, ``chaplygin-ball``, ``heisenberg``, ``contact-oscillator``,
-``differential-drive``, ``sleigh-chain``, and the rigid bodies built by
+``differential-drive``, ``sleigh-chain``, ``whipple-bicycle``, and the rigid bodies built by
 :mod:`chaplygin.bodies`: ``lindelof-problem``, ``routh-sphere``, ``rattleback``)
 with a description, default
 parameter values and an initial state; :func:`get` looks one up.  Each has a
@@ -23,14 +23,16 @@ from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
+from sympy.physics.mechanics import Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
 
 from chaplygin.bodies import Disk, Ellipsoid, RollingBody, Sphere, rolling_body
 from chaplygin.core._symbols import TIME
 from chaplygin.core.system import System
 from chaplygin.errors import ChaplyginError
+from chaplygin.io.mechanics import from_mechanics
 
 __all__ = [
+    "WHIPPLE_BENCHMARK",
     "ExampleEntry",
     "catalogue",
     "chaplygin_ball",
@@ -48,6 +50,8 @@ __all__ = [
     "sleigh_chain",
     "turntable_ball",
     "vertical_rolling_disk",
+    "whipple_bicycle",
+    "whipple_pitch_relation",
 ]
 
 _t = TIME
@@ -658,6 +662,216 @@ def rattleback(
     )
 
 
+# ---------------------------------------------------------------- the Whipple bicycle
+#: Table 1 of Meijaard, Papadopoulos, Ruina & Schwab (2007): the benchmark bicycle, exact
+#: (SI units; the paper's axes: x forward, y to the right, z down, origin at the rear contact).
+WHIPPLE_BENCHMARK: dict[str, sp.Expr] = {
+    "w": sp.Rational(102, 100),  # wheel base
+    "c": sp.Rational(8, 100),  # trail
+    "lam": sp.pi / 10,  # steer axis tilt (from the vertical)
+    "g": sp.Rational(981, 100),
+    "r_R": sp.Rational(3, 10),
+    "m_R": sp.Integer(2),
+    "I_Rxx": sp.Rational(603, 10000),
+    "I_Ryy": sp.Rational(12, 100),
+    "x_B": sp.Rational(3, 10),
+    "z_B": sp.Rational(-9, 10),
+    "m_B": sp.Integer(85),
+    "I_Bxx": sp.Rational(92, 10),
+    "I_Byy": sp.Integer(11),
+    "I_Bzz": sp.Rational(28, 10),
+    "I_Bxz": sp.Rational(24, 10),
+    "x_H": sp.Rational(9, 10),
+    "z_H": sp.Rational(-7, 10),
+    "m_H": sp.Integer(4),
+    "I_Hxx": sp.Rational(5892, 100000),
+    "I_Hyy": sp.Rational(6, 100),
+    "I_Hzz": sp.Rational(708, 100000),
+    "I_Hxz": sp.Rational(-756, 100000),
+    "r_F": sp.Rational(35, 100),
+    "m_F": sp.Integer(3),
+    "I_Fxx": sp.Rational(1405, 10000),
+    "I_Fyy": sp.Rational(28, 100),
+}
+#: parameters that may be negative (the centres of mass lie above the ground: z < 0; products)
+_WHIPPLE_REAL = ("z_B", "I_Bxz", "z_H", "I_Hxz")
+
+
+class _Whipple(NamedTuple):
+    """The bicycle as ``sympy.physics.mechanics`` objects (see :func:`whipple_bicycle`)."""
+
+    frame: ReferenceFrame
+    coordinates: list[sp.Expr]
+    bodies: list[RigidBody]
+    potential_energy: sp.Expr
+    rear_contact_velocity: sp.Expr  # a Vector: the velocity of the rear wheel's point at the contact
+    front_contact_velocity: sp.Expr
+    pitch_relation: sp.Expr  # the height of the front contact: 0 on the ground
+
+
+def _whipple_parameters(values: Mapping[str, sp.Expr | float]) -> dict[str, sp.Expr]:
+    unknown = sorted(set(values) - set(WHIPPLE_BENCHMARK))
+    if unknown:
+        raise ChaplyginError(
+            f"whipple_bicycle: unknown parameter {unknown[0]!r}; the parameters are "
+            f"{', '.join(WHIPPLE_BENCHMARK)}."
+        )
+    out = {}
+    for name in WHIPPLE_BENCHMARK:
+        value = values.get(name)
+        if value is None and name in _WHIPPLE_REAL:
+            out[name] = sp.Symbol(name, real=True)
+        else:
+            out[name] = _param(value, name)
+    return out
+
+
+def _whipple(values: Mapping[str, sp.Expr | float]) -> _Whipple:
+    """Frames, points and bodies of the benchmark bicycle (Meijaard et al. 2007, §2 and appendix A)."""
+    p = _whipple_parameters(values)
+    x, y, psi, phi, theta, delta, theta_R, theta_F = dynamicsymbols("x y psi phi theta delta theta_R theta_F")
+    N = ReferenceFrame("N")  # z down, as in the paper
+    yawed = N.orientnew("yawed", "Axis", [psi, N.z])
+    rolled = yawed.orientnew("rolled", "Axis", [phi, yawed.x])
+    B = rolled.orientnew("B", "Axis", [theta, rolled.y])  # rear frame: pitch from the nominal attitude
+    R = B.orientnew("R", "Axis", [theta_R, B.y])
+    steer_axis = B.orientnew("steer_axis", "Axis", [p["lam"], B.y])  # its z: down the steer axis
+    steered = steer_axis.orientnew("steered", "Axis", [delta, steer_axis.z])
+    H = steered.orientnew("H", "Axis", [-p["lam"], steered.y])  # front frame: = B at δ = 0
+    F = H.orientnew("F", "Axis", [theta_F, H.y])
+
+    origin = Point("O")
+    rear_contact = origin.locatenew("P", x * N.x + y * N.y)
+    rear_centre = rear_contact.locatenew("R_o", -p["r_R"] * rolled.z)
+    rear_frame_mass = rear_centre.locatenew("B_o", p["x_B"] * B.x + (p["z_B"] + p["r_R"]) * B.z)
+    # where the steer axis meets the ground in the nominal configuration: a point of B and of H
+    axis_foot = rear_centre.locatenew("S", (p["w"] + p["c"]) * B.x + p["r_R"] * B.z)
+    front_frame_mass = axis_foot.locatenew("H_o", (p["x_H"] - p["w"] - p["c"]) * H.x + p["z_H"] * H.z)
+    front_centre = axis_foot.locatenew("F_o", -p["c"] * H.x - p["r_F"] * H.z)
+    # the lowest point of the front wheel: from its centre, down within the wheel's plane
+    tilt = N.z.dot(H.y)
+    front_contact = front_centre.locatenew("Q", p["r_F"] * (N.z - tilt * H.y) / sp.sqrt(1 - tilt**2))
+    origin.set_vel(N, 0)
+    for point in (rear_contact, rear_centre, rear_frame_mass, front_frame_mass, front_centre):
+        point.set_vel(N, point.pos_from(origin).dt(N))
+
+    bodies = [
+        RigidBody(
+            "R", rear_centre, R, p["m_R"], (inertia(B, p["I_Rxx"], p["I_Ryy"], p["I_Rxx"]), rear_centre)
+        ),
+        RigidBody(
+            "B",
+            rear_frame_mass,
+            B,
+            p["m_B"],
+            (inertia(B, p["I_Bxx"], p["I_Byy"], p["I_Bzz"], 0, 0, p["I_Bxz"]), rear_frame_mass),
+        ),
+        RigidBody(
+            "H",
+            front_frame_mass,
+            H,
+            p["m_H"],
+            (inertia(H, p["I_Hxx"], p["I_Hyy"], p["I_Hzz"], 0, 0, p["I_Hxz"]), front_frame_mass),
+        ),
+        RigidBody(
+            "F", front_centre, F, p["m_F"], (inertia(H, p["I_Fxx"], p["I_Fyy"], p["I_Fxx"]), front_centre)
+        ),
+    ]
+    # gravity along +z (down): V = −g Σ m z
+    V = -p["g"] * sum((b.mass * b.masscenter.pos_from(origin).dot(N.z) for b in bodies), sp.S.Zero)
+    rear_slip = rear_centre.vel(N) + R.ang_vel_in(N).cross(rear_contact.pos_from(rear_centre))
+    front_slip = front_centre.vel(N) + F.ang_vel_in(N).cross(front_contact.pos_from(front_centre))
+    return _Whipple(
+        N,
+        [x, y, psi, phi, theta, delta, theta_R, theta_F],
+        bodies,
+        V,
+        rear_slip,
+        front_slip,
+        front_contact.pos_from(origin).dot(N.z),
+    )
+
+
+def whipple_pitch_relation(**parameters: sp.Expr | float) -> sp.Expr:
+    """The holonomic constraint of :func:`whipple_bicycle`: the front contact's height, ``f(φ, θ, δ) = 0``.
+
+    The height (along the paper's downward z) of the front wheel's lowest point; the rear wheel
+    touches the ground by construction. It vanishes at ``φ = θ = δ = 0`` for every value of the
+    parameters, and it fixes the pitch ``θ`` once the roll ``φ`` and the steer ``δ`` are given.
+    Parameters as for :func:`whipple_bicycle`.
+    """
+    return _whipple(parameters).pitch_relation
+
+
+def whipple_bicycle(**parameters: sp.Expr | float) -> System:
+    """The Whipple bicycle of the benchmark of Meijaard, Papadopoulos, Ruina & Schwab (2007).
+
+    Four rigid bodies — the rear wheel R, the rear frame B with the rider, the front frame H
+    (fork and handlebar) and the front wheel F — hinged at the wheel axles and at the steer
+    axis; knife-edge wheels roll without slipping on level ground under gravity. Built the way
+    a user builds it, with ``sympy.physics.mechanics`` frames, points and rigid bodies and
+    :func:`~chaplygin.from_mechanics`.
+
+    Geometry and axes are the paper's (x forward, y to the right, z down): from the inertial
+    frame, yaw ``ψ`` about z, roll ``φ`` about the new x (positive: leaning right), pitch ``θ``
+    of the rear frame about the new y, measured from the nominal attitude (``θ = 0`` upright and
+    straight), steer ``δ`` about the steer axis (tilted back by ``lam`` from the vertical,
+    positive: to the right), and the wheels' angles ``θ_R, θ_F`` relative to their frames
+    (rolling forward turns them negative). ``x, y`` is the rear contact point.
+
+    Constraints (g = 5): the horizontal velocity of each wheel's material point at its contact
+    vanishes (4 rolling constraints, dependent ``x, y, ψ, θ_F``), and the front wheel touches
+    the ground, the holonomic relation :func:`whipple_pitch_relation` ``f(φ, θ, δ) = 0``, given
+    here differentiated in time (dependent ``θ``). The independent coordinates are the roll
+    ``φ``, the steer ``δ`` and the rear wheel's angle ``θ_R``; the rear contact moves forward at
+    ``v = −r_R (θ̇_R + θ̇)`` (the wheel's angle is measured from the rear frame), ``−r_R θ̇_R`` at
+    constant pitch, as in the upright straight run.
+
+    Parameters
+    ----------
+    **parameters
+        Values by name; a parameter not given stays a symbol (positive, except ``z_B, z_H``
+        and the products of inertia ``I_Bxz, I_Hxz``, which are real). The names and the
+        benchmark's values (Table 1, :data:`WHIPPLE_BENCHMARK`): wheel base ``w = 1.02``, trail
+        ``c = 0.08``, steer axis tilt ``lam = π/10``, gravity ``g = 9.81``; rear wheel radius
+        ``r_R = 0.3``, mass ``m_R = 2``, moments ``I_Rxx = 0.0603``, ``I_Ryy = 0.12``; rear frame
+        centre of mass ``(x_B, z_B) = (0.3, −0.9)``, mass ``m_B = 85``, inertia
+        ``[[I_Bxx, 0, I_Bxz], [0, I_Byy, 0], [I_Bxz, 0, I_Bzz]] = [[9.2, 0, 2.4], [0, 11, 0],
+        [2.4, 0, 2.8]]``; front frame ``(x_H, z_H) = (0.9, −0.7)``, ``m_H = 4``,
+        ``[[0.05892, 0, −0.00756], [0, 0.06, 0], [−0.00756, 0, 0.00708]]``; front wheel
+        ``r_F = 0.35``, ``m_F = 3``, ``I_Fxx = 0.1405``, ``I_Fyy = 0.28``. Centres of mass are
+        given from the rear contact in the nominal configuration, inertias about them in the
+        paper's axes.
+
+    References
+    ----------
+    J. P. Meijaard, J. M. Papadopoulos, A. Ruina and A. L. Schwab, "Linearized dynamics
+    equations for the balance and steer of a bicycle: a benchmark and review", *Proc. R. Soc.
+    A* 463, 2007, 1955–1982 (Table 1: the parameters; Table 2: the linearised equations and
+    their eigenvalues). See ``docs/gallery/whipple-bicycle.md``.
+    """
+    bike = _whipple(parameters)
+    N = bike.frame
+    x, y, psi, _, theta, _, _, theta_F = bike.coordinates
+    rolling = [
+        bike.rear_contact_velocity.dot(N.x),
+        bike.rear_contact_velocity.dot(N.y),
+        bike.front_contact_velocity.dot(N.x),
+        bike.front_contact_velocity.dot(N.y),
+    ]
+    # TODO(issue 29, holonomic constraints): from_mechanics(..., holonomic={theta: bike.pitch_relation})
+    # in place of its time derivative below, once System takes holonomic constraints.
+    return from_mechanics(
+        N,
+        bike.coordinates,
+        bike.bodies,
+        [*rolling, bike.pitch_relation.diff(_t)],
+        dependent=[x, y, psi, theta_F, theta],
+        potential_energy=bike.potential_energy,
+        name="Whipple bicycle (Meijaard et al. 2007)",
+    )
+
+
 # ---------------------------------------------------------------------------- catalogue
 class ExampleEntry(NamedTuple):
     """One built-in example: how to build it, what it is, and numbers to simulate it with.
@@ -879,6 +1093,32 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "psi'": 5.0,
             "theta'": 5.0 * math.sin(0.01),
             "phi'": -5.0 * math.sin(0.01),
+        },
+    ),
+    "whipple-bicycle": (
+        whipple_bicycle,
+        (
+            "The Whipple bicycle of the benchmark of Meijaard, Papadopoulos, Ruina & Schwab (Proc. R. "
+            "Soc. A 463, 2007): rear wheel, rear frame with rider, front frame and front wheel, "
+            "knife-edge wheels rolling without slipping on level ground (paper's axes: z down). "
+            "Rear contact x, y, yaw psi, roll phi, pitch theta (fixed by the front wheel touching the "
+            "ground), steer delta, wheel angles theta_R, theta_F; Table 1's numbers. From the default "
+            "state, rolling at v = -r_R*theta_R' = 5 m/s (between the weave speed 4.29 and the "
+            "capsize speed 6.02 m/s: self-stable) and leaning by 0.05 rad, the lean dies away."
+        ),
+        {name: float(value) for name, value in WHIPPLE_BENCHMARK.items()},
+        {
+            "x": 0.0,
+            "y": 0.0,
+            "psi": 0.0,
+            "phi": 0.05,
+            "theta": 0.0,  # the front wheel touches the ground at delta = 0 for every roll
+            "delta": 0.0,
+            "theta_R": 0.0,
+            "theta_F": 0.0,
+            "phi'": 0.0,
+            "delta'": 0.0,
+            "theta_R'": -5.0 / 0.3,
         },
     ),
 }

@@ -1059,7 +1059,14 @@ def simulate(
                 system = loaded.system
                 _check_constants(c, system)
                 model = model or registry.true_motion(system)
-                if not registry.get(model).constants:  # (the family is derived with its constants)
+                from chaplygin.numeric.codegen import reduces_numerically
+
+                # derived here, before the run, unless the family (derived with its constants) or a
+                # numeric reduction, which needs only the Chetaev matrices (the Whipple bicycle's
+                # symbolic Voronets equations would take minutes)
+                if not registry.get(model).constants and not reduces_numerically(
+                    system, model, form.value, backend.value
+                ):
                     system.equations(model, form.value)
                 steps.step(f"integrating {named(model)} to t = {t_end:g} [{backend.value}]")
                 options: dict[str, Any] = {

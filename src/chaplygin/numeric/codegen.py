@@ -62,6 +62,7 @@ __all__ = [
     "compile_equations",
     "compile_model",
     "model_blocks",
+    "reduces_numerically",
 ]
 
 BACKENDS = ("numpy", "numba", "jax", "c")
@@ -664,6 +665,9 @@ C_FILL_FROM_LINES = 200
 
 #: ``reduction="auto"`` reduces numerically from this many coordinates on
 NUMERIC_REDUCTION_FROM = 9
+#: ... or from this many constraints on (the Whipple bicycle: 8 coordinates, 5 constraints,
+#: whose symbolic Voronets equations did not finish in 10 minutes and 19 GB)
+NUMERIC_REDUCTION_FROM_CONSTRAINTS = 4
 REDUCTIONS = ("auto", "symbolic", "numeric")
 
 
@@ -688,7 +692,8 @@ def compile_model(
         the same accelerations at every admissible state, without the symbolic
         elimination whose size grows fast with the number of constraints.
         ``"auto"`` chooses ``"numeric"`` from :data:`NUMERIC_REDUCTION_FROM`
-        coordinates on (never for the ``jax`` backend).  Other models ignore it.
+        coordinates or :data:`NUMERIC_REDUCTION_FROM_CONSTRAINTS` constraints on (never for
+        the ``jax`` backend).  Other models ignore it.
 
     Notes
     -----
@@ -718,6 +723,26 @@ def is_compiled(
     return _modelcache.load_model(key) is not None
 
 
+def reduces_numerically(
+    system: System, model: str, form: str = "classic", backend: str = "auto", reduction: str = "auto"
+) -> bool:
+    """Whether :func:`compile_model` compiles ``model`` by the numeric reduction, from the
+    Chetaev matrices, so that the model's symbolic equations are never needed to run it."""
+    entry = registry.get(model, form)
+    return (
+        entry.reduced
+        and entry.is_true_motion
+        and backend != "jax"
+        and (
+            reduction == "numeric"
+            or (
+                reduction == "auto"
+                and (system.n >= NUMERIC_REDUCTION_FROM or system.g >= NUMERIC_REDUCTION_FROM_CONSTRAINTS)
+            )
+        )
+    )
+
+
 def _model_key(
     system: System, model: str, form: str, backend: str, constants: Any, reduction: str
 ) -> tuple[str | None, bool]:
@@ -725,14 +750,9 @@ def _model_key(
     reduction; an unknown model, form, backend or reduction is refused here."""
     if reduction not in REDUCTIONS:
         raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
-    entry = registry.get(model, form)  # refuses an unknown model or form before anything is looked up
+    registry.get(model, form)  # refuses an unknown model or form before anything is looked up
     _check_backend(backend)
-    numeric = (
-        entry.reduced
-        and entry.is_true_motion
-        and backend != "jax"
-        and (reduction == "numeric" or (reduction == "auto" and system.n >= NUMERIC_REDUCTION_FROM))
-    )
+    numeric = reduces_numerically(system, model, form, backend, reduction)
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
     return _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT), numeric
 
