@@ -317,3 +317,53 @@ def test_catalogue_bicycle_is_self_stable_at_5_m_per_s() -> None:
     # the forward speed stays about 5 m/s (the wheel's rate moves little while it weaves)
     speed = -entry.parameters["r_R"] * run["theta_R'"]
     assert np.all(np.abs(speed - 5.0) < 0.1)
+
+
+# ---------------------------------------------------------------- the public stability API
+def upright(v: float) -> dict[str, float]:
+    """The upright straight run at speed v (the rear wheel's rate -v/r_R), and μ = 0."""
+    return {"phi": 0, "delta": 0, "phi'": 0, "delta'": 0, "theta_R'": -v / 0.3, "psi": 0}
+
+
+def test_table_2_from_the_public_api() -> None:
+    """chaplygin.stability and root_locus(...).crossings() on the catalogue bicycle give the
+    published eigenvalues at 5 m/s and the weave and capsize speeds to 1e-8; the zero eigenvalue
+    is the family's (the speed), not a reason to call the run unstable."""
+    import chaplygin
+
+    bike, numbers = catalogue_bike(), examples.get("whipple-bicycle").parameters
+    at5 = chaplygin.stability(bike, upright(5.0), numbers)
+    assert at5.variables == ("phi", "delta", "phi'", "delta'", "theta_R'")
+    assert set(at5.ignorable) == {"x", "y", "psi", "theta_R", "theta_F"}
+    nonzero = np.sort_complex(at5.eigenvalues[np.abs(at5.eigenvalues) > 1e-6])
+    np.testing.assert_allclose(nonzero, np.sort_complex(EIGENVALUES_AT_5), rtol=0, atol=1e-8)
+    assert at5.kind == "asymptotically stable" and at5.family_dimension == 1
+    locus = chaplygin.root_locus(bike, upright(5.0), "v", np.linspace(0.5, 10, 20), numbers, points=upright)
+    weave, capsize = locus.crossings()
+    assert abs(weave.value - WEAVE_SPEED) < 1e-8 and weave.change == -2 and weave.kind.startswith("a complex")
+    assert abs(capsize.value - CAPSIZE_SPEED) < 1e-8 and capsize.change == 1
+    for v, kind in (
+        (4.2, "unstable"),
+        (4.4, "asymptotically stable"),
+        (6.0, "asymptotically stable"),
+        (6.05, "unstable"),
+    ):
+        assert chaplygin.stability(bike, upright(v), numbers).kind == kind, v
+
+
+@pytest.mark.slow
+def test_vakonomic_bicycle_is_a_saddle_at_every_speed() -> None:
+    """The vakonomic motion comes from a variational principle: its linearisation at the straight
+    run (μ = 0, a steady vakonomic motion) is Hamiltonian, so its eigenvalues come in pairs ±λ and
+    no speed is asymptotically stable. The front wheel's multiplier (holonomic) enters only as
+    its rate, the normal force: ignorable."""
+    import chaplygin
+
+    bike, numbers = catalogue_bike(), examples.get("whipple-bicycle").parameters
+    mus = {f"mu_{b}": 0.0 for b in range(1, 5)}
+    for v in (2.0, 5.0):
+        vak = chaplygin.stability(bike, {**upright(v), **mus}, numbers, model="vakonomic")
+        assert "mu_5" in vak.ignorable and 250 < vak.ignorable["mu_5"] < 350  # ~ the front load, N
+        values = np.sort_complex(vak.eigenvalues)
+        np.testing.assert_allclose(values, np.sort_complex(-values), atol=1e-8 * max(abs(values)))
+        assert vak.kind == "unstable"

@@ -821,8 +821,9 @@ def whipple_bicycle(**parameters: sp.Expr | float) -> System:
 
     Constraints (g = 5): the horizontal velocity of each wheel's material point at its contact
     vanishes (4 rolling constraints, dependent ``x, y, ψ, θ_F``), and the front wheel touches
-    the ground, the holonomic relation :func:`whipple_pitch_relation` ``f(φ, θ, δ) = 0``, given
-    here differentiated in time (dependent ``θ``). The independent coordinates are the roll
+    the ground, the holonomic relation :func:`whipple_pitch_relation` ``f(φ, θ, δ) = 0``
+    (``holonomic={θ: f}``: its time derivative is the fifth velocity constraint, and a
+    simulation solves θ from it at the start). The independent coordinates are the roll
     ``φ``, the steer ``δ`` and the rear wheel's angle ``θ_R``; the rear contact moves forward at
     ``v = −r_R (θ̇_R + θ̇)`` (the wheel's angle is measured from the rear frame), ``−r_R θ̇_R`` at
     constant pitch, as in the upright straight run.
@@ -859,14 +860,13 @@ def whipple_bicycle(**parameters: sp.Expr | float) -> System:
         bike.front_contact_velocity.dot(N.x),
         bike.front_contact_velocity.dot(N.y),
     ]
-    # TODO(issue 29, holonomic constraints): from_mechanics(..., holonomic={theta: bike.pitch_relation})
-    # in place of its time derivative below, once System takes holonomic constraints.
     return from_mechanics(
         N,
         bike.coordinates,
         bike.bodies,
-        [*rolling, bike.pitch_relation.diff(_t)],
-        dependent=[x, y, psi, theta_F, theta],
+        rolling,
+        dependent=[x, y, psi, theta_F],
+        holonomic={theta: bike.pitch_relation},
         potential_energy=bike.potential_energy,
         name="Whipple bicycle (Meijaard et al. 2007)",
     )

@@ -591,7 +591,12 @@ class _Derivation:
         ]
         entries += [sp.Eq(sp.Symbol(cell.format("F", i + 1)), x, evaluate=False) for i, x in enumerate(F)]
         unsolved = _UNSOLVED.format(", ".join(head["unknowns"]))
-        relations = [f"holonomic: {f} = 0 (fixes {q})" for q, f in head.get("holonomic", {}).items()]
+        from chaplygin.core._brief import brief
+
+        relations = [
+            f"holonomic: {f if full else brief(f, _FOLDED)} = 0 (fixes {q})"
+            for q, f in head.get("holonomic", {}).items()
+        ]
         if fmt is DeriveFormat.latex:
             from sympy.physics.vector.printing import vlatex
 
@@ -837,7 +842,8 @@ def check(
             f"{system.name}: {system.n} coordinates ({', '.join(doc['coordinates'])}), "
             f"{system.g} constraint(s); dependent: {', '.join(doc['dependent']) or 'none'}",
             *(
-                f"Holonomic: {f} = 0 (fixes {q}; its time derivative is constraint {system.velocity_g + k + 1})"
+                f"Holonomic: {f if full else brief(f, '--full prints it')} = 0 (fixes {q}; its time "
+                f"derivative is constraint {system.velocity_g + k + 1})"
                 for k, (q, f) in enumerate(doc.get("holonomic", {}).items())
             ),
             "Constraints: "

@@ -37,6 +37,7 @@ from chaplygin.core._symbols import (
     TIME,
     Vars,
     describe,
+    file_syntax,
     functions_of_time,
     linear_coefficients,
     other_undefined,
@@ -947,5 +948,10 @@ class System:
     def __repr__(self) -> str:
         names = ", ".join(q.func.__name__ for q in self.coordinates)
         deps = ", ".join(q.func.__name__ for q in self.dependent)
-        relations = "".join(f", {q.func.__name__}: {describe(f)} = 0" for q, f in self.holonomic.items())
+        from chaplygin.core._brief import brief
+
+        relations = "".join(
+            f", {q.func.__name__}: {brief(f, 'system.holonomic holds it', file_syntax)} = 0"
+            for q, f in self.holonomic.items()
+        )
         return f"System({self.name!r}: coordinates [{names}], dependent [{deps}], g={self.g}{relations})"

@@ -331,13 +331,15 @@ class Linearization:
 
     def state_at(self, point: Mapping[Any, Any]) -> np.ndarray:
         """The full state of a steady motion given by name (coordinates, ``"name'"`` velocities,
-        multipliers); the ignorable coordinates default to 0, the dependent velocities follow."""
+        multipliers); the ignorable coordinates default to 0, the dependent velocities follow, and
+        the holonomic relations' coordinates are solved from them (Newton, from the value given
+        or 0; a value given must satisfy the relations)."""
         names = list(self.state)
         values: dict[int, float] = {}
         for key, value in point.items():
             name = _name(self.system, key, names)
             values[names.index(name)] = _number(value, f"point: {name}")
-        needed = [*self._hol, *(self._free[j] for j in self._kept)]
+        needed = [self._free[j] for j in self._kept]
         missing = [names[i] for i in needed if i not in values]
         if missing:
             raise InputError(
@@ -354,7 +356,11 @@ class Linearization:
                 f"constraints{' or of the holonomic relations' if self._hol else ''}); choose other "
                 "dependent coordinates, or another point."
             )
-        off = [names[i] for i in self._hol if abs(y[i] - values[i]) > 1e-9 * max(1.0, abs(values[i]))]
+        off = [
+            names[i]
+            for i in self._hol
+            if i in values and abs(y[i] - values[i]) > 1e-9 * max(1.0, abs(values[i]))
+        ]
         if off:
             raise InputError(
                 f"point: {', '.join(f'{name} = {values[names.index(name)]:g}' for name in off)} violates "
