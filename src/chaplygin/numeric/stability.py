@@ -1028,7 +1028,7 @@ class Crossing:
     def __str__(self) -> str:
         where = "leave" if self.change < 0 else "enter"
         return (
-            f"{self.value:.12g}: {self.kind} crosses the imaginary axis at {_complex(self.eigenvalue)} "
+            f"{self.value:.10g}: {self.kind} crosses the imaginary axis at {_complex(self.eigenvalue)} "
             f"({abs(self.change)} eigenvalue(s) {where} the right half-plane as it increases)"
         )
 
