@@ -19,7 +19,7 @@ import json
 import numpy as np
 import pytest
 import sympy as sp
-from sympy.physics.mechanics import KanesMethod, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
+from sympy.physics.mechanics import KanesMethod, dynamicsymbols
 
 import chaplygin
 from chaplygin import examples
@@ -163,31 +163,22 @@ def test_upright_disk_symbolic_condition_is_the_formula() -> None:
 
 def _kanes_disk(p: dict) -> tuple[KanesMethod, list, list, dict]:
     """The rolling disk in KanesMethod (u = q', x' and y' dependent through the no-slip constraints)."""
-    q = dynamicsymbols("psi theta phi x y")
-    u = dynamicsymbols("u1:6")
-    psi, theta, phi, x, y = q
-    m, r, A, C, g = sp.symbols("m r A C g", positive=True)
-    N = ReferenceFrame("N")
-    Y = N.orientnew("Y", "Axis", [psi, N.z])
-    L = Y.orientnew("L", "Axis", [theta, Y.x])
-    D = L.orientnew("D", "Axis", [phi, L.y])
-    O = Point("O")
-    O.set_vel(N, 0)
-    P = O.locatenew("P", x * N.x + y * N.y)
-    G = P.locatenew("G", r * L.z)
-    G.set_vel(N, G.pos_from(O).dt(N))
-    disk = RigidBody("disk", G, D, m, (inertia(L, A, C, A), G))
-    to_u = dict(zip([qi.diff(t) for qi in q], u))
+    from test_rolling_disk import Mechanics  # the same disk, frames and points, as the peer tests build it
+
+    mech = Mechanics()
+    q, u = mech.q, dynamicsymbols("u1:6")
+    m, r, A, C, g = mech.params
+    N, G, disk = mech.N, mech.centre, mech.disk
+    to_u = dict(zip(mech.qd, u))
     G.set_vel(N, G.vel(N).xreplace(to_u))
-    D.set_ang_vel(N, D.ang_vel_in(N).xreplace(to_u))
-    slip = G.vel(N) + D.ang_vel_in(N).cross(P.pos_from(G))
+    disk.frame.set_ang_vel(N, disk.frame.ang_vel_in(N).xreplace(to_u))
     km = KanesMethod(
         N,
         q_ind=q,
         u_ind=u[:3],
         kd_eqs=[qi.diff(t) - ui for qi, ui in zip(q, u)],
         u_dependent=u[3:],
-        velocity_constraints=[sp.expand(slip.dot(N.x)), sp.expand(slip.dot(N.y))],
+        velocity_constraints=[sp.expand(c.xreplace(to_u)) for c in mech.slip[:2]],
     )
     km.kanes_equations([disk], [(G, -m * g * N.z)])
     return km, q, u, dict(zip((m, r, A, C, g), (p[k] for k in "mrACg")))

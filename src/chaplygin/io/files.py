@@ -705,22 +705,28 @@ class _Reader:
                 out[arg] = self.expression(table[key], _key("energy", key), names, message)
         return out
 
+    def _coordinate_key(self, key: str, where: str, names: Names, allowed: str) -> None:
+        """Refuse a key that is not a coordinate (a velocity written for its coordinate is named)."""
+        if key not in names.coordinates:
+            hint = ""
+            if key.endswith("'") and key[:-1] in names.coordinates:
+                hint = f" (write the coordinate, {key[:-1]}, not its velocity)"
+            raise self.error(
+                f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}", where, allowed=allowed
+            )
+
     def read_forces(self, names: Names) -> dict[str, sp.Expr]:
-        table = self.table("forces")
         out: dict[str, sp.Expr] = {}
-        for key, value in table.items():
+        for key, value in self.table("forces").items():
             where = _key("forces", key)
-            if key not in names.coordinates:
-                hint = ""
-                if key.endswith("'") and key[:-1] in names.coordinates:
-                    hint = f" (write the coordinate, {key[:-1]}, not its velocity)"
-                raise self.error(
-                    f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}",
-                    where,
-                    allowed="[forces] keys are coordinates: "
-                    + ", ".join(names.coordinates)
-                    + "; each value is the generalized force Q along it.",
-                )
+            self._coordinate_key(
+                key,
+                where,
+                names,
+                "[forces] keys are coordinates: "
+                + ", ".join(names.coordinates)
+                + "; each value is the generalized force Q along it.",
+            )
             out[key] = self.expression(value, where, names)
         return out
 
@@ -729,15 +735,7 @@ class _Reader:
         out: dict[Any, sp.Expr] = {}
         for key, value in self.table("holonomic").items():
             where = _key("holonomic", key)
-            if key not in names.coordinates:
-                hint = ""
-                if key.endswith("'") and key[:-1] in names.coordinates:
-                    hint = f" (write the coordinate, {key[:-1]}, not its velocity)"
-                raise self.error(
-                    f"{json.dumps(key, ensure_ascii=False)} is not a coordinate{hint}",
-                    where,
-                    allowed=_SECTION_HELP["holonomic"],
-                )
+            self._coordinate_key(key, where, names, _SECTION_HELP["holonomic"])
             out[names.coordinates[key]] = self.expression(value, where, names)
         return out
 
