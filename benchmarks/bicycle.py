@@ -1,4 +1,4 @@
-"""The Whipple bicycle from nothing to its eigenvalues over 100 speeds: SymPy's route, timed cold.
+"""The Whipple bicycle from nothing to its eigenvalues over 100 speeds: SymPy's route and chaplygin's, timed cold.
 
 SymPy's route is the one its test suite takes (``sympy/physics/mechanics/tests/test_kane3.py``)
 and a user would take: ``KanesMethod`` with the yaw, roll, pitch and steer angles as coordinates
@@ -12,15 +12,26 @@ matrix of lean, steer and their rates evaluated at 100 speeds and its eigenvalue
 Written here for this benchmark (the paper's axes: x forward, y right, z down), with the
 parameters of Meijaard, Papadopoulos, Ruina & Schwab, Proc. R. Soc. A 463 (2007), Table 1.
 
-Each route runs in a fresh Python process, so imports and every derivation count::
+chaplygin's route is its public API as a user writes it (``tests/test_bicycle.py``
+``test_table_2_from_the_public_api``): ``examples.get("whipple-bicycle")`` (the system and Table
+1's numbers), ``chaplygin.root_locus`` along the upright straight run over the same speeds, and
+``crossings()`` for the weave and capsize speeds (Table 2: 4.29238253634111 and 6.02426201538837
+m/s); then, in the same process, a second ``root_locus`` over 100 other speeds: the cost of each
+further speed once linearised.
 
-    python benchmarks/bicycle.py             # SymPy's route
-    python benchmarks/bicycle.py --chaplygin # chaplygin's route (after the stability API)
+Each route runs in a fresh Python process, so imports and every derivation count; chaplygin's
+with a fresh, empty ``$CHAPLYGIN_CACHE`` (cold), then once more in a new process with the cache
+the cold one filled (warm)::
 
-It prints the seconds of the whole process, the eigenvalues at v = 5 m/s (Table 2 of the
-paper: −14.0783896927982, −0.775341882195851 ± 4.46486771378823i, −0.322866429004087) and
-their largest distance from the paper's. This file imports nothing from chaplygin for the
-SymPy route.
+    python benchmarks/bicycle.py              # both routes in one run, and the ratio
+    python benchmarks/bicycle.py --sympy      # SymPy's route only
+    python benchmarks/bicycle.py --chaplygin  # chaplygin's route only (cold, then warm)
+
+Each prints the seconds of the whole process, those from its start to the eigenvalue table (the
+stages), the eigenvalues at v = 5 m/s (Table 2 of the paper: −14.0783896927982,
+−0.775341882195851 ± 4.46486771378823i, −0.322866429004087) and their largest distance from the
+paper's; the ratio is chaplygin's cold seconds to the table over SymPy's. This file imports
+nothing from chaplygin for the SymPy route.
 """
 
 from __future__ import annotations
@@ -31,8 +42,10 @@ START = time.perf_counter()  # the timed process starts here (imports included)
 
 import argparse
 import json
+import os
 import subprocess
 import sys
+import tempfile
 
 #: Table 2's eigenvalues at v = 5 m/s
 BENCHMARK_AT_5 = [
@@ -42,6 +55,9 @@ BENCHMARK_AT_5 = [
     -0.322866429004087,
 ]
 SPEEDS = [10.0 * k / 99 for k in range(100)]  # 0 … 10 m/s; 5 m/s is added as the 101st
+OTHER_SPEEDS = [10.0 * (k + 0.5) / 99 for k in range(100)]  # chaplygin's further speeds, between those
+#: Table 2's weave and capsize speeds, m/s
+WEAVE_SPEED, CAPSIZE_SPEED = 4.29238253634111, 6.02426201538837
 
 
 def sympy_route() -> dict:
@@ -151,13 +167,47 @@ def sympy_route() -> dict:
 
 
 def chaplygin_route() -> dict:
-    """TODO(issue 29, stability API): the bicycle from ``example:whipple-bicycle`` to the same
-    eigenvalues over ``SPEEDS`` through chaplygin's public linearisation, once it is merged.
-    Until then there is nothing to time: this route refuses to run rather than time a stand-in.
-    """
-    raise SystemExit(
-        "benchmarks/bicycle.py --chaplygin: not yet written (needs the stability API of issue 29)."
-    )
+    """chaplygin's public API, as a user writes it: ``example:whipple-bicycle`` (the system and
+    Table 1's numbers), ``root_locus`` over the same speeds along the upright straight run (the
+    rear wheel's rate ``−v/r_R``), ``crossings()`` for the weave and capsize speeds; then a second
+    ``root_locus`` over 100 other speeds, the cost of each further speed once linearised.
+    The eigenvalue the family of steady motions gives (the speed's own direction, 0) is set
+    aside; the other four are the paper's."""
+    import numpy as np
+
+    import chaplygin
+    from chaplygin import examples
+
+    stages = {"imports": time.perf_counter()}
+    entry = examples.get("whipple-bicycle")
+    bike, numbers = entry.system(), entry.parameters
+    stages["model"] = time.perf_counter()
+
+    def upright(v: float) -> dict[str, float]:
+        return {"phi": 0, "delta": 0, "phi'": 0, "delta'": 0, "theta_R'": -v / numbers["r_R"], "psi": 0}
+
+    grid = sorted([*SPEEDS, 5.0])  # increasing, for crossings()
+    locus = chaplygin.root_locus(bike, upright(5.0), "v", grid, numbers, points=upright)
+    stages["root_locus"] = time.perf_counter()
+    names, times = list(stages), [START, *stages.values()]
+    seconds = {name: round(times[k + 1] - times[k], 2) for k, name in enumerate(names)}
+    row = locus.eigenvalues[grid.index(5.0)]
+    zero = int(np.argmin(np.abs(row)))
+    at_5 = [complex(z) for k, z in enumerate(row) if k != zero]
+    start = time.perf_counter()
+    crossings = locus.crossings()
+    after = {"crossings": round(time.perf_counter() - start, 3)}
+    start = time.perf_counter()
+    chaplygin.root_locus(bike, upright(5.0), "v", OTHER_SPEEDS, numbers, points=upright)
+    after["further speed [ms]"] = round(1e3 * (time.perf_counter() - start) / len(OTHER_SPEEDS), 2)
+    return {
+        "at_5": at_5,
+        "zero": abs(complex(row[zero])),
+        "speeds": len(SPEEDS),
+        "stages": seconds,
+        "after": after,
+        "crossings": [[c.value, c.change, c.kind] for c in crossings],
+    }
 
 
 def _distance(eigenvalues: list[complex]) -> float:
@@ -166,35 +216,83 @@ def _distance(eigenvalues: list[complex]) -> float:
     return max(abs(a - b) for a, b in zip(left, right))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--chaplygin", action="store_true", help="time chaplygin's route instead of SymPy's")
-    parser.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)  # the timed process
-    args = parser.parse_args()
-    route = chaplygin_route if args.chaplygin else sympy_route
-    if args.inside:
-        result = route()
-        print(
-            json.dumps({"at_5": [[z.real, z.imag] for z in result["at_5"]], "stages": result.get("stages")})
-        )
-        return
+def _inside(route: str) -> None:
+    """The timed process: one route, its result as one line of JSON."""
+    result = (chaplygin_route if route == "chaplygin" else sympy_route)()
+    result["at_5"] = [[z.real, z.imag] for z in result["at_5"]]
+    print(json.dumps(result))
+
+
+def _run(route: str, cache: str | None = None) -> tuple[float, dict]:
+    """One route in a fresh process (``$CHAPLYGIN_CACHE=cache`` for chaplygin's): its wall seconds
+    as the parent sees them and what it printed."""
+    env = dict(os.environ, **({"CHAPLYGIN_CACHE": cache} if cache else {}))
     start = time.perf_counter()
-    command = [sys.executable, __file__, "--inside", *(["--chaplygin"] if args.chaplygin else [])]
-    run = subprocess.run(command, capture_output=True, text=True, check=False)
+    run = subprocess.run(
+        [sys.executable, __file__, "--inside", route], capture_output=True, text=True, check=False, env=env
+    )
     seconds = time.perf_counter() - start
     if run.returncode:
-        sys.exit(run.stderr.strip() or f"the route failed ({run.returncode})")
-    doc = json.loads(run.stdout.splitlines()[-1])
+        sys.exit(run.stderr.strip() or f"the {route} route failed ({run.returncode})")
+    return seconds, json.loads(run.stdout.splitlines()[-1])
+
+
+def _report(name: str, seconds: float, doc: dict) -> tuple[float, float]:
+    """Print one run; return its seconds from the process's start to the eigenvalue table, and
+    of the whole process."""
     at_5 = [complex(*z) for z in doc["at_5"]]
-    name = "chaplygin" if args.chaplygin else "sympy (KanesMethod + linearize CRAMER)"
-    print(f"{name}: {seconds:.1f} s cold, {len(SPEEDS)} speeds")
+    table = sum(doc["stages"].values())
+    print(f"{name}: {seconds:.1f} s process, {table:.1f} s to the table of {doc['speeds']} speeds (+ 5 m/s)")
     print(
-        "eigenvalues at v = 5 m/s:",
+        "  eigenvalues at v = 5 m/s:",
         ", ".join(f"{z.real:.12g}{z.imag:+.12g}j" for z in sorted(at_5, key=lambda z: (z.real, z.imag))),
     )
-    print(f"largest distance from Table 2: {_distance(at_5):.2e}")
-    if doc.get("stages"):
-        print("seconds by stage (imports and the model first):", doc["stages"])
+    print(f"  largest distance from Table 2: {_distance(at_5):.2e}")
+    if "zero" in doc:
+        print(f"  the family's zero eigenvalue set aside: |{doc['zero']:.1e}|")
+    print("  seconds by stage (imports and the model first):", doc["stages"])
+    if "crossings" in doc:
+        for (value, change, kind), (label, paper) in zip(
+            doc["crossings"], (("weave", WEAVE_SPEED), ("capsize", CAPSIZE_SPEED))
+        ):
+            print(
+                f"  {label} speed {value:.14g} m/s ({kind}, {change:+d}), off Table 2 by {abs(value - paper):.1e}"
+            )
+        if len(doc["crossings"]) != 2:
+            print(f"  expected two crossings (weave, capsize), found {len(doc['crossings'])}")
+        print("  after the table:", doc["after"])
+    return table, seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument(
+        "--chaplygin", action="store_true", help="time chaplygin's route only (cold, then warm)"
+    )
+    which.add_argument("--sympy", action="store_true", help="time SymPy's route only")
+    parser.add_argument("--inside", choices=("sympy", "chaplygin"), help=argparse.SUPPRESS)  # timed process
+    args = parser.parse_args()
+    if args.inside:
+        _inside(args.inside)
+        return
+    cold = {}  # route -> (seconds to the table, seconds of the process)
+    if not args.chaplygin:
+        cold["sympy"] = _report("sympy (KanesMethod + linearize CRAMER), cold", *_run("sympy"))
+    if not args.sympy:
+        with tempfile.TemporaryDirectory(prefix="chaplygin-bicycle-") as cache:
+            cold["chaplygin"] = _report(
+                f"chaplygin, cold (empty CHAPLYGIN_CACHE={cache})", *_run("chaplygin", cache)
+            )
+            _report(
+                "chaplygin, warm (a new process, the cache the cold one filled)", *_run("chaplygin", cache)
+            )
+    if len(cold) == 2:
+        (table, process), (sympy_table, sympy_process) = cold["chaplygin"], cold["sympy"]
+        print(
+            f"ratio chaplygin / SymPy, cold: {table / sympy_table:.3f} from nothing to the table, "
+            f"{process / sympy_process:.3f} whole process (chaplygin's also finds the crossings and 100 more speeds)"
+        )
 
 
 if __name__ == "__main__":
