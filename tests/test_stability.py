@@ -111,6 +111,10 @@ def test_crossings_of_the_imaginary_axis_are_the_thresholds() -> None:
         examples.chaplygin_sleigh(), {"theta": 0, "x'": 1, "theta'": 0}, "x'", np.linspace(-1, 1.1, 8), SLEIGH
     )
     [at_rest] = sleigh.crossings()
+    unsorted = chaplygin.root_locus(  # a value appended out of order made a false second crossing
+        examples.chaplygin_sleigh(), {"theta": 0, "x'": 1, "theta'": 0}, "x'", [-1, 1, -0.5], SLEIGH
+    )
+    assert [c.value for c in unsorted.crossings()] == [0.0]
     assert (at_rest.value, at_rest.eigenvalue, at_rest.change) == (0.0, 0j, -1)
     assert at_rest.kind == "a real eigenvalue" and "leave the right half-plane" in str(at_rest)
     m, r, A, C, g = (COIN[k] for k in "mrACg")

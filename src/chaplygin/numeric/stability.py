@@ -227,6 +227,7 @@ class Linearization:
         self.state: tuple[str, ...] = layout.state
         self._n, self._k, self._dim, self._size = s.n, k, eqs._M.shape[0], len(layout.state)
         self._p = _parameter_vector(s, layout.parameters, parameters)
+        self._last: tuple[bytes, _Point] | None = None  # the last point evaluated (see _evaluate)
         self._multiplier_model = not registry.MODELS[eqs.model].reduced
         #: the model's own integrals (the vakonomic constants c_β where they are integrals)
         self.integrals: tuple[str, ...] = tuple(name for name, _ in _constants_of_motion(eqs))
@@ -250,6 +251,9 @@ class Linearization:
 
     # -------------------------------------------------------------- evaluation
     def _evaluate(self, y: np.ndarray) -> _Point:
+        key = y.tobytes() + self._p.tobytes()  # a point is asked for several times in a row
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
         n, dim, size, k = self._n, self._dim, self._size, self._k
         g = self.system.g if self._multiplier_model else 0
         M, F, V = np.zeros((dim, dim)), np.zeros(dim), np.zeros(n)
@@ -265,7 +269,8 @@ class Linearization:
             module.efill(0.0, y, self._p, dE, dI, G, H, R)
         f = np.concatenate([V, x[:k]])
         J = np.vstack([dV.T, dx[:k]])
-        return _Point(f, J, dE, dI, G, H, R)
+        self._last = (key, _Point(f, J, dE, dI, G, H, R))
+        return self._last[1]
 
     def _tangent(self, point: _Point) -> np.ndarray:
         """``P`` (state × free): the admissible perturbation that each free variable's unit one makes."""
@@ -1071,7 +1076,7 @@ class RootLocus:
         Returns
         -------
         list of Crossing
-            In the order of the values.
+            In increasing order of the parameter (whatever the order of the locus's values).
         """
         if self._at is None or len(self.values) < 2:
             return []
@@ -1085,10 +1090,11 @@ class RootLocus:
         def unstable(values: np.ndarray) -> int:
             return int(np.sum(others(values).real > 1e-12 * scale))
 
-        counts = [unstable(self._at(float(value))) for value in self.values]
+        grid = np.unique(self.values)  # increasing: the values may be given in any order
+        counts = [unstable(self._at(float(value))) for value in grid]
         found = []
         for i in np.flatnonzero(np.diff(counts)):
-            lo, hi = float(self.values[i]), float(self.values[i + 1])
+            lo, hi = float(grid[i]), float(grid[i + 1])
             c_lo = counts[i]
             while abs(hi - lo) > xtol * max(1.0, abs(lo)):
                 mid = 0.5 * (lo + hi)
