@@ -362,6 +362,37 @@ def test_holonomic_relation_eliminates_its_coordinate(model: str) -> None:
     assert upside_down.kind == "unstable"
 
 
+def test_steady_motions_keeps_the_holonomic_coordinate_guess() -> None:
+    """The Newton search starts the relation's coordinate from the guess, not from 0, where
+    x² + y² = L² has no Newton step (it crashed with numpy's 'SVD did not converge'); the
+    spherical pendulum's conical motion has phi'² = g/(L cos θ) (cylindrical rho, phi, z; the
+    closed forms by hand from the Lagrangian on the sphere)."""
+    found = chaplygin.steady_motions(
+        _cartesian_pendulum(), {"x": 0.3, "y": -np.sqrt(4 - 0.09), "x'": 0.1}, {"m": 0.5, "g": 9.81}
+    )
+    assert abs(found.point["x"]) < 1e-9 and abs(found.point["x'"]) < 1e-9
+    rho, phi, z = dynamicsymbols("rho phi z")
+    m, g = sp.symbols("m g", positive=True)
+    T = m / 2 * (rho.diff(t) ** 2 + rho**2 * phi.diff(t) ** 2 + z.diff(t) ** 2)
+    conical = chaplygin.System(
+        [rho, phi, z], T, [], potential_energy=m * g * z, holonomic={z: rho**2 + z**2 - 1}
+    )
+    for model in ("chetaev", "voronets"):
+        found = chaplygin.steady_motions(
+            conical,
+            {"rho": 0.6, "z": -0.8, "rho'": 0, "phi'": 3.0},
+            {"m": 1, "g": 9.81},
+            model=model,
+            fixed=["rho"],
+        )
+        np.testing.assert_allclose(abs(found.point["phi'"]), np.sqrt(9.81 / 0.8), rtol=1e-10)
+        # found.point gives z (stability() solved it from 0 before): small oscillations about the
+        # cone at ω² = phi'² (1 + 3 cos² θ), cos θ = 0.8
+        result = chaplygin.stability(conical, found.point, {"m": 1, "g": 9.81}, model=model)
+        omega = np.sqrt(9.81 / 0.8 * (1 + 3 * 0.8**2))
+        np.testing.assert_allclose(_nonzero(result.eigenvalues), [-1j * omega, 1j * omega], rtol=1e-9)
+
+
 # ---------------------------------------------------------------- the vakonomic disk
 def test_vakonomic_upright_disk_is_lindelofs() -> None:
     """Lindelöf's threshold ω² > m g r A/(C + m r²)² and frequency (docs/gallery/rolling-disk.md,

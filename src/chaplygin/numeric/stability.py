@@ -871,9 +871,9 @@ def _stability_at(
 class SteadyMotion:
     """A steady motion found by a Newton search (see :func:`steady_motions`).
 
-    ``point`` gives the reduced variables (and the fixed ones); ``family_dimension`` is the
-    dimension of the kernel of the equilibrium equations' Jacobian there: the number of
-    parameters of the family of steady motions through it.
+    ``point`` gives the reduced variables (and the fixed ones) and the coordinates that holonomic
+    relations fix; ``family_dimension`` is the dimension of the kernel of the equilibrium
+    equations' Jacobian there: the number of parameters of the family of steady motions through it.
     """
 
     system: str
@@ -967,7 +967,8 @@ def steady_motions(
     def at(values: np.ndarray) -> np.ndarray:
         y = y0.copy()
         y[[positions[k] for k in unknown]] = values
-        return lin.admissible({i: y[i] for i in lin._free})
+        # the relations' coordinates from the guess's (solved) values: from 0, x² + y² = L² has no step
+        return lin.admissible({i: y[i] for i in [*lin._free, *lin._hol]})
 
     def residual(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         f, J = lin.reduced(at(values))
@@ -977,9 +978,10 @@ def steady_motions(
     found = root(residual, start, jac=True, method="lm", options={"xtol": 1e-14, "ftol": 1e-14})
     y = at(found.x)
     f, J = lin.reduced(y)
-    scale = max(float(np.linalg.norm(J, 2)), 1.0) * max(1.0, float(np.max(np.abs(y))))
     res = float(np.max(np.abs(f))) if f.size else 0.0
-    if not np.isfinite(res) or res > 1e-9 * scale:
+    finite = np.isfinite(res) and bool(np.all(np.isfinite(J)))
+    scale = max(float(np.linalg.norm(J, 2)), 1.0) * max(1.0, float(np.max(np.abs(y)))) if finite else 0.0
+    if not finite or res > 1e-9 * scale:
         raise ChaplyginError(
             f"steady_motions: no steady motion of the {lin.model} model near the guess (the Newton search "
             f"stopped with the largest reduced rate {res:.3g}); try another guess or fix other variables."
@@ -987,9 +989,9 @@ def steady_motions(
     singular = np.linalg.svd(J, compute_uv=False)
     family = int(np.sum(singular <= ZERO_RTOL * max(float(singular[0]) if singular.size else 0.0, 1e-300)))
     state = dict(zip(lin.state, y.tolist()))
-    return SteadyMotion(
-        lin.system.name, lin.model, {v: state[v] for v in lin.variables}, tuple(fixed), family, res
-    )
+    # with the relations' coordinates, which stability() would otherwise solve again from 0
+    point = {v: state[v] for v in [*lin.variables, *(lin.state[i] for i in lin._hol)]}
+    return SteadyMotion(lin.system.name, lin.model, point, tuple(fixed), family, res)
 
 
 def _reduced_model(system: System, model: str) -> str:
