@@ -418,13 +418,10 @@ def text(
         lines += _block(row)
     if len(rows) > 1:
         width = max(len(r.model) for r in rows)
-        lines.append("side by side (largest real part first):")
+        lines.append("side by side (the largest real part, the named zero eigenvalues set aside):")
         for r in rows:
-            first = (
-                eigenvalue(r.stability.eigenvalues[0], r.stability.tolerance)
-                if r.stability.eigenvalues.size
-                else "-"
-            )
+            rest = r.stability.eigenvalues[r.stability.eigenvalues != 0]  # the named zeros are exactly 0
+            first = eigenvalue(rest[0], r.stability.tolerance) if rest.size else "-"
             lines.append(f"  {r.model:<{width}}  {r.stability.kind:<21}  {first}")
     for model, lc in (locus or {}).items():
         lines.append(
@@ -595,6 +592,13 @@ def study(
     return Study(dict(at), dict(parameters), rows, locus)
 
 
+def true_model(system: System) -> str:
+    """The model of the true motion that stability linearises by default: Chaplygin's equations
+    where they apply, else the Chetaev multiplier model (the same motion; Voronets' symbolic
+    equations of a system like the Whipple bicycle take minutes and gigabytes)."""
+    return "chaplygin" if registry.true_motion(system) == "chaplygin" else "chetaev"
+
+
 def _default_models(system: System) -> list[str]:
-    true = registry.true_motion(system)
+    true = true_model(system)
     return [true, "lindelof"] if registry.get("lindelof").obstruction(system) is None else [true]

@@ -1523,7 +1523,9 @@ class StabilityFormat(str, Enum):
 def _stability_models(text: str | None, system: Any) -> list[str]:
     """``--model a,b``: models of the registry, each once; default the true motion."""
     if text is None:
-        return [registry.true_motion(system)]
+        from chaplygin.apps import _steady
+
+        return [_steady.true_model(system)]
     names = [m.strip() for m in text.split(",")]
     for name in names:
         _model_name(name)

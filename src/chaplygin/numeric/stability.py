@@ -356,10 +356,17 @@ class Linearization:
         given = {names[i]: v for i, v in values.items() if names[i] in dependent}
         y = self.admissible({i: v for i, v in values.items() if names[i] not in dependent})
         if not np.all(np.isfinite(y)):
+            guessed = [names[i] for i in self._hol if i not in values]
             raise InputError(
                 f"point: the constraints of {self.system.name} cannot be solved there (a pole of the solved "
                 f"constraints{' or of the holonomic relations' if self._hol else ''}); choose other "
-                "dependent coordinates, or another point."
+                "dependent coordinates, or another point"
+                + (
+                    f"; {', '.join(guessed)} {'was' if len(guessed) == 1 else 'were'} solved from the "
+                    "holonomic relations starting at 0: give a value near the solution to start from."
+                    if guessed
+                    else "."
+                )
             )
         off = [
             names[i]
