@@ -334,11 +334,11 @@ class Linearization:
             out[name] = (grad @ P)[self._kept]
         return out
 
-    def state_at(self, point: Mapping[Any, Any]) -> np.ndarray:
+    def state_at(self, point: Mapping[Any, Any], *, guess: bool = False) -> np.ndarray:
         """The full state of a steady motion given by name (coordinates, ``"name'"`` velocities,
         multipliers); the ignorable coordinates default to 0, the dependent velocities follow, and
         the holonomic relations' coordinates are solved from them (Newton, from the value given
-        or 0; a value given must satisfy the relations)."""
+        or 0; a value given must satisfy the relations, unless ``guess``: a Newton search's start)."""
         names = list(self.state)
         values: dict[int, float] = {}
         for key, value in point.items():
@@ -371,7 +371,7 @@ class Linearization:
         off = [
             names[i]
             for i in self._hol
-            if i in values and abs(y[i] - values[i]) > 1e-9 * max(1.0, abs(values[i]))
+            if not guess and i in values and abs(y[i] - values[i]) > 1e-9 * max(1.0, abs(values[i]))
         ]
         if off:
             raise InputError(
@@ -960,7 +960,7 @@ def steady_motions(
     from scipy.optimize import root
 
     lin = linearize(system, model, parameters, form=form)
-    y0 = lin.state_at(guess)
+    y0 = lin.state_at(guess, guess=True)  # the relations' coordinates: where Newton starts
     fixed = list(fixed)
     for name in fixed:
         if name not in lin.variables:
