@@ -488,7 +488,7 @@ def test_damped_oscillator_routh_hurwitz() -> None:
 def test_linearisation_is_kept_in_the_disk_cache(monkeypatch, tmp_path) -> None:
     """An equal system linearised again (a new System object, as in a new process) differentiates
     nothing: the generated code comes from the cache of compiled models."""
-    from chaplygin.numeric import stability as module
+    from chaplygin.numeric import linearization as module
 
     monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path))
     monkeypatch.delenv("CHAPLYGIN_MODEL_CACHE", raising=False)

@@ -50,13 +50,12 @@ if TYPE_CHECKING:
     from chaplygin.models.equations import Equations
     from chaplygin.numeric.comparison import Comparison, compare
     from chaplygin.numeric.ensemble import Ensemble, simulate_ensemble
+    from chaplygin.numeric.linearization import Linearization, linearize
     from chaplygin.numeric.simulate import Trajectory, simulate
     from chaplygin.numeric.stability import (
-        Linearization,
         RootLocus,
         Stability,
         SteadyMotion,
-        linearize,
         root_locus,
         stability,
         stability_conditions,
@@ -97,14 +96,14 @@ _HOME = {
     "Ensemble": "chaplygin.numeric.ensemble",
     "compare": "chaplygin.numeric.comparison",
     "Comparison": "chaplygin.numeric.comparison",
+    "Linearization": "chaplygin.numeric.linearization",
+    "linearize": "chaplygin.numeric.linearization",
     **{
         name: "chaplygin.numeric.stability"
         for name in (
-            "Linearization",
             "RootLocus",
             "Stability",
             "SteadyMotion",
-            "linearize",
             "root_locus",
             "stability",
             "stability_conditions",

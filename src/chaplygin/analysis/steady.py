@@ -9,7 +9,7 @@
   for a polynomial in λ² (a conservative system's), that every root ``s = λ²`` be real and negative.
 
 The numerical side (the exact Jacobian, the verdict, root loci) is
-:mod:`chaplygin.numeric.stability`, which also finds the ignorable coordinates passed here.
+:mod:`chaplygin.numeric.linearization`, which also finds the ignorable coordinates passed here.
 """
 
 from __future__ import annotations

@@ -269,7 +269,7 @@ def model_blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block
     ``jacobian``, the block filling ``R[j, r] = ∂(F − M·x)_r/∂y_j`` and ``dV[j, i] = ∂V_i/∂y_j``
     (``x`` given: the solution of ``M·x = F``, so that ``M·∂x/∂y_j = R[j]``); ``M``'s size; ``K``,
     the entries of ``x`` that are derivatives of ``y``.  What :func:`chaplygin.io.export.export`
-    prints and :mod:`chaplygin.numeric.stability` evaluates."""
+    prints and :mod:`chaplygin.numeric.linearization` evaluates."""
     from chaplygin.core._fast import jacobian as differentiate
 
     layout, to_num, velocities, k = state_symbols(eqs)
