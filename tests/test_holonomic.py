@@ -286,6 +286,12 @@ def test_ensemble_members_start_on_the_relation() -> None:
     starts = [{x: 0.3, y: -0.5, d(x): 0.1}, {x: -0.2, y: -0.9, d(x): 0.0}]
     ens = simulate_ensemble(pendulum_xy(), "chetaev", 0.2, starts, params, backend="c")
     assert ens.y_initial[:, 1] == pytest.approx(-np.sqrt(0.64 - np.array([0.3, -0.2]) ** 2), rel=1e-12)
+    # the changes are told and the relation is monitored at the end (they were neither)
+    assert len(ens.notes) == 1 and ens.notes[0].startswith("2 member(s) solved from the holonomic")
+    assert "member 0: y" in ens.notes[0]
+    final = ens.coordinates["x"] ** 2 + ens.coordinates["y"] ** 2 - 0.64  # x² + y² = l², by hand
+    assert ens.holonomic_residual == pytest.approx(np.abs(final), abs=1e-15)
+    assert np.all(ens.holonomic_residual < 1e-7) and "final holonomic residual" in ens._repr_html_()
 
 
 # ------------------------------------------------------------------ system files and the command line

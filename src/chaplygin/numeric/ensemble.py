@@ -47,6 +47,7 @@ from chaplygin.numeric.simulate import (
     POLE_CHECK_POINTS,
     TIME_LIMIT,
     _finite,
+    _holonomic_functions,
     _initial_multipliers,
     _vakonomic_setup,
     check_time_limit,
@@ -98,6 +99,11 @@ class Ensemble:
         (:func:`~chaplygin.numeric.simulate.monitor`).
     constraint_residual : ndarray (N,)
         ``max_β |Σ_s A_βs q̇_s + A_β0|`` at :attr:`t`.
+    holonomic_residual : ndarray (N,)
+        ``max |f(q, t)|`` of the holonomic constraints at :attr:`t` (empty without them).
+    notes : list of str
+        What was changed at the start: the members whose holonomic coordinates were solved
+        from ``f(q, t0) = 0`` (their count and the first few changes).
     code : ndarray of int (N,)
         0 for success, else why it failed (see :attr:`messages`).
     rhs_evaluations : ndarray of int (N,)
@@ -134,6 +140,8 @@ class Ensemble:
     energy_column: str = "energy"
     y_initial: np.ndarray | None = None
     velocities_initial: dict[str, np.ndarray] = field(default_factory=dict)
+    holonomic_residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    notes: list[str] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -210,6 +218,11 @@ class Ensemble:
             ("t reached", f"{np.min(self.t):g} … {np.max(self.t):g}" if len(self) else "–"),
             ("energy drift", spread(drift)),
             ("final constraint residual", spread(residual)),
+            *(
+                [("final holonomic residual", spread(np.asarray(self.holonomic_residual, dtype=float)))]
+                if self.holonomic_residual.size
+                else []
+            ),
             ("wall time", f"{self.wall_time:.3g} s"),
         ]
         return _html.heading("Ensemble") + _html.fields((k, _html.escape(v)) for k, v in rows)
@@ -282,8 +295,10 @@ def _states(
     P: np.ndarray | None,
     vak: dict[str, Any] | None,
     t0: float,
+    notes: list[str],
 ) -> np.ndarray:
-    """``Y0`` (N × len(layout.state)) from an array in layout order or a list of mappings."""
+    """``Y0`` (N × len(layout.state)) from an array in layout order or a list of mappings; what
+    was solved at the start is told in ``notes``."""
     if isinstance(initial_states, np.ndarray) or (
         isinstance(initial_states, Sequence) and initial_states and not isinstance(initial_states[0], Mapping)
     ):
@@ -312,8 +327,13 @@ def _states(
         if P is not None
         else {}
     )
+    changed = []
     for k in range(len(Q) if system._holonomic else 0):  # each member's start on f(q, t0) = 0
-        solve_holonomic(system, Q[k], {name: float(v[k]) for name, v in params.items()}, t0)
+        told = solve_holonomic(system, Q[k], {name: float(v[k]) for name, v in params.items()}, t0)
+        changed += [f"member {k}: {note}" for note in told[:1]]
+    if changed:
+        shown = "; ".join(changed[:3]) + ("; …" if len(changed) > 3 else "")
+        notes.append(f"{len(changed)} member(s) solved from the holonomic constraints at the start ({shown})")
     if system.g:
         _dependent_velocities(system, Q, QD, params, t0)
     entry = registry.get(model)
@@ -321,6 +341,21 @@ def _states(
     if entry.multipliers_in_state:
         columns.append(_multipliers(system, vak or {}, Q, QD, params, t0))
     return np.ascontiguousarray(np.column_stack(columns), dtype=float)
+
+
+def _holonomic_residual(
+    system: System, t: np.ndarray, y: np.ndarray, parameters: Mapping[str, np.ndarray]
+) -> np.ndarray:
+    """``max |f(q, t)|`` of the holonomic constraints per member at its final state (empty
+    without them; NaN for a member that failed without a state)."""
+    if not system._holonomic:
+        return np.zeros(0)
+    f, _ = _holonomic_functions(system)
+    args = [t, *y[:, : system.n].T, *(parameters[p.name] for p in system.parameters)]
+    with np.errstate(all="ignore"):
+        out = f(*args)  # one row per relation (each depends on its coordinate: one value per member)
+    rows = [np.broadcast_to(np.asarray(r, dtype=float).ravel(), t.shape) for r in out]
+    return np.max(np.abs(np.vstack(rows)), axis=0)
 
 
 def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
@@ -565,7 +600,8 @@ def simulate_ensemble(
     if n == 0:
         raise ChaplyginError("initial_states: no initial states given.")
     P, param_columns = _parameter_matrix(system, layout, parameters, n)
-    Y0 = _states(system, model, layout, initial_states, P, vak, t0)
+    notes: list[str] = []
+    Y0 = _states(system, model, layout, initial_states, P, vak, t0, notes)
 
     g = system.g
     n_coords = len(layout.coordinates)
@@ -672,6 +708,8 @@ def simulate_ensemble(
         samples=res.get("samples"),
         wall_time=wall,
         parameters=param_columns,
+        holonomic_residual=_holonomic_residual(system, res["t"], res["y"], param_columns),
+        notes=notes,
         t_pole=res.get("t_pole", np.full(n, np.nan)),
         y_initial=Y0,
         velocities_initial={name + "'": velocities0[:, i] for i, name in enumerate(layout.coordinates)},
