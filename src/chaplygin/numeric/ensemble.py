@@ -295,7 +295,7 @@ def _states(
     P: np.ndarray | None,
     vak: dict[str, Any] | None,
     t0: float,
-    notes: list[str],
+    notes: list[str] | None = None,
 ) -> np.ndarray:
     """``Y0`` (N × len(layout.state)) from an array in layout order or a list of mappings; what
     was solved at the start is told in ``notes``."""
@@ -331,7 +331,7 @@ def _states(
     for k in range(len(Q) if system._holonomic else 0):  # each member's start on f(q, t0) = 0
         told = solve_holonomic(system, Q[k], {name: float(v[k]) for name, v in params.items()}, t0)
         changed += [f"member {k}: {note}" for note in told[:1]]
-    if changed:
+    if changed and notes is not None:
         shown = "; ".join(changed[:3]) + ("; …" if len(changed) > 3 else "")
         notes.append(f"{len(changed)} member(s) solved from the holonomic constraints at the start ({shown})")
     if system.g:
