@@ -56,7 +56,7 @@ def _reduced(
     zero = {v.x[i]: 0 for i, q in enumerate(system.coordinates) if q.func.__name__ in ignorable}
     kept = [i for i, q in enumerate(system.coordinates) if q.func.__name__ not in ignorable]
     variables = [v.x[i] for i in kept] + [v.xd[i] for i in system._ind]
-    rates = [sp.sympify(subs.get(v.xd[i], v.xd[i])).xreplace(zero) for i in kept]
+    rates = [sp.sympify(subs.get(v.xd[i], v.xd[i]), strict=True).xreplace(zero) for i in kept]
     order = [eqs._unknowns.index(v.xdd[i]) for i in system._ind]
     M = eqs._M.extract(list(range(eqs._M.rows)), order).xreplace(zero)
     return variables, rates, M, eqs._F.xreplace(zero)
@@ -156,7 +156,7 @@ def steady_family(
     subs = {**at_rest, **held}
     equations = []
     for e in [*(r for r in rates if r not in xd), *F]:
-        e = sp.factor_terms(sp.expand(sp.numer(sp.together(sp.sympify(e).xreplace(subs)))))
+        e = sp.factor_terms(sp.expand(sp.numer(sp.together(sp.sympify(e, strict=True).xreplace(subs)))))
         if e != 0:
             equations.append(e)
     unknowns = [x for x in variables if x not in subs]
@@ -249,7 +249,7 @@ def stability_conditions(
     missing = [k for k, s in names.items() if s in variables and s not in values]
     if missing:
         raise InputError(f"point: missing {', '.join(missing)}.")
-    tidy = lambda e: sp.cancel(sp.trigsimp(sp.sympify(e).xreplace(values)))  # noqa: E731
+    tidy = lambda e: sp.cancel(sp.trigsimp(sp.sympify(e, strict=True).xreplace(values)))  # noqa: E731
     if any(tidy(r) != 0 for r in [*rates, *F]):
         raise InputError(
             f"point: not a steady motion of the {model} model (the reduced rates do not vanish)."
