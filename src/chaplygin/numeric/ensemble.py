@@ -47,11 +47,11 @@ from chaplygin.numeric.simulate import (
     POLE_CHECK_POINTS,
     TIME_LIMIT,
     _finite,
-    _holonomic_functions,
     _initial_multipliers,
     _vakonomic_setup,
     check_time_limit,
     duration,
+    holonomic_residual,
     monitor,
     pole_free,
     solve_holonomic,
@@ -341,21 +341,6 @@ def _states(
     if entry.multipliers_in_state:
         columns.append(_multipliers(system, vak or {}, Q, QD, params, t0))
     return np.ascontiguousarray(np.column_stack(columns), dtype=float)
-
-
-def _holonomic_residual(
-    system: System, t: np.ndarray, y: np.ndarray, parameters: Mapping[str, np.ndarray]
-) -> np.ndarray:
-    """``max |f(q, t)|`` of the holonomic constraints per member at its final state (empty
-    without them; NaN for a member that failed without a state)."""
-    if not system._holonomic:
-        return np.zeros(0)
-    f, _ = _holonomic_functions(system)
-    args = [t, *y[:, : system.n].T, *(parameters[p.name] for p in system.parameters)]
-    with np.errstate(all="ignore"):
-        out = f(*args)  # one row per relation (each depends on its coordinate: one value per member)
-    rows = [np.broadcast_to(np.asarray(r, dtype=float).ravel(), t.shape) for r in out]
-    return np.max(np.abs(np.vstack(rows)), axis=0)
 
 
 def _given(system: System, initial_states: Sequence[Any]) -> tuple[np.ndarray, np.ndarray]:
@@ -708,7 +693,9 @@ def simulate_ensemble(
         samples=res.get("samples"),
         wall_time=wall,
         parameters=param_columns,
-        holonomic_residual=_holonomic_residual(system, res["t"], res["y"], param_columns),
+        holonomic_residual=holonomic_residual(
+            system, res["t"], list(res["y"][:, : system.n].T), param_columns
+        ),
         notes=notes,
         t_pole=res.get("t_pole", np.full(n, np.nan)),
         y_initial=Y0,

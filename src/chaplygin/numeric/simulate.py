@@ -592,17 +592,18 @@ def solve_holonomic(system: System, q: np.ndarray, params: Mapping[str, float], 
     return notes
 
 
-def holonomic_residual(system: System, tr: Trajectory, params: Mapping[str, float]) -> np.ndarray:
-    """``max_k |f_k(q(t), t)|`` at every sample of ``tr`` (empty for a system without relations)."""
-    if not system._holonomic:
-        return np.zeros(0)
-    if not len(tr.t):
+def holonomic_residual(
+    system: System, t: np.ndarray, coordinates: Sequence[np.ndarray], params: Mapping[str, Any]
+) -> np.ndarray:
+    """``max_k |f_k(q, t)|`` at each time of ``t`` (the samples of a run, or one final time per
+    ensemble member), ``coordinates`` the columns of ``q_1 … q_n`` and ``params`` numbers or
+    columns by name; empty for a system without relations."""
+    if not system._holonomic or not len(t):
         return np.zeros(0)
     f, _ = _holonomic_functions(system)
-    cols = [tr.coordinates[c.func.__name__] for c in system.coordinates]
     with np.errstate(all="ignore"):
-        out = f(tr.t, *cols, *(params[s.name] for s in system.parameters))
-    values = np.array([np.broadcast_to(np.asarray(r, dtype=float).ravel(), tr.t.shape) for r in out])
+        out = f(t, *coordinates, *(params[s.name] for s in system.parameters))  # a row per relation
+    values = np.array([np.broadcast_to(np.asarray(r, dtype=float).ravel(), np.shape(t)) for r in out])
     return np.max(np.abs(values), axis=0)
 
 
@@ -1249,7 +1250,9 @@ def _watch(
     """
     watched = monitor(system)  # (how the energy column reads)
     tr.energy_conserved, tr.energy_column = watched.conserved, watched.column
-    tr.holonomic_residual = holonomic_residual(system, tr, params)
+    tr.holonomic_residual = holonomic_residual(
+        system, tr.t, [tr.coordinates[c.func.__name__] for c in system.coordinates], params
+    )
     k_bad, why, kind = len(tr.t), "", ""
     names = list(tr.coordinates)
     vel = np.column_stack([tr.velocities[c + "'"] for c in names]) if len(tr.t) else np.empty((0, 0))
