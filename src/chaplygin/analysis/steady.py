@@ -15,6 +15,7 @@ The numerical side (the exact Jacobian, the verdict, root loci) is
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -106,13 +107,33 @@ class SteadyFamily:
         return _html.heading(head) + "<pre>" + _html.escape("\n".join(rest)) + "</pre>"
 
 
-def _with_budget(fn: Any, seconds: float) -> Any:
-    """``fn()``, or None when it takes longer than ``seconds`` (it then finishes unseen in a daemon thread)."""
-    out: list[Any] = []
-    worker = threading.Thread(target=lambda: out.append(fn()), daemon=True)
+#: what :func:`within` returns for work still running when its time is up
+TIMED_OUT = object()
+
+
+def within(work: Any, seconds: float | None) -> Any:
+    """``work()`` in a daemon thread, waited for in steps of 0.1 s (so that Ctrl-C is heard at
+    once); its exception is raised here; :data:`TIMED_OUT` past ``seconds`` (None: no limit), the
+    work then finishing unseen (Python cannot stop a thread)."""
+    result: list[Any] = []
+    failed: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            result.append(work())
+        except BaseException as exc:  # passed on to the caller's thread
+            failed.append(exc)
+
+    worker = threading.Thread(target=run, daemon=True)
+    started = time.monotonic()
     worker.start()
-    worker.join(seconds)
-    return out[0] if out else None
+    while worker.is_alive():
+        worker.join(0.1)
+        if seconds is not None and worker.is_alive() and time.monotonic() - started > seconds:
+            return TIMED_OUT
+    if failed:
+        raise failed[0]
+    return result[0]
 
 
 def steady_family(
@@ -172,8 +193,11 @@ def steady_family(
         chosen = unknowns[-len(equations) :] if equations else []  # the last velocities first
     solutions = []
     if equations:
-        found = _with_budget(lambda: sp.solve(equations, chosen, dict=True), time_budget)
-        if found is None:
+        try:
+            found = within(lambda: sp.solve(equations, chosen, dict=True), time_budget)
+        except Exception:  # SymPy gave up: no family in closed form, as when it runs out of time
+            found = TIMED_OUT
+        if found is TIMED_OUT:
             raise ChaplyginError(
                 f"steady_motions: SymPy did not solve the {len(equations)} equilibrium equation(s) for "
                 f"{', '.join(by_symbol[x] for x in chosen)} within {time_budget:g} s; give a guess for a Newton search."

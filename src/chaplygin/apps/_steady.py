@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import math
 import re
-import threading
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -331,30 +329,17 @@ def _reduced(system: System, model: str) -> str:
 
 
 def _within(work: Callable[[], Any], seconds: float | None, what: str) -> Any:
-    """``work()`` in a daemon thread, waited for in steps of 0.1 s (so that Ctrl-C is heard at
-    once); a :class:`ChaplyginError` past ``seconds``."""
-    result: list[Any] = []
-    failed: list[BaseException] = []
+    """``work()`` (:func:`chaplygin.analysis.steady.within`: Ctrl-C heard at once); a
+    :class:`ChaplyginError` past ``seconds``."""
+    from chaplygin.analysis.steady import TIMED_OUT, within
 
-    def run() -> None:
-        try:
-            result.append(work())
-        except BaseException as exc:  # passed on to the caller's thread
-            failed.append(exc)
-
-    worker = threading.Thread(target=run, daemon=True)
-    started = time.monotonic()
-    worker.start()
-    while worker.is_alive():
-        worker.join(0.1)
-        if seconds is not None and worker.is_alive() and time.monotonic() - started > seconds:
-            raise ChaplyginError(
-                f"{what} took longer than {seconds:g} s (--time-limit); give a smaller system, more "
-                "numbers in --at, or --time-limit 0 for no limit."
-            )
-    if failed:
-        raise failed[0]
-    return result[0]
+    result = within(work, seconds)
+    if result is TIMED_OUT:
+        raise ChaplyginError(
+            f"{what} took longer than {seconds:g} s (--time-limit); give a smaller system, more "
+            "numbers in --at, or --time-limit 0 for no limit."
+        )
+    return result
 
 
 # ---------------------------------------------------------------------------- printing

@@ -96,7 +96,7 @@ def _generated(eqs: Equations) -> ModuleType:
     from chaplygin.numeric.cache import import_source
 
     s = eqs.system
-    holonomic = "; ".join(f"{i}: {f}" for i, f in getattr(s, "_holonomic", ()))
+    holonomic = "; ".join(f"{i}: {f}" for i, f in s._holonomic)
     what = f"linearisation {eqs.model}/{eqs.form} holonomic [{holonomic}] constants {list(eqs.constants)}"
     key = _modelcache.source_key(s, what, LINEAR_FORMAT)
     found = _modelcache.load_source(key)
@@ -133,7 +133,7 @@ def _linearisation_source(eqs: Equations) -> str:
     multiplier_model = not registry.MODELS[eqs.model].reduced
     energy = monitored(s, s._T, s._U, v.xd).xreplace(dict(zip(v.xd, velocities)))
     rows = [[*list(s._A.row(b)), s._A0[b]] for b in range(s.g)] if multiplier_model else []
-    holonomic = [f for _, f in getattr(s, "_holonomic", ())]
+    holonomic = [f for _, f in s._holonomic]
     own = [c for _, c in _constants_of_motion(eqs)]
     if any(sp.sympify(e).has(TIME) for e in [*eqs._M, *eqs._F, *velocities, *holonomic]):
         raise ChaplyginError(
@@ -212,7 +212,7 @@ class Linearization:
         #: the model's own integrals (the vakonomic constants c_β where they are integrals)
         self.integrals: tuple[str, ...] = tuple(name for name, _ in _constants_of_motion(eqs))
         n = s.n
-        hol = [i for i, _ in getattr(s, "_holonomic", ())]
+        hol = [i for i, _ in s._holonomic]
         self._hol = hol
         self._free_q = [i for i in range(n) if i not in hol]
         if self._multiplier_model:

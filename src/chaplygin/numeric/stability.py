@@ -171,11 +171,11 @@ def _nullity(m: np.ndarray, tol: float) -> int:
     return int(np.sum(np.linalg.svd(m, compute_uv=False) <= tol)) if m.size else 0
 
 
-def _zero_multiplicity(J: np.ndarray, values: np.ndarray, rtol: float) -> tuple[int, int]:
+def _zero_multiplicity(J: np.ndarray, values: np.ndarray, rtol: float, scale: float) -> tuple[int, int]:
     """``(geometric, algebraic)`` multiplicity of the eigenvalue 0.
 
     The geometric one is the nullity of ``J`` (its singular values against ``rtol`` times its
-    norm).  A defective zero eigenvalue (a Jordan chain over the family) comes out of ``eig`` as a
+    norm, ``scale``).  A defective zero eigenvalue (a Jordan chain over the family) comes out of ``eig`` as a
     cluster of size ``ε^(1/k)`` around 0, which no fixed tolerance on the eigenvalues recognises,
     and the nullities of ``J``'s powers confuse it with a small genuine eigenvalue beside a zero
     (the bicycle just past its capsize speed, ``λ = 0.004`` with ``|J| = 20``).  The symmetric
@@ -183,7 +183,6 @@ def _zero_multiplicity(J: np.ndarray, values: np.ndarray, rtol: float) -> tuple[
     multiplicity is the largest ``m`` whose ``m`` eigenvalues of least modulus have every
     elementary symmetric function ``|e_k| ≤ CLUSTER_RTOL |J|^k`` (and at least the geometric one).
     """
-    scale = float(np.linalg.norm(J, 2)) if J.size else 0.0
     if scale == 0.0:
         return J.shape[0], J.shape[0]
     geometric = _nullity(J, rtol * scale)
@@ -220,7 +219,7 @@ def _verdict(
     tol = tol_rel * max(scale, 1e-300)
     values, vectors = np.linalg.eig(J) if J.size else (np.zeros(0, dtype=complex), np.zeros((0, 0)))
     vectors = D[:, None] * vectors
-    family, n0 = _zero_multiplicity(J, values, tol_rel)
+    family, n0 = _zero_multiplicity(J, values, tol_rel, scale)
     zero = np.zeros(len(values), dtype=bool)
     zero[np.argsort(np.abs(values), kind="stable")[:n0]] = True
     values = np.where(zero, 0.0, values).astype(complex)
@@ -302,8 +301,7 @@ def _numeric_gradient(
 ) -> np.ndarray:
     """The gradient of a caller's integral along the reduced variables (central differences of the
     caller's function: the only finite differences here, on what the caller gives)."""
-    point = lin._evaluate(y)
-    P = lin._tangent(point)
+    _, _, P = lin._restricted(y)
     out = []
     for j in lin._kept:
         h = 1e-6 * max(1.0, abs(y[lin._free[j]]))
