@@ -97,7 +97,8 @@ class StateSampler:
         self.system = system
         self.parameters = dict(parameters)
         v = system._vars
-        b_args = [TIME, *v.x, *self.parameters]
+        # (constraints nonlinear in the velocities: B and B_0 depend on the independent velocities)
+        b_args = [TIME, *v.x, *(v.xd[i] for i in system._ind if system.is_nonlinear), *self.parameters]
         self._b = compile_function(system._B, b_args)
         self._b0 = compile_function(system._B0, b_args)
         self.angles = angles([*system._B, *system._B0, *system._A, *system._A0, *expressions], [TIME, *v.x])
@@ -129,12 +130,15 @@ class StateSampler:
             qd[list(s._ind)] = rng.uniform(*VELOCITY_RANGE, size=len(s._ind))
             if not s.g:
                 break
-            args = (t, *q, *self.parameters.values())
-            with np.errstate(all="ignore"):
-                b = np.asarray(self._b(*args), dtype=float).reshape(s.g, len(s._ind))
-                b0 = np.asarray(self._b0(*args), dtype=float).reshape(s.g)
+            velocities: Any = qd[list(s._ind)] if s.is_nonlinear else []
+            args = (t, *q, *velocities, *self.parameters.values())
+            with np.errstate(all="ignore"):  # (a root of a negative number, off the constraints' domain: NaN)
+                b = np.asarray(self._b(*args), dtype=complex).reshape(s.g, len(s._ind))
+                b0 = np.asarray(self._b0(*args), dtype=complex).reshape(s.g)
+            real = np.all(b.imag == 0) and np.all(b0.imag == 0)
+            b, b0 = b.real, b0.real
             qd[list(s._dep)] = b @ qd[list(s._ind)] + b0
-            if np.all(np.abs(b) <= POLE) and np.all(np.abs(b0) <= POLE):
+            if real and np.all(np.abs(b) <= POLE) and np.all(np.abs(b0) <= POLE):
                 break
         state: dict[sp.Symbol, float] = {TIME: t}
         state.update(zip(v.x, q.tolist()))

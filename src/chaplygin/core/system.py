@@ -141,6 +141,7 @@ class System:
         force_function: sp.Expr | None = None,
         forces: Mapping[sp.Expr, sp.Expr] | None = None,
         holonomic: Mapping[sp.Expr, sp.Expr] | None = None,
+        branch: int | None = None,
         name: str | None = None,
     ) -> None:
         self.name = name or "system"
@@ -185,7 +186,15 @@ class System:
             self.forces[self.coordinates[i]] = _as_expr(value, what)
             self._Qnp[i] = self._convert(self.forces[self.coordinates[i]], what)
 
+        #: constraints nonlinear in the velocities (:mod:`chaplygin.core._nonlinear`): None if linear
+        self._nonlinear: Any = None
+        self._branch = branch
         self._read_constraints(constraints, dependent)
+        if self._nonlinear is None and branch is not None:
+            raise SystemDefinitionError(
+                "branch: the constraints are linear in the velocities, so they have one solution "
+                "for the dependent velocities; branch= applies to constraints nonlinear in them."
+            )
         self._read_holonomic(holonomic)
         self.independent = tuple(self.coordinates[i] for i in self._ind)
         self.dependent = tuple(self.coordinates[i] for i in self._dep)
@@ -333,13 +342,11 @@ class System:
                         "form B expresses dependent velocities through independent ones only."
                     )
                 split = linear_coefficients(e, ind_xd)
-                if split is None:
-                    raise SystemDefinitionError(
-                        f"{what} is not linear in the velocities: {describe(expr)}. "
-                        "chaplygin handles linear (and affine) velocity constraints."
-                    )
-                rows.append(split[0])
-                consts.append(split[1])
+                rows.append(e if split is None else split[0])
+                consts.append(None if split is None else split[1])
+            if any(c is None for c in consts):  # nonlinear in the velocities: φ given
+                self._set_nonlinear(rows, solved=True)
+                return
             g = len(dep)
             # each coefficient in normal form (tan as sin/cos, cancelled), as form A's are solved
             self._B = normal_matrix(sp.Matrix(g, len(self._ind), [c for r in rows for c in r]))
@@ -384,10 +391,8 @@ class System:
                 linear_coefficients(e, list(v.xd)) if fast is None else linear_split(fast[k], self._native_xd)
             )
             if split is None:
-                raise SystemDefinitionError(
-                    f"constraints[{k}] is not linear in the velocities: {describe(expr)}. "
-                    "chaplygin handles linear (and affine) velocity constraints."
-                )
+                self._set_nonlinear([self._convert(x, f"constraints[{j}]") for j, x in enumerate(exprs)])
+                return
             if all(c == 0 for c in split[0]):
                 raise SystemDefinitionError(
                     f"constraints[{k}] contains no velocity: {describe(expr)}. A finite "
@@ -409,6 +414,18 @@ class System:
             self._B = sp.zeros(0, self.n)
             self._B0 = sp.zeros(0, 1)
 
+    def _set_nonlinear(self, exprs: list[sp.Expr], *, solved: bool = False) -> None:
+        """Constraints of which one at least is nonlinear in the velocities (internal ``exprs``:
+        the solved right sides φ, or the implicit f): :mod:`chaplygin.core._nonlinear`."""
+        from chaplygin.core._nonlinear import read_nonlinear
+
+        self.__dict__.pop("_native_A", None)
+        self.g = len(self._dep)
+        found = read_nonlinear(self, exprs, solved=solved, branch=self._branch)
+        self._nonlinear = found
+        self._A, self._A0, self._B, self._B0 = found.A, found.A0, found.B, found.B0
+        self._velocity_substitution = found.phi
+
     def _read_holonomic(self, holonomic: Any) -> None:
         """Append the time derivative of each relation ``f(q, t) = 0`` as the last velocity
         constraints (form A: ``Σ_s ∂f/∂q_s q̇_s + ∂f/∂t = 0``), its coordinate the last dependent."""
@@ -420,6 +437,11 @@ class System:
             raise SystemDefinitionError(
                 "holonomic: expected a mapping {coordinate: f(q, t)} of relations f = 0, each keyed "
                 f"by the coordinate it fixes; got {describe(holonomic)}."
+            )
+        if self._nonlinear is not None:
+            raise SystemDefinitionError(
+                "holonomic: holonomic constraints beside constraints nonlinear in the velocities are "
+                "not supported yet; eliminate the coordinate the relation fixes instead."
             )
         v = self._vars
         found: list[tuple[int, sp.Expr]] = []
@@ -706,6 +728,30 @@ class System:
         return {v.xd[i]: rhs[b] for b, i in enumerate(self._dep)}
 
     @cached_property
+    def _f(self) -> sp.Matrix:
+        """The constraint functions ``f_β(q, q̇, t)`` that vanish (internal symbols): ``A q̇ + A_0``
+        for linear constraints, the given (or ``q̇_dep − φ``) for nonlinear ones."""
+        if self._nonlinear is not None:
+            return self._nonlinear.f
+        return self._A * sp.Matrix(self._vars.xd) + self._A0 if self.g else sp.zeros(0, 1)
+
+    @property
+    def is_nonlinear(self) -> bool:
+        """True when a velocity constraint is nonlinear in the velocities, ``f_β(q, q̇, t) = 0``:
+        :attr:`A` is then ``∂f/∂q̇`` (the Appell–Chetaev condition) and depends on the velocities,
+        and :attr:`constraints` is the solved form (the branch chosen)."""
+        return self._nonlinear is not None
+
+    @property
+    def singular_set(self) -> list[sp.Expr]:
+        """Expressions whose zeros are the states where nonlinear constraints cannot be solved
+        smoothly for the dependent velocities (``∂f/∂q̇_dep`` singular on the constraints, a pole
+        of ``B = ∂φ/∂q̇_σ``); empty for linear constraints."""
+        from chaplygin.core._nonlinear import singular_set
+
+        return [self.to_user(e) for e in singular_set(self)] if self._nonlinear is not None else []
+
+    @cached_property
     def _Q(self) -> list[sp.Expr]:
         """Total generalized forces ``Q_s = ∂U/∂q_s + Q_s^{np}``."""
         return [du + q for du, q in zip(gradient(self._U, self._vars.x), self._Qnp)]
@@ -763,8 +809,7 @@ class System:
     @property
     def implicit_constraints(self) -> list[sp.Expr]:
         """Form A, eq. (1): the expressions ``Σ_s A_βs q̇_s + A_β0`` that vanish."""
-        xd = sp.Matrix(self._vars.xd)
-        return [self.to_user(e) for e in (self._A * xd + self._A0)] if self.g else []
+        return [self.to_user(e) for e in self._f]
 
     @property
     def mass_matrix(self) -> sp.Matrix:
@@ -780,9 +825,15 @@ class System:
         """``T̃``: the constraints substituted into T, e.g. eq. (48) for the sphere."""
         return self.to_user(simplify_small(sp.expand(self._T_reduced)))
 
-    @property
+    @cached_property
     def is_affine(self) -> bool:
-        """True when the constraints have a velocity-free term (``B_β0 ≠ 0``)."""
+        """True when the constraints have a velocity-free term (``B_β0 ≠ 0``); for constraints
+        nonlinear in the velocities, when the solved form ``φ`` is not homogeneous of degree one
+        in the velocities (``B_0 = φ − B q̇_σ ≠ 0``): then the constraint forces do work."""
+        if self._nonlinear is not None:
+            from chaplygin.core._sampling import vanishes
+
+            return not all(vanishes(e) for e in self._B0)
         return any(e != 0 for e in self._A0)  # B_0 = −A_dep⁻¹ A_0
 
     @property
@@ -798,7 +849,7 @@ class System:
         the velocities.  Where it holds, a change of h measures the integration error; elsewhere
         a change of E is physics."""
         # (A and A_0, not B: the solved constraints B are not needed to know this)
-        stationary = not any(e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._A, self._A0))
+        stationary = not any(e.has(TIME) for e in (self._T, self._U, *self._Qnp, self._A, self._A0, self._f))
         return stationary and not self.is_affine and all(f == 0 for f in self._Qnp)
 
     @cached_property

@@ -84,7 +84,7 @@ class Equations:
     @property
     def title(self) -> str:
         """A one-line description with the paper's equation number."""
-        return MODELS[self.model].title(self.form)
+        return MODELS[self.model].title(self.form, nonlinear=self.system.is_nonlinear)
 
     def _user(self, expr: sp.Expr) -> sp.Expr:
         return floated(replace_shared(expr, self._to_fun), self.system._float_prec)
@@ -225,6 +225,21 @@ class Equations:
             work = sp.expand(work.xreplace(cond).xreplace(s._velocity_substitution))
             work = sp.Add(*[c * d for c, d in zip(normal_all([work.coeff(d) for d in ind]), ind)])
         return self._user(work)
+
+    def power(self) -> sp.Expr:
+        """Power ``Σ_s R_s q̇_s`` of the constraint forces along motions (the dependent velocities
+        eliminated by the constraints).
+
+        For the Chetaev model it is ``Σ_β λ_β Σ_s ∂f_β/∂q̇_s q̇_s``: zero where the constraints are
+        homogeneous in the velocities (Euler: ``Σ_s ∂f/∂q̇_s q̇_s = k f = 0``), linear ones without
+        a velocity-free term included, though their virtual work vanishes in every case; not zero
+        otherwise (the isokinetic thermostat ``ẋ² + ẏ² = v²`` takes out the work of the applied
+        forces: :attr:`System.is_affine <chaplygin.core.system.System.is_affine>` says which).
+        """
+        s = self.system
+        reactions = self._require_reactions("power")
+        power = sp.Add(*(r * v for r, v in zip(reactions, s._vars.xd))).xreplace(s._velocity_substitution)
+        return self._user(normal_all([power])[0])
 
     def _require_reactions(self, what: str) -> list[sp.Expr]:
         if self._reactions is None:

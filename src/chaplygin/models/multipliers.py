@@ -44,10 +44,10 @@ def multiplier_symbols(system: System, prefix: str) -> list[sp.Symbol]:
 
 
 def _differentiated_constraints(system: System) -> sp.Matrix:
-    """``Ȧ q̇ + Ȧ_0``: the velocity terms of the constraints differentiated in time."""
+    """``Ȧ q̇ + Ȧ_0``: the velocity terms of the constraints differentiated in time (for constraints
+    nonlinear in the velocities ``∂f/∂q q̇ + ∂f/∂t``, the rest of ``ḟ = A q̈ + …``)."""
     v = system._vars
-    phi = system._A * sp.Matrix(v.xd) + system._A0
-    return phi.applyfunc(lambda e: total_derivative(e, list(zip(v.x, v.xd))))
+    return system._f.applyfunc(lambda e: total_derivative(e, list(zip(v.x, v.xd))))
 
 
 def multiplier_equations(
@@ -71,7 +71,7 @@ def multiplier_equations(
     n, g = system.n, system.g
     xs = [*v.xdd, *unknowns]
     residuals = list(dynamic)
-    residuals += list(system._A * sp.Matrix(v.xd) + system._A0) if g else []
+    residuals += list(system._f)
     dyn = sp.Matrix(list(dynamic))
     M = sp.zeros(n + g, n + g)
     F = sp.zeros(n + g, 1)
@@ -108,12 +108,18 @@ def _solve_by_reduction(
     ind, dep = list(system._ind), list(system._dep)
     mass, react, force, drift = M[:n, :n], M[dep, n:], F[:n, :], F[n:, :]
     a_dep = system._A.extract(list(range(g)), dep)
-    alg = Algebra([*mass, *react, *force, *a_dep, *system._B, *drift])
+    a_ind = system._A.extract(list(range(g)), ind)
+    alg = Algebra([*mass, *react, *force, *a_dep, *(a_ind if system.is_nonlinear else system._B), *drift])
     # every quantity is a polynomial matrix over one denominator: X = Xn / dx
     Mn, dm = alg.matrix(mass)
     fn, df = alg.matrix(force)
-    Bn, db = alg.matrix(system._B)
     An, da = alg.matrix(a_dep)
+    if system.is_nonlinear:  # B = −A_dep⁻¹ A_ind at every state (∂φ/∂q̇_σ only on the constraints)
+        In, di = alg.matrix(-a_ind)
+        Bn, db = alg.solve_den(An, In)
+        Bn, db = Bn * da, db * di
+    else:
+        Bn, db = alg.matrix(system._B)
     Dn, dd = alg.matrix(drift)
     Rn, dr = alg.matrix(react)
     ring, dom = alg.ring, Mn.domain
@@ -159,14 +165,19 @@ def _solve_nested(system: System, dynamic: sp.Matrix, unknowns: list[sp.Symbol])
     ind, dep, g = list(system._ind), list(system._dep), system.g
     ind_xdd = [v.xdd[i] for i in ind]
     acc_dep: dict[sp.Symbol, sp.Expr] = {}
+    B, C = system._B, system._C
     if g:
         a_dep = nested_inputs(system._A.extract(list(range(g)), dep))
+        if system.is_nonlinear:  # B = −A_dep⁻¹ A_ind at every state, as in _solve_by_reduction
+            B = a_dep.LUsolve(-nested_inputs(system._A.extract(list(range(g)), ind)))
+            C = sp.eye(system.n)[:, ind]
+            for b, i in enumerate(dep):
+                C[i, :] = B[b, :]
         c = a_dep.LUsolve(nested_inputs(-_differentiated_constraints(system)))
         acc_dep = {
-            v.xdd[i]: sum((system._B[b, k] * a for k, a in enumerate(ind_xdd)), c[b])
-            for b, i in enumerate(dep)
+            v.xdd[i]: sum((B[b, k] * a for k, a in enumerate(ind_xdd)), c[b]) for b, i in enumerate(dep)
         }
-    projected = system._C.T * dynamic.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep)
+    projected = C.T * dynamic.xreplace({u: 0 for u in unknowns}).xreplace(acc_dep)
     Mr = nested_inputs(jacobian(projected, ind_xdd))
     out: dict[sp.Symbol, sp.Expr] = dict(
         zip(ind_xdd, Mr.LUsolve(nested_inputs(-projected.xreplace({a: 0 for a in ind_xdd}))))

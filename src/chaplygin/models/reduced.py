@@ -85,6 +85,10 @@ def bracket_terms(system: System) -> list[list[sp.Expr]]:
     """
     r = Reduction(system)
     B, B0 = system._B, system._B0
+    if system.is_nonlinear:
+        # W_βσ = D_σ φ_β − d/dt ∂φ_β/∂q̇_σ (Novoselov); for φ = B q̇_σ + B_0 it is the sum below
+        phi = [r.sub[x] for x in r.dep_xd]
+        return [[r.D(phi[b], k) - r.dt(B[b, k]) for k in range(r.eps)] for b in range(system.g)]
     out = []
     for b in range(system.g):
         row = []
@@ -145,7 +149,9 @@ def reduced_equations(system: System, model: str, form: str) -> Equations:
     r = Reduction(system)
     if form != "classic":
         return reduced_system(system, model, form, unreduced_tilde(system, r), r)
-    return reduced_system(system, model, form, _classic(system, r), r, mass=reduced_mass_matrix(system, r))
+    # (nonlinear constraints: W has accelerations too, d/dt ∂φ/∂q̇_σ; M is the residuals' Jacobian)
+    mass = None if system.is_nonlinear else reduced_mass_matrix(system, r)
+    return reduced_system(system, model, form, _classic(system, r), r, mass=mass)
 
 
 def reduced_mass_matrix(system: System, r: Reduction) -> sp.Matrix:

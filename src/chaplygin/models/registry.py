@@ -77,6 +77,7 @@ class Model:
     multipliers_in_state: bool = False
     checked_by: str | None = None
     fallback: str | None = None
+    nonlinear_titles: dict[str, str] | None = None
 
     @property
     def forms(self) -> tuple[str, ...]:
@@ -88,9 +89,9 @@ class Model:
         """The Chetaev (true, Lagrange–d'Alembert) motion."""
         return self.motion == "true"
 
-    def title(self, form: str = "classic") -> str:
-        """The title of one form."""
-        return self.titles[form]
+    def title(self, form: str = "classic", *, nonlinear: bool = False) -> str:
+        """The title of one form (``nonlinear``: for constraints nonlinear in the velocities)."""
+        return (self.nonlinear_titles or self.titles)[form] if nonlinear else self.titles[form]
 
     def obstruction(self, system: System) -> str | None:
         """Why this model does not apply to ``system``, or ``None`` when it does."""
@@ -132,6 +133,10 @@ MODELS: dict[str, Model] = {
             requires_chaplygin=True,
             checked_by="chetaev",
             fallback="chetaev",
+            nonlinear_titles={
+                "classic": "Novoselov's equations (Chaplygin's (15) for nonlinear constraints)",
+                "new": "Novoselov's equations in the paper's new form, eq. (40)",
+            },
             glossary="true motion reduced to the independent velocities, for Chaplygin systems",
         ),
         Model(
@@ -145,6 +150,10 @@ MODELS: dict[str, Model] = {
             builder="reduced",
             checked_by="chetaev",
             fallback="chetaev",
+            nonlinear_titles={
+                "classic": "Novoselov's equations (Voronets' form, nonlinear constraints)",
+                "new": "Novoselov's equations in the unreduced form of eq. (40)",
+            },
             glossary="true motion reduced; T, U and the constraints may depend on every coordinate",
         ),
         Model(

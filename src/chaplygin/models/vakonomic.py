@@ -70,7 +70,7 @@ def vakonomic_equations(system: System) -> Equations:
     v = system._vars
     mu = multiplier_symbols(system, "mu")
     mu_dot = [sp.Dummy(m.name + "_d") for m in mu]
-    phi = system._A * sp.Matrix(v.xd) + system._A0
+    phi = system._f
     L_c = sum((mu[b] * phi[b] for b in range(system.g)), sp.S.Zero)
     pairs = list(zip(v.x, v.xd)) + list(zip(v.xd, v.xdd)) + list(zip(mu, mu_dot))
     E = lagrange_operator(system)
@@ -143,7 +143,7 @@ def integrated_multipliers(system: System, constants: Any = None) -> dict[sp.Exp
     c = _constants(system, constants)
     v, g = system._vars, system.g
     p = [sp.diff(system._T, v.xd[i]).xreplace(system._velocity_substitution) for i in system._dep]
-    a_dep = system._A.extract(list(range(g)), list(system._dep))
+    a_dep = system._A.extract(list(range(g)), list(system._dep)).xreplace(system._velocity_substitution)
     mu = solve_linear(a_dep.T, sp.Matrix(c) - sp.Matrix(p), "the integrated multipliers (18b)")
     names = system.equations("vakonomic").multipliers
     return {name: system.to_user(e) for name, e in zip(names, mu)}

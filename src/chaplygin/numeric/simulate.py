@@ -487,9 +487,14 @@ def initial_state(
         return q, qd
     # A_dep q̇_dep = −(A_ind q̇_σ + A_0), solved numerically (no symbolic B needed)
     ind, dep = list(system._ind), list(system._dep)
-    a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
     dep_names = ", ".join(names[i] + "'" for i in dep)
     at = ", ".join(f"{names[i]} = {q[i]:.6g}" for i in range(n))
+    given = qd.copy()
+    if (
+        system.is_nonlinear
+    ):  # the solved form (the branch chosen); A q̇ + A_0 = f: the solve below is a Newton step
+        qd[dep] = _nonlinear_velocities(system, q, qd, params, t0, at)
+    a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
     if not _solvable(a[:, :-1], dep):
         raise InputError(
             f"initial: the constraints cannot be solved for the dependent velocities ({dep_names}) "
@@ -503,13 +508,44 @@ def initial_state(
                 f"initial: the constraints give {names[i]}' = {implied} at {at}; start where "
                 "they give finite velocities."
             )
-        if not np.isnan(qd[i]) and abs(qd[i] - implied) > 1e-9 * max(1.0, abs(implied)):
+        if not np.isnan(given[i]) and abs(given[i] - implied) > 1e-9 * max(1.0, abs(implied)):
+            branch = (
+                f" (the solution branch={system._branch} of the implicit constraints)"
+                if system._branch is not None
+                else ""
+            )
             raise ChaplyginError(
-                f"initial: {names[i]}' = {qd[i]:g} violates the constraints, which give "
-                f"{names[i]}' = {implied:.12g} (residual {qd[i] - implied:.3g})."
+                f"initial: {names[i]}' = {given[i]:g} violates the constraints{branch}, which give "
+                f"{names[i]}' = {implied:.12g} (residual {given[i] - implied:.3g})."
             )
         qd[i] = implied
     return q, qd
+
+
+def _nonlinear_velocities(
+    system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float, at: str
+) -> np.ndarray:
+    """The dependent velocities from the solved form ``q̇_dep = φ(q, q̇_σ, t)`` of constraints
+    nonlinear in the velocities; refused where φ is not real (outside the constraints' domain)."""
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME
+
+    phi = sp.Matrix([system._velocity_substitution[system._vars.xd[i]] for i in system._dep])
+    values = {TIME: t0, **dict(zip(system._vars.x, q))}
+    values.update({system._vars.xd[i]: qd[i] for i in system._ind})
+    values.update({system.parameter(k): val for k, val in params.items()})
+    out = phi.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf()
+    try:
+        return np.array(out.tolist(), dtype=float).ravel()
+    except TypeError:  # a root of a negative number, or a pole: no real dependent velocity here
+        names = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
+        shown = ", ".join(f"{system.coordinates[i].func.__name__}' = {qd[i]:.6g}" for i in system._ind)
+        raise InputError(
+            f"initial: the constraints give no real {names} at {at}, {shown} (the solved form "
+            f"{list(system.constraints.values())} is not real or not finite there); start where "
+            "the constraints can hold."
+        ) from None
 
 
 #: |f| below which a holonomic constraint holds at the start (the given value is then kept)
