@@ -325,3 +325,19 @@ def test_compare_on_a_nonlinear_file(files: dict[str, Path]) -> None:
     rows = {line.split()[0]: line.split() for line in result.stdout.splitlines()[2:4]}
     assert set(rows) == {"voronets", "vakonomic"}
     assert float(rows["vakonomic"][1]) < 1e-8
+
+
+def test_solved_accelerations_use_that_a_root_squared_is_its_radicand(files: dict[str, Path]) -> None:
+    # Appell (1911): the speed falls at g k/(1 + k²) along the path, z'' = -g k²/(1 + k²);
+    # before (√b)² = b was applied, x'' was a fraction of 16 terms over 15 that did not cancel
+    out = run("derive", str(files["appell"]), "--model", "chetaev")
+    assert out.exit_code == 0
+    solved = out.stdout.split("Solved:")[1].splitlines()
+    assert [line.strip() for line in solved[1:5]] == [
+        "x'' = -g*k*x'/((k**2 + 1)*sqrt(x'**2 + y'**2))",
+        "y'' = -g*k*y'/((k**2 + 1)*sqrt(x'**2 + y'**2))",
+        "z'' = -g*k**2/(k**2 + 1)",
+        "lambda_1 = g*m/(k**2 + 1)",
+    ]
+    voronets = run("derive", str(files["appell"]), "--model", "voronets").stdout
+    assert "x'' = -g*k*x'/((k**2 + 1)*sqrt(x'**2 + y'**2))" in voronets
