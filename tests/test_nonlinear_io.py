@@ -23,6 +23,7 @@ from typer.testing import CliRunner
 from chaplygin import equivalent
 from chaplygin.analysis.transitions import classify, compare_models
 from chaplygin.apps.cli import app
+from chaplygin.errors import ModelError
 from chaplygin.io.files import SystemFileError, loads
 
 t = dynamicsymbols._t
@@ -210,6 +211,8 @@ def test_integrability_does_not_apply_frobenius_to_nonlinear_constraints() -> No
     assert [c.holds for c in (report.condition_28, report.condition_33, report.frobenius)] == [None] * 3
     assert report.verdict.startswith("not integrable (nonholonomic): the constraints are nonlinear")
     assert "Frobenius: not applicable" in str(report)
+    with pytest.raises(ModelError, match="not integrable: the constraints are nonlinear in the velocities"):
+        report.holonomic_system()
 
 
 def test_a_branch_linear_in_the_velocities_is_tested_as_linear() -> None:

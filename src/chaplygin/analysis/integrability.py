@@ -156,6 +156,8 @@ class IntegrabilityReport:
         g = s.velocity_g
         if not g:
             raise ModelError(f"{s.name} has no velocity constraints to replace by finite relations.")
+        if not self.integrable and self.frobenius.holds is None:
+            raise ModelError(f"the constraints of {s.name} are not integrable: {self.nonlinear}")
         if not self.integrable:
             raise ModelError(
                 f"the constraints of {s.name} are not integrable (Frobenius: "
