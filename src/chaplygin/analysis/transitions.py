@@ -79,7 +79,7 @@ class ModelComparison:
     def __str__(self) -> str:
         true = "Novoselov's equations" if self.nonlinear else "Chaplygin's equations (15)"
         head = {
-            "coincide": f"the models coincide: {true.split(' (')[0]} ≡ Lindelöf ≡ every vakonomic motion "
+            "coincide": f"the models coincide: {'Novoselov' if self.nonlinear else 'Chaplygin'} ≡ Lindelöf ≡ every vakonomic motion "
             "(any c), since the brackets W_βσ vanish" + ("." if self.nonlinear else " (condition (28))."),
             "lindelof_right_here": (
                 "the brackets W_βσ do not vanish" if self.nonlinear else "condition (28) fails"
