@@ -39,7 +39,7 @@ from chaplygin.core._brief import brief
 from chaplygin.core._fast import derivative
 from chaplygin.core._rational import normal_all
 from chaplygin.core._sampling import vanishes
-from chaplygin.core._symbols import TIME
+from chaplygin.core._symbols import TIME, file_syntax
 from chaplygin.models.reduced import Reduction
 
 if TYPE_CHECKING:
@@ -125,6 +125,8 @@ class IntegrabilityReport:
     relations: list[sp.Expr] = field(default_factory=list)
     #: the system analysed (for :meth:`holonomic_system`)
     system: System | None = field(default=None, repr=False, compare=False)
+    #: for constraints nonlinear in the velocities, why the verdict is what it is (else "")
+    nonlinear: str = ""
 
     def holonomic_system(self, constants: Any = None) -> System:
         """The system with its velocity constraints replaced by their finite relations.
@@ -154,6 +156,8 @@ class IntegrabilityReport:
         g = s.velocity_g
         if not g:
             raise ModelError(f"{s.name} has no velocity constraints to replace by finite relations.")
+        if not self.integrable and self.frobenius.holds is None:
+            raise ModelError(f"the constraints of {s.name} are not integrable: {self.nonlinear}")
         if not self.integrable:
             raise ModelError(
                 f"the constraints of {s.name} are not integrable (Frobenius: "
@@ -195,10 +199,17 @@ class IntegrabilityReport:
     def integrable(self) -> bool:
         return bool(self.frobenius.holds)
 
-    def __str__(self) -> str:
+    @property
+    def verdict(self) -> str:
+        """The verdict in words: ``"integrable (holonomic), by the Frobenius test."`` or why not."""
         head = "integrable (holonomic)" if self.integrable else "not integrable (nonholonomic)"
+        if self.nonlinear and self.frobenius.holds is None:
+            return f"{head}: {self.nonlinear}"
+        return f"{head}, by the Frobenius test." + (f" {self.nonlinear}" if self.nonlinear else "")
+
+    def __str__(self) -> str:
         lines = [
-            f"Constraints of {self.system_name}: {head}, by the Frobenius test.",
+            f"Constraints of {self.system_name}: {self.verdict}",
             f"  {self.condition_28}",
             f"  {self.condition_33}",
             f"  {self.frobenius}",
@@ -212,9 +223,8 @@ class IntegrabilityReport:
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        head = "integrable (holonomic)" if self.integrable else "not integrable (nonholonomic)"
         conditions = (self.condition_28, self.condition_33, self.frobenius)
-        text = _html.heading(f"Constraints of {self.system_name}: {head}, by the Frobenius test.")
+        text = _html.heading(f"Constraints of {self.system_name}: {self.verdict}")
         text += _html.table(
             [c._html_row() for c in conditions], ["condition", "verdict", "first failure", "note"]
         )
@@ -228,8 +238,25 @@ def _name(system: System, i: int) -> str:
     return system.coordinates[i].func.__name__
 
 
+#: why the tests of linear constraints do not apply to constraints nonlinear in the velocities
+NONLINEAR = (
+    "the constraints are nonlinear in the velocities (φ not affine in them), and finite "
+    "relations f(q, t) = 0 give constraints linear in the velocities."
+)
+#: why a test is not applicable to them
+NOT_FOR_NONLINEAR = "A test of constraints linear in the velocities."
+
+
 def analyze(system: System) -> IntegrabilityReport:
-    """Run conditions (28), (33) and the Frobenius test on ``system``'s constraints."""
+    """Run conditions (28), (33) and the Frobenius test on ``system``'s constraints.
+
+    Constraints nonlinear in the velocities are nonholonomic when their solved form φ is not
+    affine in the independent velocities (the tests, for distributions, do not apply: each
+    is reported not applicable); where the branch chosen is affine in them, the tests are
+    those of the linear constraints ``q̇_dep = φ``.
+    """
+    if system.is_nonlinear:
+        return _nonlinear(system)
     s, v = system, system._vars
     ind, dep = s._ind, s._dep
     user = s.to_user
@@ -317,6 +344,39 @@ def analyze(system: System) -> IntegrabilityReport:
     if s._holonomic:  # (the relations of the velocity constraints only: f = 0 is known already)
         relations = relations[: s.velocity_g]
     return IntegrabilityReport(s.name, c28, c33, cf, relations, system=s)
+
+
+def _nonlinear(system: System) -> IntegrabilityReport:
+    """:func:`analyze` for constraints nonlinear in the velocities."""
+    from chaplygin.core.system import System
+
+    ind_xd = [system._vars.xd[i] for i in system._ind]
+    if any(e.has(*ind_xd) for e in (*system._B, *system._B0)):
+        c28, c33, cf = (
+            Condition(name, None, [], NOT_FOR_NONLINEAR) for name in ("(28)", "(33)", "Frobenius")
+        )
+        return IntegrabilityReport(system.name, c28, c33, cf, system=system, nonlinear=NONLINEAR)
+    solved = {
+        system.coordinates[i].diff(TIME): system.to_user(system._velocity_substitution[system._vars.xd[i]])
+        for i in system._dep
+    }
+    linear = System(
+        system.coordinates,
+        system.kinetic_energy,
+        solved,
+        potential_energy=system.potential_energy,
+        force_function=system.force_function if system.potential_energy is None else None,
+        forces=system.forces or None,
+        name=system.name,
+    )
+    report = analyze(linear)
+    report.nonlinear = (
+        "The constraints are nonlinear in the velocities, but on the branch chosen they are "
+        "linear, "
+        + ", ".join(f"{file_syntax(k)} = {file_syntax(e)}" for k, e in solved.items())
+        + ": the tests are those of this linear form."
+    )
+    return report
 
 
 # ---------------------------------------------------------------- finite relations

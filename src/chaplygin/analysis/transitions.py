@@ -47,22 +47,27 @@ class ModelComparison:
     coincide : bool
         Every ``W_βσ`` vanishes (condition (28) and, for affine or rheonomic
         constraints, its time terms): Chetaev ≡ Lindelöf ≡ vakonomic(c = 0).
-    condition_28 : bool
+    condition_28 : bool or None
         Condition (28) with, for affine or time-dependent constraints, its dt
         terms ``∂B_βσ/∂t − ∂B_β0/∂q_σ`` (as in ``integrability()``): for the
         Chaplygin systems compared here the same as ``coincide``, and true
-        exactly when the constraints are integrable.
+        exactly when the constraints are integrable; None for constraints
+        nonlinear in the velocities (it is a test of linear ones).
     defect : dict
         The Lindelöf defect, (15) minus (22), by independent coordinate.
     defect_vanishes : bool
         The defect is identically zero: Lindelöf's equations are right here.
+    nonlinear : bool
+        The constraints are nonlinear in the velocities: the reduced true motion is then
+        Novoselov's equations, and ``W_βσ`` contains accelerations.
     """
 
     system_name: str
     coincide: bool
-    condition_28: bool
+    condition_28: bool | None
     defect: dict[sp.Expr, sp.Expr]
     defect_vanishes: bool
+    nonlinear: bool = False
 
     @property
     def verdict(self) -> str:
@@ -72,12 +77,15 @@ class ModelComparison:
         return "lindelof_right_here" if self.defect_vanishes else "differ"
 
     def __str__(self) -> str:
+        true = "Novoselov's equations" if self.nonlinear else "Chaplygin's equations (15)"
         head = {
-            "coincide": "the models coincide: Chaplygin ≡ Lindelöf ≡ every vakonomic motion "
-            "(any c), since the brackets W_βσ vanish (condition (28)).",
-            "lindelof_right_here": "condition (28) fails, but the Lindelöf defect vanishes: "
-            "Lindelöf's equations happen to be right here.",
-            "differ": "the models differ: Chaplygin's equations (15) = Lindelöf's (22) + the defect below.",
+            "coincide": f"the models coincide: {'Novoselov' if self.nonlinear else 'Chaplygin'} ≡ Lindelöf ≡ every vakonomic motion "
+            "(any c), since the brackets W_βσ vanish" + ("." if self.nonlinear else " (condition (28))."),
+            "lindelof_right_here": (
+                "the brackets W_βσ do not vanish" if self.nonlinear else "condition (28) fails"
+            )
+            + ", but the Lindelöf defect vanishes: Lindelöf's equations happen to be right here.",
+            "differ": f"the models differ: {true} = Lindelöf's (22) + the defect below.",
         }[self.verdict]
         lines = [f"{self.system_name}: {head}"]
         if self.verdict == "differ":
@@ -117,6 +125,8 @@ def compare_models(system: System) -> ModelComparison:
         system.independent[k]: system.to_user(sp.S.Zero if z else readable(d))
         for k, (d, z) in enumerate(zip(defect, zero))
     }
+    if system.is_nonlinear:
+        return ModelComparison(system.name, coincide, None, shown, all(zero), nonlinear=True)
     return ModelComparison(system.name, coincide, coincide, shown, all(zero))
 
 
@@ -203,6 +213,10 @@ def classify(
         reps.append(family)
     states = _States(system, reps, parameters=parameters, multipliers=None, seed=seed)
     consts = family.constants if family else []
+    # the family's accelerations are affine in c unless c multiplies accelerations (W_βσ of
+    # constraints nonlinear in the velocities): then c is fitted to its equations' residuals
+    curved = family is not None and any(e.has(*consts) for e in family.M)
+    fitted: list[tuple[dict[sp.Symbol, float], np.ndarray, np.ndarray]] = []
     rows, rhs, diffs_true, diffs_lindelof, used = [], [], [], [], 0
     contradiction = 0.0  # the largest mismatch where the equations have no solution
     for _ in range(20 * samples):
@@ -219,7 +233,19 @@ def classify(
             continue
         scale = np.maximum(1.0, np.abs(a_user))  # every residual is relative to this
         diffs_true.append(np.max(np.abs(a_user - a_true) / scale))
-        if family is not None:
+        if curved:
+            assert family is not None
+            values.update({c: 0.0 for c in consts})
+            row, r0 = _residual_columns(family, consts, values, a_user)
+            rows.append(row)
+            rhs.append(-r0)
+            fitted.append((dict(values), a_user, scale))
+            try:
+                a_l = family.accelerations(values)
+            except ChaplyginError:  # Lindelöf's equations (c = 0) do not determine them here
+                a_l = None
+            diffs_lindelof.append(np.inf if a_l is None else np.max(np.abs(a_user - a_l) / scale))
+        elif family is not None:
             values.update({c: 0.0 for c in consts})
             a_l = family.accelerations(values)
             if a_l is None:
@@ -243,12 +269,16 @@ def classify(
         if rows:
             G, y = np.vstack(rows), np.concatenate(rhs)
             c, *_ = np.linalg.lstsq(G, y, rcond=None)
-            residuals["vakonomic_family"] = float(np.max(np.abs(G @ c - y)))
+            residuals["vakonomic_family"] = (
+                _member_residual(family, consts, c, fitted) if curved else float(np.max(np.abs(G @ c - y)))
+            )
         else:
             residuals["vakonomic_family"] = contradiction
     else:
         note = "the vakonomic family does not reduce for this system, so only Chetaev was tried"
     residuals = {k: max(v, contradiction) for k, v in residuals.items()}
+    if residuals.get("lindelof") == np.inf:
+        note = "Lindelöf's equations do not determine the accelerations here"
     if contradiction:
         note = "the equations contradict the constraints at some admissible states"
     made = partial(Classification, samples=used, checked=states.sampler.where())
@@ -262,3 +292,43 @@ def classify(
         constants = {s.name: float(v) for s, v in zip(consts, c)}
         return made("vakonomic", constants, residuals, note)
     return made("none", residuals=residuals, note=note)
+
+
+def _residual_columns(
+    family: _Linear, consts: list[sp.Symbol], values: dict[sp.Symbol, float], accelerations: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The family's equations ``M(c)·a − F(c)`` at ``accelerations``, affine in the constants:
+    the columns of each ``c_β`` and the part free of them (``values`` has every c at 0)."""
+
+    def residual() -> np.ndarray:
+        M, F = family._f(*(values[a] for a in family.args))
+        x = np.zeros(len(family.unknowns))
+        x[family.independent] = accelerations
+        return np.atleast_2d(np.asarray(M, dtype=float)) @ x - np.asarray(F, dtype=float).reshape(-1)
+
+    r0 = residual()
+    columns = []
+    for c in consts:
+        values[c] = 1.0
+        columns.append(residual() - r0)
+        values[c] = 0.0
+    return np.array(columns).T, r0
+
+
+def _member_residual(
+    family: _Linear,
+    consts: list[sp.Symbol],
+    c: np.ndarray,
+    fitted: list[tuple[dict[sp.Symbol, float], np.ndarray, np.ndarray]],
+) -> float:
+    """Largest relative difference between the accelerations and the family member ``c``."""
+    worst = 0.0
+    for values, accelerations, scale in fitted:
+        values.update(zip(consts, c.tolist()))
+        try:
+            member = family.accelerations(values)
+        except ChaplyginError:
+            return float(np.inf)
+        if member is not None:
+            worst = max(worst, float(np.max(np.abs(member - accelerations) / scale)))
+    return worst

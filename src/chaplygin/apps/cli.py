@@ -744,6 +744,36 @@ def _derive(
 
 
 # ====================================================================== check
+def _nonlinear_json(system: System) -> dict[str, Any]:
+    """What ``check`` says of constraints nonlinear in the velocities: the solved form (the
+    branch chosen), where it is singular, and whether the constraint forces do work."""
+    return {
+        "branch": system._branch,
+        "solved": {file_syntax(k): file_syntax(v) for k, v in system.constraints.items()},
+        "singular_set": [file_syntax(e) for e in system.singular_set],
+        "homogeneous": not system.is_affine,
+    }
+
+
+def _nonlinear_lines(doc: dict[str, Any]) -> list[str]:
+    """The lines of ``check``'s text for constraints nonlinear in the velocities."""
+    if not doc["nonlinear"]:
+        return []
+    solved = ", ".join(f"{k} = {v}" for k, v in doc["solved"].items())
+    branch = "" if doc["branch"] is None else f" (branch {doc['branch']} of the implicit constraints)"
+    work = (
+        "homogeneous of degree 1 in the velocities: the constraint forces do no work"
+        if doc["homogeneous"]
+        else "not homogeneous of degree 1 in the velocities: the constraint forces do work (their "
+        "power is not zero)"
+    )
+    where = " or ".join(f"{e} = 0" for e in doc["singular_set"])
+    return [
+        f"Nonlinear in the velocities: {solved}{branch}; {work}.",
+        *([f"  Singular (no smooth solution for the dependent velocities) where {where}."] if where else []),
+    ]
+
+
 def check_json(system: System) -> dict[str, Any]:
     """The JSON document of ``chaplygin check --format json`` (schema ``chaplygin.check/1``)."""
     return _checked(system)[0]
@@ -793,8 +823,11 @@ def _checked(system: System) -> tuple[dict[str, Any], Any, Any]:
             ),
             "affine": system.is_affine,
             "scleronomic": system.is_scleronomic,
+            "nonlinear": system.is_nonlinear,
+            **(_nonlinear_json(system) if system.is_nonlinear else {}),
             "integrability": {
                 "integrable": rep.integrable,
+                "verdict": rep.verdict,
                 "condition_28": condition(rep.condition_28),
                 "condition_33": condition(rep.condition_33),
                 "frobenius": condition(rep.frobenius),
@@ -846,9 +879,8 @@ def check(
                 f"derivative is constraint {system.velocity_g + k + 1})"
                 for k, (q, f) in enumerate(doc.get("holonomic", {}).items())
             ),
-            "Constraints: "
-            + ("integrable (holonomic)" if integ["integrable"] else "not integrable (nonholonomic)")
-            + ", by the Frobenius test.",
+            *_nonlinear_lines(doc),
+            "Constraints: " + integ["verdict"],
         ]
         for key, name in (("condition_28", "(28)"), ("condition_33", "(33)"), ("frobenius", "Frobenius")):
             c = integ[key]

@@ -934,11 +934,14 @@ def _system_section(src: _Source) -> str:
     if s.forces:
         out.append("<p>Generalized forces:</p>")
         out += [_block(sp.Eq(sp.Symbol(f"Q_{_name(q)}"), f, evaluate=False)) for q, f in s.forces.items()]
-    kind = "affine" if s.is_affine else "homogeneous"
-    out.append(
-        f"<p>Constraints ({s.g}, linear, {kind}; given in form {s.constraint_form}), "
-        "solved, form B (eq. (2)):</p>"
-    )
+    if s.is_nonlinear:
+        out.append(_nonlinear_paragraph(s))
+    else:
+        kind = "affine" if s.is_affine else "homogeneous"
+        out.append(
+            f"<p>Constraints ({s.g}, linear, {kind}; given in form {s.constraint_form}), "
+            "solved, form B (eq. (2)):</p>"
+        )
     out += [_block(sp.Eq(k, v, evaluate=False)) for k, v in s.constraints.items()]
     out.append("<p>Implicit, form A (eq. (1)):</p>")
     out += [_block(sp.Eq(e, 0, evaluate=False)) for e in s.implicit_constraints]
@@ -966,8 +969,44 @@ def _system_section(src: _Source) -> str:
     return "\n".join(out)
 
 
+def _nonlinear_paragraph(s: System) -> str:
+    """The constraints' heading for constraints nonlinear in the velocities: the branch, whether
+    the constraint forces do work (the Chetaev power where they do), where φ is singular."""
+    branch = "" if s._branch is None else f", branch {s._branch} of the implicit constraints"
+    text = (
+        f"<p>Constraints ({s.g}, <b>nonlinear in the velocities</b>{branch}; given in form "
+        f"{s.constraint_form}). The virtual displacements obey the Appell–Chetaev condition "
+        "Σ<sub>s</sub> ∂f<sub>β</sub>/∂q̇<sub>s</sub> δq<sub>s</sub> = 0, so the constraint forces do "
+        "no virtual work; "
+    )
+    if s.is_affine:
+        try:
+            power = s.equations("chetaev").power()
+        except ChaplyginError:
+            power = None
+        text += (
+            "the constraints are not homogeneous of degree 1 in the velocities, so the constraint "
+            "forces <b>do work</b> along the motion"
+            + (
+                ""
+                if power is None
+                else ": their power Σ<sub>s</sub> R<sub>s</sub> q̇<sub>s</sub> = " + mathml(power)
+            )
+            + ". "
+        )
+    else:
+        text += "they are homogeneous of degree 1 in the velocities, so the constraint forces do no work. "
+    if s.singular_set:
+        text += (
+            "Singular (no smooth solution for the dependent velocities) where "
+            + " or ".join(mathml(sp.Eq(e, 0, evaluate=False)) for e in s.singular_set)
+            + ". "
+        )
+    return text + "Solved for the dependent velocities:</p>"
+
+
 def _condition_rows(cond: Any) -> str:
-    cls = "holds" if cond.holds else "fails"
+    cls = "" if cond.holds is None else "holds" if cond.holds else "fails"
     shown = cond.failures[:6]
     fails = "".join(f"<li>{_esc(label)} = {mathml(expr)}</li>" for label, expr in shown)
     if len(cond.failures) > len(shown):
@@ -985,7 +1024,7 @@ def _integrability_section(system: System) -> tuple[str, str]:
     out = [
         '<section id="integrability"><h2>Integrability of the constraints</h2>',
         f'<p class="verdict {"holds" if report.integrable else "fails"}">The constraints are '
-        f"{verdict}, by the Frobenius test.</p>",
+        f"{_esc(report.verdict)}</p>",
         "<table><tr><th>test</th><th>verdict</th><th>non-vanishing components</th></tr>",
         _condition_rows(report.condition_28),
         _condition_rows(report.condition_33),
@@ -1022,10 +1061,14 @@ def _models_section(system: System) -> tuple[str, str]:
         return "\n".join(out), "no Lindelöf comparison"
     head = str(comparison).splitlines()[0]
     out.append(f'<p class="verdict">Verdict: <code>{_esc(comparison.verdict)}</code> — {_esc(head)}</p>')
-    out.append(
-        f"<p>Condition (28): {'holds' if comparison.condition_28 else 'fails'}; "
-        f"the Lindelöf defect (15) − (22) {'vanishes.' if comparison.defect_vanishes else 'is:'}</p>"
+    condition = (
+        ""
+        if comparison.condition_28 is None
+        else f"Condition (28): {'holds' if comparison.condition_28 else 'fails'}; "
     )
+    true = "Novoselov's equations" if comparison.nonlinear else "(15)"
+    defect = f"the Lindelöf defect {true} − (22) {'vanishes.' if comparison.defect_vanishes else 'is:'}"
+    out.append(f"<p>{condition}{defect[0].upper() + defect[1:] if not condition else defect}</p>")
     if not comparison.defect_vanishes:
         out += [
             _block(sp.Eq(sp.Symbol(f"Δ_{_name(q)}"), e, evaluate=False)) for q, e in comparison.defect.items()
@@ -1077,7 +1120,13 @@ def _energy_note(system: System) -> tuple[str, str]:
             "column measures that change, not an integration error."
         )
     if system.is_affine or not system.is_scleronomic:
-        why = "the constraints are affine" if system.is_affine else "the system depends on time explicitly"
+        why = (
+            "the system depends on time explicitly"
+            if not system.is_affine
+            else "the constraints are not homogeneous of degree 1 in the velocities: their forces do work"
+            if system.is_nonlinear
+            else "the constraints are affine"
+        )
         return "energy change", (
             f"Energy change: {measure}. E is not an invariant here ({why}): this column measures "
             "how it changes along the motion, not an integration error."

@@ -99,6 +99,8 @@ def _solve(
             f"as a mapping {{{names.split(', ')[0]}: expression, ...}} (form B), choosing the branch."
         )
     found.sort(key=lambda s: sp.default_sort_key([s[x] for x in dep_xd]))
+    # a root's radicand expanded, as the user writes it: sqrt(v**2 - y'**2), not sqrt((v - y')*(v + y'))
+    found = [{x: _expanded_roots(e) for x, e in s.items()} for s in found]
 
     def shown(k: int) -> str:
         return f"branch={k}: " + ", ".join(
@@ -120,11 +122,14 @@ def _solve(
             + "; ".join(shown(j) for j in range(len(found)))
             + "."
         )
-    # a root's radicand expanded, as the user writes it: sqrt(v**2 - y'**2), not sqrt((v - y')*(v + y'))
-    return {
-        x: e.replace(lambda a: a.is_Pow and not a.exp.is_Integer, lambda a: sp.Pow(sp.expand(a.base), a.exp))
-        for x, e in found[k].items()
-    }
+    return found[k]
+
+
+def _expanded_roots(expr: sp.Expr) -> sp.Expr:
+    """``expr`` with the base of every non-integer power expanded."""
+    return expr.replace(
+        lambda a: a.is_Pow and not a.exp.is_Integer, lambda a: sp.Pow(sp.expand(a.base), a.exp)
+    )
 
 
 def _check_block(system: System, A: sp.Matrix, phi: dict[sp.Symbol, sp.Expr]) -> None:

@@ -182,6 +182,16 @@ class Algebra:
             if isinstance(g, sp.sin) and sp.cos(g.args[0]) in where
         ]
         self._memo: dict[sp.Expr, Fraction] = {}
+        #: (index of r, q, b) for every kernel r = b**(1/q) with b a polynomial free of r: r**q = b
+        self.roots: list[tuple[int, int, PolyElement]] = []
+        for i, g in enumerate(kernels):
+            if g.is_Pow and g.exp.is_Rational and g.exp.p == 1 and g.exp.q > 1:
+                try:
+                    n, d = self.convert(g.base)
+                except (TooLarge, KeyError):
+                    continue
+                if d == self.ring.one and all(m[i] == 0 for m in n.itermonoms()):
+                    self.roots.append((i, int(g.exp.q), n))
         self._bottoms: dict[PolyElement, sp.Expr] = {}
         #: every sum met as a denominator (the base of a negative power): the candidates for
         #: the common factors of a solution's numerator and denominator (:meth:`_divide_out`)
@@ -262,6 +272,10 @@ class Algebra:
         Raises ZeroDivisionError where the denominator vanishes by the identity.
         """
         denom, (numer,) = self._divide_out(frac[1], [frac[0]])
+        if self.roots:  # (√b)² = b: √(x'² + y'²)² is x'² + y'², so that sums with it cancel
+            numer, denom = _unroot(numer, self.roots), _unroot(denom, self.roots)
+            if not denom:
+                raise ZeroDivisionError
         # the input's denominators stay factors as they were written: expanded and rewritten
         # by the identity, a power of one that vanishes somewhere loses digits near there
         # (unless the identity cancels one against the numerator: cos²θ / (1 − sin²θ) is 1)
@@ -470,6 +484,28 @@ def _eliminate(p: PolyElement, pairs: list[tuple[int, int]]) -> PolyElement:
             if e // 2 not in powers:
                 powers[e // 2] = one_minus ** (e // 2)
             out += ring({tuple(rest): coeff}) * powers[e // 2]
+        p = out
+    return p
+
+
+def _unroot(p: PolyElement, roots: list[tuple[int, int, PolyElement]]) -> PolyElement:
+    """Rewrite ``r^e`` (e ≥ q) as ``r^(e mod q)·b^(e div q)`` for each root ``r = b^(1/q)``."""
+    ring = p.ring
+    for i, q, base in roots:
+        if all(m[i] < q for m in p.itermonoms()):
+            continue
+        powers: dict[int, PolyElement] = {}
+        out = ring.zero
+        for monom, coeff in p.iterterms():
+            e = monom[i]
+            if e < q:
+                out += ring({monom: coeff})
+                continue
+            rest = list(monom)
+            rest[i] = e % q
+            if e // q not in powers:
+                powers[e // q] = base ** (e // q)
+            out += ring({tuple(rest): coeff}) * powers[e // q]
         p = out
     return p
 

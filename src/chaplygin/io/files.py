@@ -19,6 +19,8 @@
     [constraints]           # solved: dependent velocity = expression
     "y'" = "tan(phi)*x'"
     # or: implicit = ["sin(phi)*x' - cos(phi)*y'"] with dependent = ["y"]
+    # nonlinear in the velocities too: "z'" = "k*sqrt(x'^2 + y'^2)", or implicit ones
+    # with branch = K choosing a solution for the dependent velocities
 
     [holonomic]             # optional: coordinate = "f" for a relation f(q, t) = 0 fixing it
     # z = "z - a*sin(x)"
@@ -138,6 +140,12 @@ BODY_COORDINATES = ("psi", "theta", "phi", "x", "y")
 _NOT_WITH_BODY = ("coordinates", "energy", "forces", "constraints", "holonomic")
 _ENERGY_KEYS = ("T", "V", "U")
 _IMPLICIT_KEYS = ("implicit", "dependent")
+#: System's refusals of nonlinear constraints, mapped to the file's keys (_Reader.system_error)
+_NONLINEAR_ERROR = re.compile(
+    r"(branch|holonomic|constraints|the constraints)(?:\[(\d+)\])?: (.*(?:branch|nonlinear in the velocities|"
+    r"Appell–Chetaev|cannot solve the implicit).*)$",
+    re.S,
+)
 _FEW_CHOICES = 500  # below this many choices of dependent coordinates, System's own check is quick
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+\Z")
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)\s*$")
@@ -381,6 +389,7 @@ class _Reader:
         kwargs["forces"] = self.read_forces(names) or None
         kwargs["holonomic"] = self.read_holonomic(names) or None
         constraints, dependent = self.read_constraints(names)
+        kwargs["branch"] = self.read_branch(isinstance(constraints, dict))
         system = self.build(names, constraints, dependent, name, kwargs)
         return self.finish(system, parameters, name)
 
@@ -398,6 +407,8 @@ class _Reader:
                 + "; remove the unused ones.",
             )
         initial = self.read_initial(system)
+        if system.is_nonlinear:
+            self.check_initial_real(system, initial, parameters)
         given = self.table("initial")
         return SystemFile(
             system,
@@ -739,8 +750,30 @@ class _Reader:
             out[names.coordinates[key]] = self.expression(value, where, names)
         return out
 
+    def read_branch(self, solved: bool) -> int | None:
+        """``branch = K`` of ``[constraints]``: which solution of implicit constraints nonlinear
+        in the velocities gives the dependent velocities (checked against them by System)."""
+        branch = self.table("constraints").get("branch")
+        if branch is None:
+            return None
+        where = _key("constraints", "branch")
+        if solved:
+            raise self.error(
+                "branch chooses a solution of implicit constraints; solved ones are one already",
+                where,
+                allowed="Remove branch, or give the constraints implicitly: implicit = [\"x'^2 + y'^2 - v^2\"], "
+                'dependent = ["x"], branch = 0.',
+            )
+        if isinstance(branch, bool) or not isinstance(branch, int) or branch < 0:
+            raise self.error(
+                f"branch must be a whole number 0, 1, ..., got {_describe(branch)}",
+                where,
+                allowed=_SECTION_HELP["constraints"],
+            )
+        return branch
+
     def read_constraints(self, names: Names) -> tuple[Any, list[str] | None]:
-        table = self.table("constraints")
+        table = {k: v for k, v in self.table("constraints").items() if k != "branch"}
         implicit = [k for k in table if k in _IMPLICIT_KEYS]
         solved = [k for k in table if k not in _IMPLICIT_KEYS]
         if implicit and solved:
@@ -824,13 +857,48 @@ class _Reader:
                 **kwargs,
             )
         except SystemDefinitionError as exc:
-            raise self.error(f"invalid system: {exc}") from None
+            raise self.system_error(str(exc), constraints) from None
         except RecursionError:
             raise self.error("the expressions are nested too deeply for SymPy") from None
         except Exception as exc:  # the boundary between user files and SymPy
             # Not expected from validated input; reported as a file error, never as a traceback
             # (the original exception stays attached as __cause__).
             raise self.error(f"chaplygin could not build the system ({type(exc).__name__}: {exc})") from exc
+
+    def system_error(self, message: str, constraints: Any) -> SystemFileError:
+        """System's refusal as a file error; those of nonlinear constraints (a branch, no
+        solution, a singular block, with [holonomic]) name the key, with its text."""
+        m = _NONLINEAR_ERROR.match(message)
+        if m is None:
+            return self.error(f"invalid system: {message}")
+        section = self.table("constraints")
+        head, item, reason = m.group(1), m.group(2), m.group(3)
+        if head == "holonomic":
+            return self.error(reason, "[holonomic]", allowed=_SECTION_HELP["holonomic"])
+        if head == "branch":
+            reason, _, solutions = reason.partition("; branch=0")
+            return self.error(
+                reason,
+                _key("constraints", "branch"),
+                text=f"branch = {section.get('branch')}",
+                allowed=("The solutions: branch=0" + solutions) if solutions else None,
+            )
+        k = int(item) if item is not None else 0
+        if isinstance(constraints, dict):
+            key = list(section)[k] if item is not None and head == "constraints" else None
+            where, text = (_key("constraints", key), str(section[key])) if key else ("[constraints]", None)
+        else:
+            one = item is not None and head == "constraints"
+            where = f"[constraints] implicit (item {k + 1})" if one else "[constraints] implicit"
+            text = str(section["implicit"][k]) if one else None
+        if "cannot solve" in reason:
+            reason = reason.split("; ")[0]
+            allowed = (
+                'Give them solved instead, "x\'" = "..." for each dependent velocity (the branch you mean).'
+            )
+        else:
+            allowed = _SECTION_HELP["constraints"]
+        return self.error(reason, where, text=text, allowed=allowed)
 
     def check_dependent_block(self, names: Names, exprs: list[sp.Expr], dependent: list[str]) -> None:
         """Refuse a ``dependent`` choice whose block of A is singular, suggesting one that works.
@@ -886,6 +954,41 @@ class _Reader:
             allowed=f"Choose other dependent coordinates, e.g. dependent = {json.dumps([coords[i] for i in pivots])}.",
         )
 
+    def check_initial_real(
+        self, system: System, initial: dict[str, float], parameters: dict[str, float]
+    ) -> None:
+        """Refuse an initial state where constraints nonlinear in the velocities give no real
+        dependent velocity (a root of a negative number: no solution, or the other branch)."""
+        v = system._vars
+        values: dict[sp.Symbol, Any] = {TIME: 0.0, **{p: parameters[p.name] for p in system.parameters}}
+        for i, q in enumerate(system.coordinates):
+            values[v.x[i]] = initial[q.func.__name__]
+        for i in system._ind:
+            values[v.xd[i]] = initial[system.coordinates[i].func.__name__ + "'"]
+        given = self.table("constraints")
+        for k, phi in enumerate(system._velocity_substitution.values()):
+            try:
+                value = complex(phi.xreplace({s: sp.Float(x) for s, x in values.items()}).evalf())
+            except (TypeError, ValueError, ZeroDivisionError):
+                continue  # (a pole: the simulation says so)
+            if (
+                math.isfinite(value.real)
+                and math.isfinite(value.imag)
+                and abs(value.imag) <= 1e-12 * max(1.0, abs(value.real))
+            ):
+                continue
+            name = system.coordinates[system._dep[k]].func.__name__
+            state = ", ".join(f"{key} = {x:g}" for key, x in initial.items() if x)
+            key = f'"{name}\'"' if f"{name}'" in given else "implicit"
+            raise self.error(
+                f"no real value of {name}' at the initial state ({state or 'all zero'}): "
+                f"{name}' = {file_syntax(system.to_user(phi))} = {value.real:g}{value.imag:+g}i",
+                _key("constraints", key.strip('"')),
+                allowed="The initial state must satisfy the constraints: choose [initial] values where "
+                "the expression is real"
+                + (", or another branch." if "branch" in given or key == "implicit" else "."),
+            )
+
     def read_initial(self, system: System) -> dict[str, float]:
         table = self.table("initial")
         coords = [q.func.__name__ for q in system.coordinates]
@@ -922,7 +1025,9 @@ _SECTION_HELP = {
     "(force function, U = -V).",
     "forces": '[forces] gives generalized forces by coordinate: phi = "-c*phi\'".',
     "constraints": '[constraints] has either solved constraints, "y\'" = "tan(phi)*x\'" (one per dependent '
-    'velocity), or implicit = ["sin(phi)*x\' - cos(phi)*y\'"] (each = 0) with dependent = ["y"].',
+    'velocity), or implicit = ["sin(phi)*x\' - cos(phi)*y\'"] (each = 0) with dependent = ["y"]; '
+    "for implicit constraints nonlinear in the velocities with several solutions, branch = K "
+    "picks one.",
     "holonomic": "[holonomic] gives relations f(q, t) = 0 between the coordinates, each keyed by the "
     'coordinate it fixes (not a dependent coordinate of [constraints]): z = "z - a*sin(x)".',
     "initial": '[initial] gives coordinates and independent velocities: theta = 1.0, "theta\'" = 0.4.',
@@ -1120,6 +1225,8 @@ def _system_tables(w: _Writer, system: System, names: Names) -> list[str]:
                 + ", ".join(_toml_string(q.func.__name__) for q in system.dependent[:velocity_g])
                 + "]"
             )
+            if system._branch is not None:
+                out.append(f"branch = {system._branch}")
     if system.holonomic:
         out += ["", "[holonomic]"]
         for q, f in system.holonomic.items():
