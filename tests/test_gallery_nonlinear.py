@@ -130,6 +130,20 @@ def test_appell_run_is_the_closed_form(backend: str) -> None:
     assert run.energy_drift() < 1e-9  # the constraint force does no work
 
 
+def test_appell_rising_weight_slows_the_wheel_to_the_branch_point() -> None:
+    """σ = +1: ``v = v0 − g k t/(1 + k²)`` reaches the branch point v = 0 at
+    ``t* = v0 (1 + k²)/(g k)`` (0.2548 s here); the run to 0.25 s follows it."""
+    entry = examples.get("appell-weight")
+    G, K = entry.parameters["g"], entry.parameters["k"]
+    s = examples.appell_weight(rising=True)
+    run = simulate(s, "chetaev", 0.25, entry.initial, entry.parameters, samples=11)
+    assert run.success
+    speed = 1.0 - G * K * run.t / (1 + K**2)  # v0 = 1
+    assert speed[-1] < 0.02  # close to the branch point
+    assert np.allclose(np.hypot(run["x'"], run["y'"]), speed, rtol=1e-7, atol=1e-9)
+    assert np.allclose(run["z'"], K * speed, rtol=1e-7, atol=1e-9)
+
+
 def test_appell_vakonomic_run_is_the_true_one() -> None:
     """From μ(0) = 0, −1, 5 (not the degenerate m/(2k²) = 2) the vakonomic run is the true one."""
     entry = examples.get("appell-weight")
