@@ -495,6 +495,8 @@ def test_catalogue_names_and_lookup() -> None:
         "lindelof-problem",
         "routh-sphere",
         "rattleback",
+        "appell-weight",
+        "isokinetic-particle",
         "whipple-bicycle",
     ]
     entry = examples.get("rolling-sphere")
@@ -526,7 +528,26 @@ def test_catalogue_entry_is_complete(name: str) -> None:
 CHECKED_ELSEWHERE = {"whipple-bicycle"}
 
 
-@pytest.mark.parametrize("name", [name for name in examples.catalogue() if name not in CHECKED_ELSEWHERE])
+def catalogue_cases(**pending: str) -> list:
+    """The catalogue's names but the bicycle; ``pending[name]`` marks one expected to fail, why."""
+    return [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=pending[n])) if n in pending else n
+        for n in examples.catalogue()
+        if n not in CHECKED_ELSEWHERE
+    ]
+
+
+#: issue 30 in parts: system files do not write branch= yet (helper nlio)
+NO_BRANCH_IN_FILES = "a system file does not carry the branch of nonlinear constraints yet (issue 30, nlio)"
+#: the generated modules of Novoselov's equations do not run yet (helper nlnum); the isokinetic
+#: particle's Lindelöf equations are degenerate (T̃ = ½ m v² is constant) though default_models takes them
+NO_REDUCED_RUNS = "reduced models of nonlinear constraints do not simulate yet (issue 30, nlnum)"
+
+
+@pytest.mark.parametrize(
+    "name",
+    catalogue_cases(**{"appell-weight": NO_BRANCH_IN_FILES, "isokinetic-particle": NO_BRANCH_IN_FILES}),
+)
 def test_catalogue_round_trip(name: str) -> None:
     entry = examples.get(name)
     original = entry.system()
@@ -547,7 +568,9 @@ def test_catalogue_round_trip(name: str) -> None:
     assert sf.dumps() == text  # writing again gives the same file
 
 
-@pytest.mark.parametrize("name", [name for name in examples.catalogue() if name not in CHECKED_ELSEWHERE])
+@pytest.mark.parametrize(
+    "name", catalogue_cases(**{"appell-weight": NO_REDUCED_RUNS, "isokinetic-particle": NO_REDUCED_RUNS})
+)
 def test_catalogue_initial_state_simulates(name: str) -> None:
     entry = examples.get(name)
     s = entry.system()

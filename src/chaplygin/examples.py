@@ -7,8 +7,9 @@ replace with numbers by passing them as arguments.
 :func:`catalogue` lists them by name (``rolling-sphere``, ``knife-edge``,
 ``vertical-rolling-disk``, ``rolling-disk``, ``chaplygin-sleigh``,
 ``turntable-ball``, ``chaplygin-ball``, ``heisenberg``, ``contact-oscillator``,
-``differential-drive``, ``sleigh-chain``, ``whipple-bicycle``, and the rigid bodies built by
-:mod:`chaplygin.bodies`: ``lindelof-problem``, ``routh-sphere``, ``rattleback``)
+``differential-drive``, ``sleigh-chain``, ``whipple-bicycle``, the rigid bodies built by
+:mod:`chaplygin.bodies`: ``lindelof-problem``, ``routh-sphere``, ``rattleback``, and two
+constraints nonlinear in the velocities: ``appell-weight``, ``isokinetic-particle``)
 with a description, default
 parameter values and an initial state; :func:`get` looks one up.  Each has a
 page in the documentation's gallery (``docs/gallery/<name>.md``) with what is
@@ -34,6 +35,7 @@ from chaplygin.io.mechanics import from_mechanics
 __all__ = [
     "WHIPPLE_BENCHMARK",
     "ExampleEntry",
+    "appell_weight",
     "catalogue",
     "chaplygin_ball",
     "chaplygin_sleigh",
@@ -41,6 +43,7 @@ __all__ = [
     "differential_drive",
     "get",
     "heisenberg",
+    "isokinetic_particle",
     "knife_edge",
     "lindelof_problem",
     "rattleback",
@@ -662,6 +665,98 @@ def rattleback(
     )
 
 
+# ------------------------------------------------- constraints nonlinear in the velocities
+def appell_weight(
+    m: sp.Expr | float | None = None,
+    g: sp.Expr | float | None = None,
+    k: sp.Expr | float | None = None,
+    *,
+    rising: bool = False,
+) -> System:
+    """Appell's example, reduced to a point mass: ``ż² = k² (ẋ² + ẏ²)``, ``V = m g z``.
+
+    Appell's weight hangs on a thread wound on the drum (radius ``a``) of a wheel (radius
+    ``b``) that rolls on a horizontal plane: the weight's vertical speed is ``k = a/b`` times
+    the horizontal speed of the wheel, whatever its direction. Neimark & Fufaev (ch. III)
+    reduce it to a point of mass ``m`` at ``(x, y, z)`` with ``T = ½ m (ẋ² + ẏ² + ż²)``, the
+    potential ``m g z`` and the constraint ``ż² − k² (ẋ² + ẏ²) = 0``, dependent ``z``: the
+    first mechanical constraint nonlinear in the velocities. It has two solutions for ``ż``;
+    ``branch=0``, ``ż = −k √(ẋ² + ẏ²)``, the weight falling and driving the wheel (default),
+    or ``branch=1``, ``ż = +k √(ẋ² + ẏ²)``, the wheel lifting it (``rising=True``). Both are
+    singular where ``ẋ² + ẏ² = 0``. The true motion runs on a straight line with
+    ``v̇ = −σ g k/(1 + k²)`` (``σ = ±1`` the branch's sign). See
+    ``docs/gallery/appell-weight.md``.
+
+    Parameters
+    ----------
+    m, g, k : optional
+        Mass, gravity, ratio ``k = a/b`` of the drum's radius to the wheel's; positive
+        symbols ``m``, ``g``, ``k`` by default.
+    rising : bool
+        Take the branch ``ż = +k √(ẋ² + ẏ²)`` (the weight rising) instead of the falling one.
+
+    References
+    ----------
+    P. Appell, "Exemple de mouvement d'un point assujetti à une liaison exprimée par une
+    relation non linéaire entre les composantes de la vitesse", *C. R. Acad. Sci. Paris* 152,
+    1911, 1197–1199.  Ju. I. Neimark and N. A. Fufaev, *Dynamics of Nonholonomic Systems*,
+    AMS, 1972, ch. III.
+    """
+    x, y, z = dynamicsymbols("x y z")
+    m_, g_, k_ = (_param(v, n) for v, n in ((m, "m"), (g, "g"), (k, "k")))
+    return System(
+        [x, y, z],
+        m_ / 2 * (_d(x) ** 2 + _d(y) ** 2 + _d(z) ** 2),
+        [_d(z) ** 2 - k_**2 * (_d(x) ** 2 + _d(y) ** 2)],
+        dependent=[z],
+        branch=1 if rising else 0,
+        potential_energy=m_ * g_ * z,
+        name="Appell's weight",
+    )
+
+
+def isokinetic_particle(
+    m: sp.Expr | float | None = None,
+    g: sp.Expr | float | None = None,
+    v: sp.Expr | float | None = None,
+) -> System:
+    """A particle kept at the speed ``v`` in a uniform field: ``ẋ² + ẏ² = v²``, ``V = m g y``.
+
+    Gauss's isokinetic thermostat (Hoover et al. 1982; Evans et al. 1983; Evans & Morriss): the constraint
+    force of the Chetaev model is along the velocity and removes the work of gravity. Dependent
+    ``x`` on the branch ``ẋ = +√(v² − ẏ²)`` (singular where ``ẏ² = v²``). The true motion runs
+    on the grim reaper ``y = y₀ + a ln cos((x − x₀)/a)``, ``a = v²/g``; the vakonomic motions
+    on catenaries. See ``docs/gallery/isokinetic-particle.md``.
+
+    Parameters
+    ----------
+    m, g, v : optional
+        Mass, field strength and the speed kept; positive symbols ``m``, ``g``, ``v`` by
+        default.
+
+    References
+    ----------
+    W. G. Hoover, A. J. C. Ladd and B. Moran, "High-strain-rate plastic flow studied via
+    nonequilibrium molecular dynamics", *Phys. Rev. Lett.* 48, 1982, 1818–1820.  D. J. Evans,
+    W. G. Hoover, B. H. Failor, B. Moran and A. J. C. Ladd, "Nonequilibrium molecular dynamics
+    via Gauss's principle of least constraint", *Phys. Rev. A* 28, 1983, 1016–1021.
+    D. J. Evans and G. P. Morriss, *Statistical Mechanics of Nonequilibrium Liquids*, Academic
+    Press, 1990 (2nd ed. Cambridge University Press, 2008): Gauss's principle and the
+    isokinetic thermostat.
+    """
+    x, y = dynamicsymbols("x y")
+    m_, g_, v_ = (_param(value, n) for value, n in ((m, "m"), (g, "g"), (v, "v")))
+    return System(
+        [x, y],
+        m_ / 2 * (_d(x) ** 2 + _d(y) ** 2),
+        [_d(x) ** 2 + _d(y) ** 2 - v_**2],
+        dependent=[x],
+        branch=1,
+        potential_energy=m_ * g_ * y,
+        name="Isokinetic particle",
+    )
+
+
 # ---------------------------------------------------------------- the Whipple bicycle
 #: Table 1 of Meijaard, Papadopoulos, Ruina & Schwab (2007): the benchmark bicycle, exact
 #: (SI units; the paper's axes: x forward, y to the right, z down, origin at the rear contact).
@@ -1094,6 +1189,32 @@ _CATALOGUE: dict[str, tuple[Callable[[], System], str, dict[str, float], dict[st
             "theta'": 5.0 * math.sin(0.01),
             "phi'": -5.0 * math.sin(0.01),
         },
+    ),
+    "appell-weight": (
+        appell_weight,
+        (
+            "Appell's weight (1911): a weight on a thread wound on the drum of a wheel rolling on a "
+            "plane, reduced to a point mass (x, y, z) with z'^2 = k^2*(x'^2 + y'^2), k the drum's "
+            "radius over the wheel's, and potential m*g*z (Neimark & Fufaev, chapter III): a "
+            "constraint nonlinear in the velocities. On the branch z' = -k*sqrt(x'^2 + y'^2) the "
+            "weight falls and drives the wheel (singular at x' = y' = 0). The true motion runs on a "
+            "straight line with v' = g*k/(1 + k^2) and z'' = -g*k^2/(1 + k^2); the vakonomic "
+            "motion is the same."
+        ),
+        {"m": 1.0, "g": 9.81, "k": 0.5},
+        {"x": 0.0, "y": 0.0, "z": 0.0, "x'": 0.6, "y'": 0.8},
+    ),
+    "isokinetic-particle": (
+        isokinetic_particle,
+        (
+            "A particle kept at the speed v in a uniform field, x'^2 + y'^2 = v^2 with potential "
+            "m*g*y: Gauss's isokinetic thermostat (Hoover 1982; Evans & Morriss 1990), on the "
+            "branch x' = sqrt(v^2 - y'^2) (singular at y' = ±v). The true motion runs on the grim "
+            "reaper y = y0 + a*log(cos((x - x0)/a)), a = v^2/g; the vakonomic motions on "
+            "catenaries y = y1 - A*cosh((x - x1)/A), A = v*c/(m*g): the models differ."
+        ),
+        {"m": 1.0, "g": 0.1, "v": 1.0},
+        {"x": 0.0, "y": 0.0, "y'": 0.6},
     ),
     "whipple-bicycle": (
         whipple_bicycle,
