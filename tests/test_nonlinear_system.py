@@ -128,3 +128,21 @@ def test_solved_form_mixing_linear_and_nonlinear_rows() -> None:
 def test_nonlinear_with_holonomic_constraints() -> None:
     msg = error([x, y, z], T3, [d(z) ** 2 - d(x) ** 2], dependent=[z], branch=1, holonomic={y: y - x})
     assert msg.startswith("holonomic: holonomic constraints beside constraints nonlinear in the velocities")
+
+
+# ------------------------------------------------------------------ admissible states
+def test_states_where_the_constraints_are_real_only_for_larger_velocities() -> None:
+    """z' = √(x'² + y'² − 100) is real only where |(x', y')| > 10: the sampler draws larger
+    velocities when those in (−1, 1) give none (it returned z' = NaN), and a constraint real
+    nowhere it draws is an error, not a NaN state."""
+    from chaplygin.core._sampling import StateSampler
+
+    s = System([x, y, z], T3, {d(z): sp.sqrt(d(x) ** 2 + d(y) ** 2 - 100)})
+    rng = np.random.default_rng(0)
+    xd, yd, zd = (s._vars.xd[i] for i in range(3))
+    for _ in range(3):
+        state = StateSampler(s, {}).draw(rng)
+        assert state[zd] ** 2 == pytest.approx(state[xd] ** 2 + state[yd] ** 2 - 100, rel=1e-12)
+    far = System([x, y, z], T3, {d(z): d(x) ** 2 + sp.sqrt(x - 100)})  # real for x > 100 only
+    with pytest.raises(SystemDefinitionError, match="has no admissible state at 100 random ones"):
+        StateSampler(far, {}).draw(rng)
