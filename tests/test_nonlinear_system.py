@@ -88,6 +88,16 @@ def test_no_real_solution() -> None:
     assert System([x, y, z], T3, {d(z): sp.sqrt(d(x) ** 2 + d(y) ** 2 - 100)}).is_nonlinear
 
 
+def test_a_root_real_nowhere_in_a_velocity_free_term() -> None:
+    """√(−x² − 1) is real nowhere: refused in a linear constraint too (solved or implicit), where
+    it was read as a complex B₀; √(x − 100), real for x > 100, is kept."""
+    msg = error([x, y, z], T3, {d(z): d(x) + sp.sqrt(-(x**2) - 1)})
+    assert msg.startswith("constraints[z'] = sqrt(-x**2 - 1) + x' is not real")
+    msg = error([x, y, z], T3, [d(z) - d(x) + sp.sqrt(-(x**2) - 1)], dependent=[z])
+    assert msg.startswith("constraints[0] = sqrt(-x**2 - 1) - x' + z' is not real")
+    assert not System([x, y, z], T3, {d(z): d(x) + sp.sqrt(x - 100)}).is_nonlinear
+
+
 def test_a_solution_chaplygin_cannot_evaluate() -> None:
     msg = error([x, y, z], T3, [sp.exp(d(z)) + d(z) - d(x) ** 2], dependent=[z])
     assert msg.startswith("constraints: LambertW has no numerical evaluation in chaplygin")

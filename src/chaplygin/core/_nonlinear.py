@@ -35,7 +35,7 @@ from chaplygin.errors import SystemDefinitionError
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["Nonlinear", "read_nonlinear", "singular_set"]
+__all__ = ["Nonlinear", "read_nonlinear", "require_real", "singular_set"]
 
 
 @dataclass(frozen=True)
@@ -74,12 +74,7 @@ def read_nonlinear(
         phi = dict(zip(dep_xd, exprs))
         f = sp.Matrix([xd - e for xd, e in zip(dep_xd, exprs)])
         for xd, e in phi.items():
-            what = f"constraints[{_name(system, xd)}]"
-            if not _real_somewhere([e], what):
-                raise SystemDefinitionError(
-                    f"{what} = {_shown(system, e)} is not real (or not finite) at any of {_SAMPLES} "
-                    "random real states, so the constraint cannot hold for real velocities."
-                )
+            require_real(system, f"constraints[{_name(system, xd)}]", e)
     else:
         f = sp.Matrix(list(exprs))
         phi = _solve(system, f, dep_xd, branch)
@@ -142,6 +137,25 @@ def _solve(
     }
 
 
+#: functions whose value at a real point may be complex
+_COMPLEX_AT_REAL = (sp.log, sp.asin, sp.acos, sp.acosh, sp.atanh, sp.LambertW)
+
+
+def require_real(system: System, what: str, e: sp.Expr) -> None:
+    """Refuse the constraint ``what`` (``e`` in internal symbols: the right side of a solved one,
+    or the function that vanishes) where ``e`` is real nowhere (a root of a negative quantity):
+    checked by numbers where ``e`` has a root or a function that can be complex at a real point,
+    which costs a compilation."""
+    roots = any(not p.exp.is_Integer for p in e.atoms(sp.Pow))
+    if not (roots or e.has(*_COMPLEX_AT_REAL)):
+        return
+    if not _real_somewhere([e], what):
+        raise SystemDefinitionError(
+            f"{what} = {_shown(system, e)} is not real (or not finite) at any of {_SAMPLES} "
+            "random real states, so the constraint cannot hold for real velocities."
+        )
+
+
 def _name(system: System, x: sp.Symbol) -> str:
     return describe(system.to_user(x))
 
@@ -198,9 +212,10 @@ def _sympy_solve(f: list[sp.Expr], unknowns: list[sp.Symbol]) -> list[dict[sp.Sy
 
 
 #: random real states at which a solution must be real (somewhere) to be kept
-_SAMPLES = 32
-#: the magnitudes (log-uniform, either sign) of every symbol at those states
-_MAGNITUDES = (1e-2, 1e3)
+_SAMPLES = 64
+#: the magnitudes (log-uniform, either sign) of every symbol at those states: up to 1 in the
+#: first half (√(1 − x² − y² − z²) is real there), up to 1e3 in the second (√(x'² − 100))
+_MAGNITUDES = (1e-2, 1.0, 1e3)
 
 
 def _random_points(symbols: Sequence[sp.Symbol], count: int, seed: int = 30) -> np.ndarray:
@@ -208,8 +223,9 @@ def _random_points(symbols: Sequence[sp.Symbol], count: int, seed: int = 30) -> 
     magnitude log-uniform in :data:`_MAGNITUDES`, as complex numbers (a root of a negative is
     complex)."""
     rng = np.random.default_rng(seed)
-    low, high = np.log10(_MAGNITUDES)
-    magnitude = 10 ** rng.uniform(low, high, size=(count, len(symbols)))
+    low, middle, high = np.log10(_MAGNITUDES)
+    top = np.where(np.arange(count) < count // 2, middle, high)[:, None]
+    magnitude = 10 ** rng.uniform(low, top, size=(count, len(symbols)))
     sign = np.where(
         [bool(x.is_nonnegative) for x in symbols], 1.0, rng.choice((-1.0, 1.0), size=(count, len(symbols)))
     )

@@ -346,6 +346,10 @@ class System:
             if any(split is None for split in splits):  # nonlinear in the velocities: φ given (every row)
                 self._set_nonlinear(internal, solved=True)
                 return
+            from chaplygin.core._nonlinear import require_real
+
+            for d, e in zip(dep, internal):  # (a root of a velocity-free term: real somewhere?)
+                require_real(self, f"constraints[{self.coordinates[d].func.__name__}']", e)
             rows = [split[0] for split in splits if split is not None]
             consts = [split[1] for split in splits if split is not None]
             g = len(dep)
@@ -387,6 +391,10 @@ class System:
         rows, consts = [], []
         fast = self._internal_native(exprs)  # SymEngine where it can, SymPy (A built here) where not
         for k, expr in enumerate(exprs):
+            if any(not p.exp.is_Integer for p in expr.atoms(sp.Pow)):  # a root: real somewhere?
+                from chaplygin.core._nonlinear import require_real
+
+                require_real(self, f"constraints[{k}]", self._convert(expr, f"constraints[{k}]"))
             e = self._convert(expr, f"constraints[{k}]", replace=fast is None)
             split = (
                 linear_coefficients(e, list(v.xd)) if fast is None else linear_split(fast[k], self._native_xd)
