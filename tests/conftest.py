@@ -73,6 +73,7 @@ FIRST = (
     "test_rolling_disk.py",
     "test_cli.py",
     "test_models_property.py",
+    "test_nonlinear_models.py",
     "test_cfill.py",
     "test_docs.py",
 )

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin import System
+from chaplygin.errors import SystemDefinitionError
 
 t = dynamicsymbols._t
 k_param = sp.Symbol("k", positive=True)
@@ -287,3 +288,170 @@ def number(expr: sp.Expr, values: dict[sp.Expr, sp.Expr]) -> float:
 
 def matrix(m: sp.Matrix, values: dict[sp.Expr, sp.Expr]) -> np.ndarray:
     return np.array(numbers(m, values), dtype=float).reshape(m.shape)
+
+
+# ------------------------------------------------------------------ nonlinear constraints (issue 30)
+#: the kinds of constraints nonlinear in the velocities that :func:`nonlinear_system` draws
+NONLINEAR_KINDS = ("root", "quadratic", "polynomial", "rational")
+
+
+@dataclass
+class NonlinearSpec:
+    """A random system with constraints nonlinear in the velocities, and how it was made.
+
+    ``f``: the constraints as the test wrote them, ``f_β(q, q̇, t) = 0`` (dynamicsymbols; for a
+    solved one ``q̇_dep − φ``); ``phi``: the solution ``{q̇_dep: φ}`` the system was built for
+    (the branch chosen); ``homogeneous``: every φ homogeneous of degree one in the velocities
+    (the constraint forces then do no work).
+    """
+
+    system: System
+    kinds: list[str]
+    implicit: bool
+    chaplygin: bool
+    homogeneous: bool
+    timed: bool
+    f: list[sp.Expr]
+    phi: dict[sp.Expr, sp.Expr]
+
+
+def _linear_form(
+    choose: Choices, coeff_vars: list[sp.Expr], velocities: list[sp.Expr], first: int
+) -> sp.Expr:
+    """``Σ_σ c_σ(q) q̇_σ`` with random configuration-dependent coefficients: that of
+    ``velocities[first]`` never zero, the others zero in a quarter of the draws."""
+    out = sp.S.Zero
+    for k, v in enumerate(velocities):
+        if k == first or choose.integer(0, 3):
+            out += _expr(choose, coeff_vars, 1) * v
+    return out
+
+
+def nonlinear_system(
+    seed: int,
+    *,
+    kinds: Sequence[str] | None = None,
+    implicit: bool | None = None,
+    chaplygin: bool | None = None,
+    homogeneous: bool | None = None,
+    floats: bool = False,
+    timed: bool | None = None,
+    g: int | None = None,
+) -> NonlinearSpec:
+    """The random system of ``seed`` with constraints nonlinear in the velocities.
+
+    T as in :func:`systems` (``½ q̇ᵀ(D + L Lᵀ)q̇``, off-diagonal and configuration-dependent, a
+    gyroscopic term in some); ``g`` (1 or 2) dependent velocities, each of one kind:
+
+    * ``"root"``: ``q̇_d² = ℓ₁² + ℓ₂² (+ P)``, ℓ_j linear forms in the independent velocities
+      with coefficients in q (ℓ_j has the j-th: √ of a square is not analytic), P > 0
+      velocity-free; φ = ±√(…), real everywhere;
+    * ``"quadratic"``: ``q̇_d² + ℓ₁ q̇_d − ℓ₂² (− P) = 0``, φ = (−ℓ₁ ± √(ℓ₁² + 4ℓ₂² (+ 4P)))/2;
+    * ``"polynomial"``: ``q̇_d = ℓ + c(q) q̇_σ q̇_τ + b(q)`` (never homogeneous);
+    * ``"rational"``: ``q̇_d (1 + q̇_σ²) = ℓ (+ b(q))`` (never homogeneous).
+
+    ``homogeneous`` (by default: even seeds) drops the velocity-free terms (P, b) of the first
+    two kinds and draws only those, with two independent velocities (n = 3, g = 1 or n = 4,
+    g = 2); the first constraint's kind is the next in turn every second seed; ``implicit`` gives the constraints as ``f = 0`` (times a factor ``2 + cos q`` that
+    vanishes nowhere) with ``dependent=`` and the branch, else solved; ``chaplygin`` keeps
+    everything free of the dependent coordinates; ``timed`` puts ``t`` in the constraints;
+    ``floats``: coefficients of 15–17 significant digits (:func:`decimal`).
+    """
+    choose = _Seeded(np.random.default_rng(seed), floats, (0.1, 10.0))
+    is_homog = seed % 2 == 0 if homogeneous is None else homogeneous
+    # (φ homogeneous of degree one and not linear needs two independent velocities at least)
+    n = choose.integer(3, 4) if is_homog else choose.integer(2, 3)
+    g = g or (n - 2 if is_homog else choose.integer(1, min(2, n - 1)))
+    q = list(dynamicsymbols(f"q1:{n + 1}"))
+    dep_idx = sorted(choose.permutation(n)[:g])
+    dep = [q[i] for i in dep_idx]
+    ind = [qi for qi in q if qi not in dep]
+    is_chap = choose.boolean() if chaplygin is None else chaplygin
+    is_implicit = choose.boolean() if implicit is None else implicit
+    is_timed = choose.boolean() if timed is None else timed
+    coeff_vars = ind if is_chap else q
+    qd = [qi.diff(t) for qi in q]
+    ind_qd = [qi.diff(t) for qi in ind]
+
+    L = sp.Matrix(n, n, lambda i, j: _expr(choose, coeff_vars, 1) if choose.boolean() else 0)
+    D = sp.diag(*[2 + sp.sin(choose.choice(coeff_vars)) for _ in range(n)])
+    K = D + L * L.T
+    T = sp.Add(*[sp.Add(*[qd[i] * K[i, j] for i in range(n)]) * qd[j] for j in range(n)]) / 2
+    if choose.boolean():
+        T += sum(_expr(choose, coeff_vars, 1) * v for v in qd)
+
+    timing = (2 + sp.sin(t)) if is_timed else sp.S.One
+    pool = ("root", "quadratic") if is_homog else NONLINEAR_KINDS
+    # (the first kind in turn: eight consecutive seeds draw every kind)
+    pool = tuple(kinds or pool)
+    drawn = [pool[(seed // 2) % len(pool)], *(choose.choice(pool) for _ in dep[1:])]
+    f: list[sp.Expr] = []
+    phi: dict[sp.Expr, sp.Expr] = {}
+    for d, kind in zip(dep, drawn):
+        v = d.diff(t)
+        ell = [_linear_form(choose, coeff_vars, ind_qd, j % len(ind_qd)) for j in range(2)]
+        positive = 0 if is_homog else (1 + _expr(choose, coeff_vars, 1) ** 2) * timing
+        sign = choose.choice([-1, 1])
+        if kind == "root":
+            radicand = timing * ell[0] ** 2 + ell[1] ** 2 + positive
+            fb, solution = v**2 - radicand, sign * sp.sqrt(radicand)
+        elif kind == "quadratic":
+            radicand = ell[0] ** 2 + 4 * timing * ell[1] ** 2 + 4 * positive
+            fb, solution = (
+                v**2 + ell[0] * v - timing * ell[1] ** 2 - positive,
+                (-ell[0] + sign * sp.sqrt(radicand)) / 2,
+            )
+        elif kind == "polynomial":
+            s1, s2 = choose.choice(ind_qd), choose.choice(ind_qd)
+            b = _expr(choose, coeff_vars, 1) * timing
+            solution = ell[0] + _expr(choose, coeff_vars, 1) * s1 * s2 + b
+            fb = v - solution
+        elif kind == "rational":
+            s1 = choose.choice(ind_qd)
+            b = _expr(choose, coeff_vars, 1) * timing
+            fb, solution = v * (1 + s1**2) - ell[0] - b, (ell[0] + b) / (1 + s1**2)
+        else:
+            raise ValueError(f"unknown kind {kind!r}; one of {NONLINEAR_KINDS}")
+        f.append(fb)
+        phi[v] = solution
+
+    U = _expr(choose, coeff_vars) if choose.boolean() else None
+    Q = {choose.choice(ind): -k_param * choose.choice(ind).diff(t)} if choose.boolean() else None
+    if is_implicit:
+        f = [(2 + sp.cos(choose.choice(coeff_vars))) * fb for fb in f]
+        system = with_branch(q, T, f, dep, phi, force_function=U, forces=Q, name="random nonlinear")
+    else:
+        f = [v - e for v, e in phi.items()]
+        system = System(q, T, phi, force_function=U, forces=Q, name="random nonlinear")
+    return NonlinearSpec(system, drawn, is_implicit, is_chap, is_homog, is_timed, f, phi)
+
+
+def with_branch(
+    coordinates: list[sp.Expr],
+    T: sp.Expr,
+    f: list[sp.Expr],
+    dependent: list[sp.Expr],
+    phi: dict[sp.Expr, sp.Expr],
+    *,
+    first: int | None = 0,
+    **options: Any,
+) -> System:
+    """``System(coordinates, T, f, dependent=…)`` with the branch whose solved form is ``phi``
+    (compared numerically at a random point: SymPy may write a root another way), trying
+    ``first`` first."""
+    rng = np.random.default_rng(1)
+    point: dict[sp.Expr, sp.Expr] = {t: sp.Float(rng.uniform(0.2, 1.2))}
+    point.update({qi: sp.Float(rng.uniform(0.2, 1.2)) for qi in coordinates})
+    point.update({qi.diff(t): sp.Float(rng.uniform(-1, 1)) for qi in coordinates})
+    point[k_param] = sp.Float(0.75)
+    wanted = numbers(phi.values(), point)
+    first = first or 0
+    for branch in [first, *(b for b in range(4) if b != first)]:  # (branch=0 where there is one)
+        try:
+            system = System(coordinates, T, f, dependent=dependent, branch=branch, **options)
+        except SystemDefinitionError:
+            continue
+        got = numbers([system.constraints[v] for v in phi], point)
+        if np.allclose(got, wanted, rtol=1e-9, atol=1e-12):
+            return system
+    raise AssertionError(f"no branch of {f} gives {phi}")

@@ -19,10 +19,12 @@ For a constraint linear in the velocities these are form A's and form B's ``A``,
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
 import sympy as sp
 
 from chaplygin.core._fast import jacobian
@@ -33,7 +35,7 @@ from chaplygin.errors import SystemDefinitionError
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["Nonlinear", "read_nonlinear", "singular_set"]
+__all__ = ["Nonlinear", "read_nonlinear", "require_real", "singular_set"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,8 @@ def read_nonlinear(
             )
         phi = dict(zip(dep_xd, exprs))
         f = sp.Matrix([xd - e for xd, e in zip(dep_xd, exprs)])
+        for xd, e in phi.items():
+            require_real(system, f"constraints[{_name(system, xd)}]", e)
     else:
         f = sp.Matrix(list(exprs))
         phi = _solve(system, f, dep_xd, branch)
@@ -86,26 +90,32 @@ def read_nonlinear(
 def _solve(
     system: System, f: sp.Matrix, dep_xd: list[sp.Symbol], branch: int | None
 ) -> dict[sp.Symbol, sp.Expr]:
-    """The solution of ``f = 0`` for the dependent velocities: the only one, or ``branch``."""
+    """The solution of ``f = 0`` for the dependent velocities: the only real one, or ``branch``."""
     names = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
-    try:
-        found = sp.solve(list(f), dep_xd, dict=True)
-    except (NotImplementedError, ValueError):
-        found = []
-    found = [s for s in found if all(x in s and not s[x].has(*dep_xd) for x in dep_xd)]
+    _check_dependent(system, f, dep_xd)
+    found = _solutions(list(f), dep_xd, {})
     if not found:
         raise SystemDefinitionError(
             f"constraints: SymPy cannot solve the implicit constraints for {names}; give them solved, "
             f"as a mapping {{{names.split(', ')[0]}: expression, ...}} (form B), choosing the branch."
         )
-    found.sort(key=lambda s: sp.default_sort_key([s[x] for x in dep_xd]))
+    real = [s for s in found if _real_somewhere([s[x] for x in dep_xd], "constraints")]
+    if not real:
+        listed = "; ".join(
+            ", ".join(f"{_name(system, x)} = {_shown(system, s[x])}" for x in dep_xd) for s in found
+        )
+        raise SystemDefinitionError(
+            f"constraints: the implicit constraints have no real solution for {names}: SymPy's "
+            f"({listed}) are not real at any of {_SAMPLES} random real states, so the constraints "
+            "cannot hold for real velocities."
+        )
+    found = sorted(real, key=lambda s: sp.default_sort_key([s[x] for x in dep_xd]))
     # a root's radicand expanded, as the user writes it: sqrt(v**2 - y'**2), not sqrt((v - y')*(v + y'))
     found = [{x: _expanded_roots(e) for x, e in s.items()} for s in found]
 
     def shown(k: int) -> str:
         return f"branch={k}: " + ", ".join(
-            f"{system.coordinates[i].func.__name__}' = {describe(system.to_user(found[k][x]))}"
-            for i, x in zip(system._dep, dep_xd)
+            f"{_name(system, x)} = {_shown(system, found[k][x])}" for x in dep_xd
         )
 
     if branch is None and len(found) > 1:
@@ -115,10 +125,10 @@ def _solve(
             + "; ".join(shown(k) for k in range(len(found)))
             + "."
         )
-    k = 0 if branch is None else branch
-    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(found):
+    k = 0 if branch is None else _index(branch)
+    if k is None or not 0 <= k < len(found):
         raise SystemDefinitionError(
-            f"branch: expected an integer from 0 to {len(found) - 1}, got {k!r}; "
+            f"branch: expected an integer from 0 to {len(found) - 1}, got {describe(branch)}; "
             + "; ".join(shown(j) for j in range(len(found)))
             + "."
         )
@@ -132,14 +142,168 @@ def _expanded_roots(expr: sp.Expr) -> sp.Expr:
     )
 
 
+#: functions whose value at a real point may be complex
+_COMPLEX_AT_REAL = (sp.log, sp.asin, sp.acos, sp.acosh, sp.atanh, sp.LambertW)
+
+
+def require_real(system: System, what: str, e: sp.Expr) -> None:
+    """Refuse the constraint ``what`` (``e`` in internal symbols: the right side of a solved one,
+    or the function that vanishes) where ``e`` is real nowhere (a root of a negative quantity):
+    checked by numbers where ``e`` has a root or a function that can be complex at a real point,
+    which costs a compilation."""
+    roots = any(not p.exp.is_Integer for p in e.atoms(sp.Pow))
+    if not (roots or e.has(*_COMPLEX_AT_REAL)):
+        return
+    if not _real_somewhere([e], what):
+        raise SystemDefinitionError(
+            f"{what} = {_shown(system, e)} is not real (or not finite) at any of {_SAMPLES} "
+            "random real states, so the constraint cannot hold for real velocities."
+        )
+
+
+def _name(system: System, x: sp.Symbol) -> str:
+    return describe(system.to_user(x))
+
+
+def _shown(system: System, e: sp.Expr) -> str:
+    return describe(system.to_user(e))
+
+
+def _index(value: object) -> int | None:
+    """``value`` as a Python integer (an int, NumPy's or SymPy's), None for anything else."""
+    if isinstance(value, bool):
+        return None
+    try:
+        return operator.index(value)  # type: ignore[arg-type]
+    except TypeError:
+        return None
+
+
+def _solutions(
+    f: list[sp.Expr], unknowns: list[sp.Symbol], known: dict[sp.Symbol, sp.Expr]
+) -> list[dict[sp.Symbol, sp.Expr]]:
+    """Every solution of ``f = 0`` for ``unknowns`` (``known`` substituted): an equation in one
+    unknown at a time where there is one (its roots are the analytic branches, ``±e`` for
+    ``v² = e²``, where a joint solve gives ``±√(e²)``, and each is much quicker), else jointly;
+    each solution checked to make every ``f`` vanish."""
+    from chaplygin.core._sampling import vanishes
+
+    rest = [x for x in unknowns if x not in known]
+    if not rest:
+        return [dict(known)] if all(vanishes(e.xreplace(known)) for e in f) else []
+    current = [e.xreplace(known) for e in f]
+    single = next((e for e in current if len([x for x in rest if e.has(x)]) == 1), None)
+    if single is None:
+        joint = _sympy_solve([e for e in current if e.has(*rest)], rest)
+        extended = [{**known, **s} for s in joint if all(x in s and not s[x].has(*rest) for x in rest)]
+        _evaluate([s[x] for s in extended for x in rest], "constraints", count=1)
+        return [s for e in extended for s in _solutions(f, unknowns, e)]
+    (x,) = [x for x in rest if single.has(x)]
+    roots = [s[x] for s in _sympy_solve([single], [x]) if x in s and not s[x].has(*rest)]
+    _evaluate(roots, "constraints", count=1)  # (refuses LambertW and the like, naming it)
+    return [s for r in roots for s in _solutions(f, unknowns, {**known, x: r})]
+
+
+def _sympy_solve(f: list[sp.Expr], unknowns: list[sp.Symbol]) -> list[dict[sp.Symbol, sp.Expr]]:
+    """SymPy's solutions (unchecked: :func:`_solutions` checks them), none where it gives up; one
+    equation in one unknown without ``simplify`` (its roots as they come: ten to a hundred
+    times quicker, and the same for the constraints met)."""
+    try:
+        if len(f) == len(unknowns) == 1:
+            return [{unknowns[0]: r} for r in sp.solve(f[0], unknowns[0], check=False, simplify=False)]
+        return sp.solve(f, unknowns, dict=True, check=False)
+    except (NotImplementedError, ValueError):
+        return []
+
+
+#: random real states at which a solution must be real (somewhere) to be kept
+_SAMPLES = 64
+#: the magnitudes (log-uniform, either sign) of every symbol at those states: up to 1 in the
+#: first half (√(1 − x² − y² − z²) is real there), up to 1e3 in the second (√(x'² − 100))
+_MAGNITUDES = (1e-2, 1.0, 1e3)
+
+
+def _random_points(symbols: Sequence[sp.Symbol], count: int, seed: int = 30) -> np.ndarray:
+    """``count`` random real points: each symbol of either sign (positive where assumed so) and
+    magnitude log-uniform in :data:`_MAGNITUDES`, as complex numbers (a root of a negative is
+    complex)."""
+    rng = np.random.default_rng(seed)
+    low, middle, high = np.log10(_MAGNITUDES)
+    top = np.where(np.arange(count) < count // 2, middle, high)[:, None]
+    magnitude = 10 ** rng.uniform(low, top, size=(count, len(symbols)))
+    sign = np.where(
+        [bool(x.is_nonnegative) for x in symbols], 1.0, rng.choice((-1.0, 1.0), size=(count, len(symbols)))
+    )
+    return (sign * magnitude).astype(complex)
+
+
+def _evaluate(exprs: Sequence[sp.Expr], what: str, count: int = _SAMPLES) -> np.ndarray:
+    """``exprs`` at :func:`_random_points` (rows); a function with no numerical evaluation is refused."""
+    from chaplygin.core._sampling import compile_function
+
+    symbols = sorted(set().union(*(e.free_symbols for e in exprs)), key=str)
+    try:
+        fn = compile_function(list(exprs), symbols)
+        with np.errstate(all="ignore"):
+            return np.array(
+                [np.asarray(fn(*p), dtype=complex).ravel() for p in _random_points(symbols, count)]
+            )
+    except NameError as exc:
+        raise SystemDefinitionError(
+            f"{what}: {getattr(exc, 'name', exc)} has no numerical evaluation in chaplygin; write the "
+            "constraints with elementary functions (give them solved, as a mapping {q': expression}, "
+            "where SymPy's solution needs another)."
+        ) from None
+
+
+def _real_somewhere(values: Sequence[sp.Expr], what: str) -> bool:
+    """Whether ``values`` (a solution for the dependent velocities) are real and finite together
+    at one at least of :data:`_SAMPLES` random real states."""
+    rows = _evaluate(values, what)
+    finite = np.all(np.isfinite(rows), axis=1)
+    real = np.all(np.abs(rows.imag) <= 1e-9 * (1 + np.abs(rows.real)), axis=1)
+    return bool(np.any(finite & real))
+
+
+def _singular_everywhere(samples: np.ndarray) -> bool:
+    """Whether every one of the sampled square matrices that is real and finite is singular
+    (False where none is: nothing to decide from)."""
+    usable = [
+        m.real
+        for m in samples
+        if np.all(np.isfinite(m)) and np.all(np.abs(m.imag) <= 1e-9 * (1 + np.abs(m.real)))
+    ]
+    return bool(usable) and not any(
+        np.linalg.svd(m, compute_uv=False)[-1] > 1e-10 * max(1.0, np.abs(m).max()) for m in usable
+    )
+
+
+def _check_dependent(system: System, f: sp.Matrix, dep_xd: list[sp.Symbol]) -> None:
+    """Refuse implicit constraints that cannot be solved for the dependent velocities anywhere:
+    one without any of them, or ``∂f/∂q̇_dep`` singular at every random state."""
+    names = ", ".join(_name(system, x) for x in dep_xd)
+    for k, e in enumerate(f):
+        if not e.has(*dep_xd):
+            raise SystemDefinitionError(
+                f"constraints[{k}] contains none of the dependent velocities {names}, so it cannot be "
+                f"solved for them; choose dependent coordinates whose velocities it contains "
+                f"(dependent=[...] names one per constraint)."
+            )
+    g = len(dep_xd)
+    if _singular_everywhere(_evaluate(list(jacobian(f, dep_xd)), "constraints").reshape(-1, g, g)):
+        raise SystemDefinitionError(
+            f"constraints: ∂f/∂({names}) is singular at every sampled state, so the constraints "
+            f"cannot be solved for {names} (they are dependent, or another coordinate's velocity "
+            "is the one they fix); remove the redundant ones or choose other dependent coordinates."
+        )
+
+
 def _check_block(system: System, A: sp.Matrix, phi: dict[sp.Symbol, sp.Expr]) -> None:
     """Refuse constraints whose block ``∂f/∂q̇_dep`` is singular wherever they hold: the
     Appell–Chetaev condition then does not determine the dependent displacements."""
-    from chaplygin.core._sampling import vanishes
-
-    block = A.extract(list(range(len(phi))), list(system._dep)).xreplace(phi)
-    det = sp.together(block.det(method="berkowitz"))
-    if det != 0 and not vanishes(sp.numer(det)):
+    g = len(phi)
+    block = A.extract(list(range(g)), list(system._dep)).xreplace(phi)
+    if not _singular_everywhere(_evaluate(list(block), "constraints").reshape(-1, g, g)):
         return
     which = "constraints[0]" if len(phi) == 1 else "the constraints"
     names = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
@@ -152,13 +316,17 @@ def _check_block(system: System, A: sp.Matrix, phi: dict[sp.Symbol, sp.Expr]) ->
 
 
 def singular_set(system: System) -> list[sp.Expr]:
-    """Expressions (internal symbols) whose zeros are the states where the solved constraints
-    have no derivative (``B = ∂φ/∂q̇_σ`` has a pole): the branch points, where
-    ``∂f/∂q̇_dep`` is singular on the constraints."""
+    """Expressions (internal symbols) whose zeros are the states where the constraints cannot be
+    solved smoothly for the dependent velocities: where ``∂f/∂q̇_dep`` is singular on them (its
+    determinant, the solved form substituted, vanishes: the multiplier models' ``A_dep`` is not
+    invertible) or ``B = ∂φ/∂q̇_σ`` has a pole (the branch points)."""
     found: list[sp.Expr] = []
     xd = set(system._vars.xd)
-    for entry in system._B:
-        for factor in sp.Mul.make_args(sp.factor_terms(sp.denom(sp.together(entry)))):
+    g = system.g
+    block = system._A.extract(list(range(g)), list(system._dep)).xreplace(system._velocity_substitution)
+    det = sp.together(block.det(method="berkowitz"))
+    for part in (sp.numer(det), sp.denom(det), *(sp.denom(sp.together(e)) for e in system._B)):
+        for factor in sp.Mul.make_args(sp.factor_terms(part)):
             base = factor.base if factor.is_Pow else factor
             if base.free_symbols & xd and base not in found and not base.is_number:
                 found.append(base)

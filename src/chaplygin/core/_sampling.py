@@ -15,6 +15,7 @@ import sympy as sp
 from sympy.functions.elementary.trigonometric import TrigonometricFunction
 
 from chaplygin.core._symbols import TIME
+from chaplygin.errors import SystemDefinitionError
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -42,6 +43,9 @@ ANGLE_RANGE = (-np.pi, np.pi)
 #: magnitudes of the other coordinates and of t, log-uniform, each sign equally likely
 LENGTH_MAGNITUDES = (0.1, 10.0)
 VELOCITY_RANGE = (-1.0, 1.0)
+#: for constraints nonlinear in the velocities real nowhere in VELOCITY_RANGE: the factors
+#: (log-uniform) of the later draws
+WIDE_VELOCITIES = (1.0, 1e3)
 PARAMETER_RANGE = (0.5, 1.5)
 #: a state whose B or B_0 has an entry beyond this is too near a pole of the constraints
 POLE = 1e6
@@ -123,11 +127,14 @@ class StateSampler:
     def draw(self, rng: np.random.Generator) -> dict[sp.Symbol, float]:
         """One random admissible state as a map from internal symbols to numbers."""
         s, v = self.system, self.system._vars
-        for _ in range(100):
+        for attempt in range(100):
             t = self._coordinate(TIME, rng)
             q = np.array([self._coordinate(x, rng) for x in v.x])
             qd = np.zeros(s.n)
             qd[list(s._ind)] = rng.uniform(*VELOCITY_RANGE, size=len(s._ind))
+            if s.is_nonlinear and attempt >= 50:  # constraints real only for larger velocities
+                low, high = np.log10(WIDE_VELOCITIES)
+                qd[list(s._ind)] *= 10 ** rng.uniform(low, high, size=len(s._ind))
             if not s.g:
                 break
             velocities: Any = qd[list(s._ind)] if s.is_nonlinear else []
@@ -140,6 +147,13 @@ class StateSampler:
             qd[list(s._dep)] = b @ qd[list(s._ind)] + b0
             if real and np.all(np.abs(b) <= POLE) and np.all(np.abs(b0) <= POLE):
                 break
+        else:
+            if s.is_nonlinear and not np.all(np.isfinite(qd)):
+                raise SystemDefinitionError(
+                    f"constraints: {s.name} has no admissible state at 100 random ones (independent "
+                    f"velocities in {VELOCITY_RANGE}, then up to {WIDE_VELOCITIES[1]:g} times that): the "
+                    "solved constraints are not real, or not finite, there."
+                )
         state: dict[sp.Symbol, float] = {TIME: t}
         state.update(zip(v.x, q.tolist()))
         state.update(zip(v.xd, qd.tolist()))
@@ -180,8 +194,11 @@ def vanishes(expr: sp.Expr, *, samples: int = 8, seed: int = 28) -> bool:
     f = compile_function(expr, symbols)
     finite = 0
     for _ in range(samples):
-        with np.errstate(all="ignore"):
-            value = complex(f(*_point(expr, symbols, rng)))
+        try:
+            with np.errstate(all="ignore"):
+                value = complex(f(*_point(expr, symbols, rng)))
+        except NameError:  # a function NumPy does not have (LambertW): no floating-point samples
+            break
         if np.isfinite(value):
             if abs(value) > 1e-9:
                 return False

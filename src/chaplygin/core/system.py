@@ -331,7 +331,7 @@ class System:
             self._given_constraints = tuple(rhs)  # as given (the key of chaplygin.numeric._modelcache)
             self._check_counts()
             ind_xd = [v.xd[i] for i in self._ind]
-            rows, consts = [], []
+            internal, splits = [], []
             for d, expr in zip(dep, rhs):
                 what = f"constraints[{self.coordinates[d].func.__name__}']"
                 e = self._convert(expr, what)
@@ -341,12 +341,17 @@ class System:
                         f"{what} contains the dependent velocity {describe(bad[0].diff(TIME))}; "
                         "form B expresses dependent velocities through independent ones only."
                     )
-                split = linear_coefficients(e, ind_xd)
-                rows.append(e if split is None else split[0])
-                consts.append(None if split is None else split[1])
-            if any(c is None for c in consts):  # nonlinear in the velocities: φ given
-                self._set_nonlinear(rows, solved=True)
+                internal.append(e)
+                splits.append(linear_coefficients(e, ind_xd))
+            if any(split is None for split in splits):  # nonlinear in the velocities: φ given (every row)
+                self._set_nonlinear(internal, solved=True)
                 return
+            from chaplygin.core._nonlinear import require_real
+
+            for d, e in zip(dep, internal):  # (a root of a velocity-free term: real somewhere?)
+                require_real(self, f"constraints[{self.coordinates[d].func.__name__}']", e)
+            rows = [split[0] for split in splits if split is not None]
+            consts = [split[1] for split in splits if split is not None]
             g = len(dep)
             # each coefficient in normal form (tan as sin/cos, cancelled), as form A's are solved
             self._B = normal_matrix(sp.Matrix(g, len(self._ind), [c for r in rows for c in r]))
@@ -386,19 +391,23 @@ class System:
         rows, consts = [], []
         fast = self._internal_native(exprs)  # SymEngine where it can, SymPy (A built here) where not
         for k, expr in enumerate(exprs):
+            if any(not p.exp.is_Integer for p in expr.atoms(sp.Pow)):  # a root: real somewhere?
+                from chaplygin.core._nonlinear import require_real
+
+                require_real(self, f"constraints[{k}]", self._convert(expr, f"constraints[{k}]"))
             e = self._convert(expr, f"constraints[{k}]", replace=fast is None)
             split = (
                 linear_coefficients(e, list(v.xd)) if fast is None else linear_split(fast[k], self._native_xd)
             )
             if split is None:
-                self._set_nonlinear([self._convert(x, f"constraints[{j}]") for j, x in enumerate(exprs)])
+                internal = [self._convert(x, f"constraints[{j}]") for j, x in enumerate(exprs)]
+                for j, x in enumerate(internal):
+                    if not x.has(*v.xd):
+                        self._refuse_velocity_free(j, exprs[j])
+                self._set_nonlinear(internal)
                 return
             if all(c == 0 for c in split[0]):
-                raise SystemDefinitionError(
-                    f"constraints[{k}] contains no velocity: {describe(expr)}. A finite "
-                    "(holonomic) relation f(q, t) = 0 goes in holonomic={coordinate it fixes: f} "
-                    "(a system file's [holonomic] table), or is used to eliminate a coordinate."
-                )
+                self._refuse_velocity_free(k, expr)
             rows.append(split[0])
             consts.append(split[1])
         g = len(exprs)
@@ -413,6 +422,14 @@ class System:
         else:
             self._B = sp.zeros(0, self.n)
             self._B0 = sp.zeros(0, 1)
+
+    @staticmethod
+    def _refuse_velocity_free(k: int, expr: sp.Expr) -> None:
+        raise SystemDefinitionError(
+            f"constraints[{k}] contains no velocity: {describe(expr)}. A finite "
+            "(holonomic) relation f(q, t) = 0 goes in holonomic={coordinate it fixes: f} "
+            "(a system file's [holonomic] table), or is used to eliminate a coordinate."
+        )
 
     def _set_nonlinear(self, exprs: list[sp.Expr], *, solved: bool = False) -> None:
         """Constraints of which one at least is nonlinear in the velocities (internal ``exprs``:

@@ -14,6 +14,7 @@ from sympy.physics.vector.printing import vsstrrepr
 from chaplygin.core import _fold
 from chaplygin.core._angles import contracted, has_angle_sums
 from chaplygin.core._rational import floated, linear_forms, normal_all, normal_matrix, simplified
+from chaplygin.core._sampling import vanishes
 from chaplygin.core._symbols import TIME, replace_shared
 from chaplygin.errors import ChaplyginWarning, ModelError
 from chaplygin.models.registry import MODELS
@@ -239,7 +240,9 @@ class Equations:
         s = self.system
         reactions = self._require_reactions("power")
         power = sp.Add(*(r * v for r, v in zip(reactions, s._vars.xd))).xreplace(s._velocity_substitution)
-        return self._user(normal_all([power])[0])
+        power = normal_all([power])[0]
+        # (a root in φ: Σ ∂f/∂q̇_s q̇_s = k f is zero on the constraints, not in SymPy's normal form)
+        return sp.S.Zero if power != 0 and vanishes(power) else self._user(power)
 
     def _require_reactions(self, what: str) -> list[sp.Expr]:
         if self._reactions is None:
