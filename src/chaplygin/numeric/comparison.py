@@ -398,6 +398,14 @@ _SHARED_POLE = (
 )
 
 
+#: the fallback's note for constraints nonlinear in the velocities: the multiplier model has
+#: ``A = ∂f/∂q̇`` as its rows, which stay of full rank where only ``∂f/∂q̇_dep`` is singular
+_BRANCH_POINT = (
+    "which does not solve the constraints and continues past their branch point, onto another "
+    "solution of f = 0 where the motion leads there; only a row ∂f/∂q̇ that vanishes stops it"
+)
+
+
 def _rows_have_poles(system: System) -> bool:
     """Whether a coefficient of the constraints ``A q̇ + A_0 = 0`` has a coordinate in a
     denominator (``y' = tan θ x'``: ``A = [−sin θ / cos θ, 1]``)."""
@@ -516,7 +524,13 @@ def compare(
                 note = (
                     f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
                     f"shown instead: the {fallback} model (the same motion with multipliers, "
-                    + (_SHARED_POLE if _rows_have_poles(system) else "no pole")
+                    + (
+                        _BRANCH_POINT
+                        if system.is_nonlinear
+                        else _SHARED_POLE
+                        if _rows_have_poles(system)
+                        else "no pole"
+                    )
                     + ")"
                 )
                 tr = simulate(system, fallback, t_span, initial, parameters, **own)
