@@ -4,6 +4,7 @@ refusals (a start on the singular set, a degenerate vakonomic Lagrangian)."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import numpy as np
@@ -22,6 +23,8 @@ from chaplygin.numeric.ensemble import simulate_ensemble
 from chaplygin.numeric.simulate import initial_state
 from chaplygin.numeric.stability import stability
 
+#: the optional jax backend (chaplygin[jax]) is checked where it is installed
+JAX = all(importlib.util.find_spec(name) is not None for name in ("jax", "diffrax"))
 t = sp.Symbol("t")
 x, y, z = (sp.Function(name)(t) for name in "xyz")
 m, g, v, k = sp.symbols("m g v k", positive=True)
@@ -97,11 +100,14 @@ def test_rhs_matches_exact_evaluation(name: str) -> None:
     sampler = StateSampler(system, params)
     names = {p.name: val for p, val in params.items()}
     backends = ["numpy", "c"] + (["numba"] if name == "isokinetic" else [])
+    backends += ["jax"] if JAX and name in ("isokinetic", "appell") else []
     for label in models:
         model, _, form = label.partition("/")
         eqs = system.equations(model, form or "classic")
         reduced = registry.get(model).reduced
         compiled = {be: compile_model(system, model, form or "classic", be) for be in backends}
+        if model == "voronets" and not form:  # Novoselov's equations from the Chetaev matrices, numerically
+            compiled["numeric"] = compile_model(system, model, backend="numpy", reduction="numeric")
         layout = compiled["numpy"].layout
         p = np.array([names[p] for p in layout.parameters])
         for _ in range(3):
@@ -120,12 +126,17 @@ APPELL_P = {"m": 1.0, "g": 9.81, "k": 0.5}
 APPELL_0 = {"x": 0.0, "y": 0.0, "z": 0.0, "x'": 0.3, "y'": 0.4}
 
 
-@pytest.mark.parametrize("backend", ["numpy", "c"])
-@pytest.mark.parametrize("model", ["chetaev", "voronets"])
-def test_appell_closed_form(backend: str, model: str) -> None:
+@pytest.mark.parametrize(
+    ("backend", "model", "method"),
+    [("numpy", "chetaev", "DOP853"), ("c", "chetaev", "DOP853"), ("numpy", "voronets", "DOP853"),
+     ("c", "voronets", "DOP853"), ("numpy", "voronets", "gauss4"), ("c", "vakonomic", "DOP853")],
+)  # fmt: skip
+def test_appell_closed_form(backend: str, model: str, method: str) -> None:
     """Appell's weight, z' = +k |(x', y')|: a straight path, speed rate −g k/(1 + k²), z'' = −g k²/(1 + k²)
-    (Appell 1911), to the run's tolerance, |f| at round-off; the run stops before the speed reaches 0."""
-    tr = ch.simulate(appell(), model, 0.1, APPELL_0, APPELL_P, backend=backend, rtol=1e-11, atol=1e-13)
+    (Appell 1911), to the run's tolerance, |f| at round-off; the run ends before the speed reaches 0.
+    The vakonomic model (c = 0: μ = −m/2, not degenerate here) gives the same motion."""
+    options = {"step": 1e-3} if method == "gauss4" else {"rtol": 1e-11, "atol": 1e-13}
+    tr = ch.simulate(appell(), model, 0.1, APPELL_0, APPELL_P, backend=backend, method=method, **options)
     assert tr.success, tr.message
     kk, gg = APPELL_P["k"], APPELL_P["g"]
     speed = np.hypot(tr["x'"], tr["y'"])
@@ -183,6 +194,16 @@ def test_vakonomic_degenerate_start_refused() -> None:
     for model in ("vakonomic", "lindelof"):
         with pytest.raises(InputError, match=r"degenerate at the initial state with μ\(0\) = \[-0.5\]"):
             ch.simulate(isokinetic(), model, 1.0, ISO_0, ISO_P, backend="numpy")
+
+
+def test_run_that_stalls_at_the_branch_point_names_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Appell's weight rising (branch z' = +k|v|) stops at v = 0 (t = 0.5 (1 + k²)/(g k) = 0.1274), a
+    branch point where Novoselov's equations chatter: the time-limit refusal names the singular set."""
+    from chaplygin.numeric import simulate as module
+
+    monkeypatch.setattr(module, "ESTIMATE_AFTER", 0.05)
+    with pytest.raises(InputError, match=r"too long to run.*singular set.*x'\*\*2 \+ y'\*\*2"):
+        ch.simulate(appell(), "voronets", 0.3, APPELL_0, APPELL_P, backend="c", time_limit=0.5)
 
 
 def test_start_on_the_singular_set_refused() -> None:

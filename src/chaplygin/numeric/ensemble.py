@@ -438,7 +438,7 @@ def _dependent_velocities(
             from chaplygin.numeric.simulate import singular_set_text
 
             raise ChaplyginError(
-                f"initial_states[{k}]: the state lies on the singular set of the constraints: "
+                f"initial_states[{k}]: the state lies on the singular set of the constraints, "
                 f"{singular_set_text(system)}; start away from it."
             )
         raise ChaplyginError(

@@ -498,7 +498,7 @@ def initial_state(
     if not _solvable(a[:, :-1], dep) and system.is_nonlinear:
         speeds = ", ".join(f"{names[i]}' = {qd[i]:.6g}" for i in ind)
         raise InputError(
-            f"initial: the start ({at}, {speeds}) lies on the singular set of the constraints: "
+            f"initial: the start ({at}, {speeds}) lies on the singular set of the constraints, "
             f"{singular_set_text(system)}; start away from it."
         )
     if not _solvable(a[:, :-1], dep):
@@ -1006,6 +1006,10 @@ def duration(seconds: float) -> str:
     return f"{s // 86400} days"
 
 
+class TooSlow(InputError):
+    """A run refused by :func:`pace_check`: at its pace it would take longer than its time limit."""
+
+
 def pace_check(
     total: float, limit: float, refusal: Callable[[str, str], str], instead: str
 ) -> Callable[[float], None]:
@@ -1037,7 +1041,7 @@ def pace_check(
         elif checks[0] == 2:  # beyond it twice (a run that crawls near a pole and then stops
             # there, as the integrator finds it, is beyond it only at first)
             pace = f"from {origin[1]:.4g} to {done:.4g} in {elapsed:.1f} s"
-            raise InputError(
+            raise TooSlow(
                 f"{refusal(duration(left), pace)}, beyond the limit of {duration(limit)}; "
                 f"{instead}, or {_NO_LIMIT} to run it anyway."
             )
@@ -1185,21 +1189,30 @@ def simulate(
     layout = compiled.layout
 
     p = parameter_vector(layout, params)
-    tr = integrate(
-        compiled,
-        (t0, t1),
-        np.array(y0),
-        p,
-        params,
-        rtol=rtol,
-        atol=atol,
-        method=method,
-        samples=samples,
-        max_step=max_step,
-        g=system.g,
-        progress=progress,
-        time_limit=time_limit,
-    )
+    try:
+        tr = integrate(
+            compiled,
+            (t0, t1),
+            np.array(y0),
+            p,
+            params,
+            rtol=rtol,
+            atol=atol,
+            method=method,
+            samples=samples,
+            max_step=max_step,
+            g=system.g,
+            progress=progress,
+            time_limit=time_limit,
+        )
+    except TooSlow as exc:
+        if not (system.is_nonlinear and entry.reduced):
+            raise
+        # (Appell's weight rising on branch z' = +k|v| stops at v = 0 and the reduced run crawls there)
+        raise TooSlow(
+            f"{exc} A reduced run with constraints nonlinear in the velocities that crawls has often "
+            f"met the singular set of the constraints, {singular_set_text(system)}."
+        ) from None
     pole = None
     if entry.reduced and system.g and not pole_free(system):
         pole = _pole_between_samples(
@@ -1420,7 +1433,7 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
         return k, (
             f"the singular set of the constraints {'at' if singular[k] else 'between'} t = "
             + (f"{tr.t[k]:.6g}" if singular[k] else f"{tr.t[k - 1]:.6g} and {tr.t[k]:.6g}")
-            + f": {singular_set_text(system)}"
+            + f", {singular_set_text(system)}"
         )
     if singular[k]:
         return k, (
@@ -1434,16 +1447,16 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
 
 
 def singular_set_text(system: System) -> str:
-    """What the singular set of constraints nonlinear in the velocities is, in words: where
-    ``∂f/∂q̇_dep`` is singular on them, the branch points of their solved form."""
+    """What the singular set of constraints nonlinear in the velocities is, in words (a clause
+    that begins "where"): ``∂f/∂q̇_dep`` singular on them, the branch points of their solved form."""
     from chaplygin.core._symbols import describe
 
     dep = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
     where = " or ".join(f"{describe(e)} = 0" for e in system.singular_set)
     branch = f" (branch={system._branch})" if system._branch is not None else ""
     return (
-        f"∂f/∂({dep}) is singular there{' (' + where + ')' if where else ''}: a branch point of the "
-        f"constraints, where the solutions of f = 0 for {dep} meet and their solved form{branch} ends"
+        f"where ∂f/∂({dep}) is singular{' (' + where + ')' if where else ''}, a branch point: the "
+        f"solutions of f = 0 for {dep} meet there and their solved form{branch} ends"
     )
 
 
