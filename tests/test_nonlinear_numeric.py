@@ -21,7 +21,7 @@ from chaplygin.numeric._modelcache import definition
 from chaplygin.numeric.codegen import compile_model
 from chaplygin.numeric.ensemble import simulate_ensemble
 from chaplygin.numeric.simulate import initial_state
-from chaplygin.numeric.stability import stability
+from chaplygin.numeric.stability import stability, steady_motions
 
 #: the optional jax backend (chaplygin[jax]) is checked where it is installed
 JAX = all(importlib.util.find_spec(name) is not None for name in ("jax", "diffrax"))
@@ -233,13 +233,22 @@ def test_ensemble_and_compare() -> None:
         assert ens.coordinates["x"][j] == pytest.approx(tr["x"][-1], abs=1e-8)
         assert ens.velocities_initial["x'"][j] == pytest.approx(math.sqrt(1 - start["y'"] ** 2), abs=1e-14)
     assert np.max(np.abs(ens.constraint_residual)) < 1e-8
+    vak = simulate_ensemble(isokinetic(), "vakonomic", 1.0, starts, ISO_P, backend="c", constants=0.5)
+    for j, start in enumerate(starts):  # the catenary: w y' = c' − m g t, w x' = c
+        slope = 0.5 / math.sqrt(1 - start["y'"] ** 2) * start["y'"] - 9.81
+        assert vak.velocities["y'"][j] == pytest.approx(slope / math.hypot(0.5, slope), abs=1e-8)
     cmp = ch.compare(isokinetic(), ["chetaev", "voronets", "vakonomic"], 0.5, ISO_0, ISO_P, backend="c")
     assert np.max(cmp.distance("voronets")) < 1e-8
     assert np.max(cmp.distance("vakonomic")) > 1e-3  # the grim reaper and the catenary differ
+    # the paper's comparison by default: Lindelöf's T̃ = m v²/2 is constant, so its start is degenerate
+    with pytest.warns(ch.ChaplyginWarning, match="lindelof: left out: the vakonomic Lagrangian"):
+        default = ch.compare(isokinetic(), None, 0.5, ISO_0, ISO_P, backend="c")
+    assert list(default.trajectories) == ["chaplygin", "vakonomic"]
 
 
 def test_stability_of_an_isokinetic_circular_orbit() -> None:
-    """ṙ² + r²θ̇² = v² in the potential k r²/2: the circle r0² = m v²/k is a steady motion; the true
+    """ṙ² + r²θ̇² = v² in the potential k r²/2: the circle r0² = m v²/k is a steady motion (found by
+    Newton from r = 0.4); the true
     motion's r̈ = (1 − ṙ²/v²)(v²/r − k r/m) gives eigenvalues ±i√(2k/m) (by hand); the multiplier
     model is linearised through Novoselov's equations, the vakonomic one is refused."""
     r, th = sp.Function("r")(t), sp.Function("theta")(t)
@@ -250,6 +259,8 @@ def test_stability_of_an_isokinetic_circular_orbit() -> None:
         potential_energy=kk * r**2 / 2, branch=1,
     )  # fmt: skip
     params = {"m": 1.0, "k": 4.0, "v": 1.0}
+    found = steady_motions(system, {"r": 0.4, "r'": 0.0}, params)  # Newton, from r = 0.4
+    assert found.point["r"] == pytest.approx(0.5, abs=1e-12)
     for model in ("voronets", "chetaev"):
         st = stability(system, {"r": 0.5, "r'": 0.0, "theta": 0.0}, params, model=model)
         np.testing.assert_allclose(sorted(st.eigenvalues.imag), [-math.sqrt(8), math.sqrt(8)], rtol=1e-9)

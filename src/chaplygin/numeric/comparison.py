@@ -35,6 +35,7 @@ from chaplygin.errors import ChaplyginError, ChaplyginWarning
 from chaplygin.models import registry
 from chaplygin.numeric.simulate import (
     TIME_LIMIT,
+    Degenerate,
     Trajectory,
     _atomic_write,
     simulate,
@@ -488,6 +489,7 @@ def compare(
         "progress": progress,
         "time_limit": time_limit,
     }
+    defaulted = models is None  # (a default model whose vakonomic start is degenerate is left out)
     models = default_models(system) if models is None else models
     if not models:
         raise ChaplyginError("models: name at least one model.")
@@ -513,7 +515,17 @@ def compare(
     trajectories: dict[str, Trajectory] = {}
     for name, form, label in parsed:
         own = {**options, **vakonomic} if _takes_constants(name) else options
-        tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
+        try:
+            tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
+        except (
+            Degenerate
+        ) as exc:  # (nonlinear constraints: e.g. Lindelöf's T̃ of the isokinetic particle is constant)
+            if not defaulted or label == labels[0]:
+                raise
+            note = f"{label}: left out: {exc}"
+            warnings.warn(note, ChaplyginWarning, stacklevel=2)
+            notes.append(note)
+            continue
         if tr.failure == "pole":
             fallback = registry.get(name).fallback
             if fallback is None:

@@ -815,7 +815,7 @@ def _check_vakonomic_start(
     if len(w) and np.all(np.isfinite(w)) and np.min(np.abs(w)) > scale / MAX_CONDITION:
         return
     shown = ", ".join(f"{x:.6g}" for x in mu)
-    raise InputError(
+    raise Degenerate(
         f"the vakonomic Lagrangian T + U + Σ μ_β f_β is degenerate at the initial state with "
         f"μ(0) = [{shown}]: its Hessian in the velocities on the constraints, "
         f"Cᵀ(∂²T/∂q̇² + Σ μ_β ∂²f_β/∂q̇²)C, is singular there (eigenvalue "
@@ -1004,6 +1004,10 @@ def duration(seconds: float) -> str:
     if s < 48 * 3600:
         return f"{s // 3600} h {s % 3600 // 60:02d} min"
     return f"{s // 86400} days"
+
+
+class Degenerate(InputError):
+    """A vakonomic start where ``T + U + Σ μ_β f_β`` is degenerate (:func:`_check_vakonomic_start`)."""
 
 
 class TooSlow(InputError):
