@@ -58,6 +58,15 @@ def appell_solved() -> System:
     )
 
 
+def appell_chaplygin() -> System:
+    """Appell's constraint with the weight's field along y: a Chaplygin system (T, U and φ free of z),
+    so that Lindelöf's equations and the vakonomic family exist."""
+    return System(
+        [x, y, z], m / 2 * (xd**2 + yd**2 + zd**2), [zd**2 - k**2 * (xd**2 + yd**2)], dependent=[z],
+        potential_energy=m * g * y, branch=1,
+    )  # fmt: skip
+
+
 def randomish(seed: int = 3) -> System:
     """Three coordinates, T with an off-axis term, a constraint nonlinear in the velocities with
     coordinates and explicit time in it (coefficients drawn from ``seed``)."""
@@ -73,6 +82,7 @@ SYSTEMS = {
     "isokinetic-solved": (isokinetic_solved, ["chetaev", "chaplygin/new"]),
     "appell": (appell, ["chetaev", "voronets", "voronets/new", "vakonomic"]),
     "appell-solved": (appell_solved, ["voronets"]),
+    "appell-chaplygin": (appell_chaplygin, ["chaplygin", "chaplygin/new", "lindelof", "vakonomic_family"]),
     "random": (randomish, ["chetaev", "voronets", "voronets/new", "vakonomic"]),
 }
 
@@ -99,17 +109,21 @@ def test_rhs_matches_exact_evaluation(name: str) -> None:
     params = parameter_values(system, rng)
     sampler = StateSampler(system, params)
     names = {p.name: val for p, val in params.items()}
-    backends = ["numpy", "c"] + (["numba"] if name == "isokinetic" else [])
-    backends += ["jax"] if JAX and name in ("isokinetic", "appell") else []
+    # (numba and jax compile for seconds: one reduced and one multiplier model of two systems)
+    extra = (["numba"] if name == "isokinetic" else []) + (
+        ["jax"] if JAX and name in ("isokinetic", "appell") else []
+    )
     for label in models:
         model, _, form = label.partition("/")
-        eqs = system.equations(model, form or "classic")
+        family = {"constants": [sp.Rational(1, 2)]} if model == "vakonomic_family" else {}
+        eqs = system.equations(model, form or "classic", **family)
         reduced = registry.get(model).reduced
-        compiled = {be: compile_model(system, model, form or "classic", be) for be in backends}
+        backends = ["numpy", "c"] + (extra if label in ("voronets", "vakonomic") else [])
+        compiled = {be: compile_model(system, model, form or "classic", be, **family) for be in backends}
         if model == "voronets" and not form:  # Novoselov's equations from the Chetaev matrices, numerically
             compiled["numeric"] = compile_model(system, model, backend="numpy", reduction="numeric")
         layout = compiled["numpy"].layout
-        p = np.array([names[p] for p in layout.parameters])
+        p = np.array([names.get(p, 0.5) for p in layout.parameters])  # (c_1 = 1/2)
         for _ in range(3):
             state = sampler.draw(rng)
             assert abs(float(system._f[0].xreplace(state))) < 1e-12  # admissible
@@ -120,6 +134,20 @@ def test_rhs_matches_exact_evaluation(name: str) -> None:
             for be, cm in compiled.items():
                 got = np.asarray(cm.rhs(float(state[TIME]), np.array(ys + mus), p))
                 np.testing.assert_allclose(got, exact, rtol=1e-9, atol=1e-9, err_msg=f"{name} {label} {be}")
+
+
+def test_random_system_runs_agree() -> None:
+    """On the random system (off-axis T, coordinates and t in φ) the Chetaev run keeps |f| at the run's
+    tolerance and Novoselov's equations (classic, new, the numeric reduction) follow it to 1e-9."""
+    system, params = randomish(), {"m": 1.0, "g": 9.81, "k": 0.7}
+    start = {"x": 0.2, "y": 0.1, "z": 0.0, "x'": 0.3, "y'": -0.2}
+    truth = ch.simulate(system, "chetaev", 1.0, start, params, backend="c")
+    assert truth.success and np.max(np.abs(truth.constraint_residual)) < 1e-9
+    for form, reduction in (("classic", "symbolic"), ("new", "symbolic"), ("classic", "numeric")):
+        tr = ch.simulate(system, "voronets", 1.0, start, params, form=form, reduction=reduction, backend="c")
+        assert tr.success, tr.message
+        for c in ("x", "y", "z", "x'", "y'", "z'"):
+            np.testing.assert_allclose(tr[c], truth[c], atol=1e-9, err_msg=f"{form} {reduction} {c}")
 
 
 APPELL_P = {"m": 1.0, "g": 9.81, "k": 0.5}
@@ -149,6 +177,16 @@ def test_appell_closed_form(backend: str, model: str, method: str) -> None:
 
 ISO_P = {"m": 1.0, "g": 9.81, "v": 1.0}
 ISO_0 = {"x": 0.0, "y": 0.0, "y'": 0.3}
+
+
+def test_lindelof_closed_form() -> None:
+    """Lindelöf's equations of Appell's constraint with the field along y: T̃ = m (1 + k²)(x'² + y'²)/2,
+    so y'' = −g/(1 + k²) and x' stays."""
+    tr = ch.simulate(appell_chaplygin(), "lindelof", 1.0, APPELL_0, APPELL_P, backend="c")
+    kk, gg = APPELL_P["k"], APPELL_P["g"]
+    np.testing.assert_allclose(tr["y'"], 0.4 - gg / (1 + kk**2) * tr.t, atol=1e-9)
+    np.testing.assert_allclose(tr["x'"], 0.3, atol=1e-12)
+    np.testing.assert_allclose(tr["z'"], kk * np.hypot(tr["x'"], tr["y'"]), atol=1e-12)
 
 
 def test_isokinetic_grim_reaper_and_branches_mirrored() -> None:
