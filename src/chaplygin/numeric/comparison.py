@@ -400,10 +400,10 @@ _SHARED_POLE = (
 
 
 #: the fallback's note for constraints nonlinear in the velocities: the multiplier model has
-#: ``A = ∂f/∂q̇`` as its rows, which stay of full rank where only ``∂f/∂q̇_dep`` is singular
+#: ``A = ∂f/∂q̇`` as its rows, which keep full rank where only ``∂f/∂q̇_dep`` is singular
 _BRANCH_POINT = (
-    "which does not solve the constraints and continues past their branch point, onto another "
-    "solution of f = 0 where the motion leads there; only a row ∂f/∂q̇ that vanishes stops it"
+    "which does not solve the constraints for the dependent velocities, so their branch point "
+    "does not stop it where ∂f/∂q̇ keeps full rank"
 )
 
 
@@ -517,9 +517,8 @@ def compare(
         own = {**options, **vakonomic} if _takes_constants(name) else options
         try:
             tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
-        except (
-            Degenerate
-        ) as exc:  # (nonlinear constraints: e.g. Lindelöf's T̃ of the isokinetic particle is constant)
+        except Degenerate as exc:
+            # (nonlinear constraints: e.g. Lindelöf's T̃ of the isokinetic particle is constant)
             if not defaulted or label == labels[0]:
                 raise
             note = f"{label}: left out: {exc}"
