@@ -1170,7 +1170,7 @@ def simulate(
             np.array(y0[len(y0) - system.g :])
             if entry.multipliers_in_state
             else _multipliers_from_constants(
-                system, np.asarray(family_c or [0.0] * system.g), q, qd, params, t0
+                system, np.asarray(family_c if family_c is not None else [0.0] * system.g), q, qd, params, t0
             )
         )
         _check_vakonomic_start(system, model, mu, q, qd, params, t0)
