@@ -17,6 +17,7 @@ from chaplygin.core._sampling import StateSampler, parameter_values
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
+from chaplygin.models.equations import Equations
 from chaplygin.numeric._modelcache import definition
 from chaplygin.numeric.codegen import compile_model
 from chaplygin.numeric.ensemble import simulate_ensemble
@@ -87,7 +88,7 @@ SYSTEMS = {
 }
 
 
-def _exact_rhs(system: System, eqs, state: dict, mus: list[float]) -> list[float]:
+def _exact_rhs(system: System, eqs: Equations, state: dict, mus: list[float]) -> list[float]:
     """dy/dt of the model's state from its symbolic accelerations, evaluated exactly (SymPy)."""
     values = {key: sp.Float(val, 30) for key, val in state.items()}
     values.update({mu: sp.Float(val, 30) for mu, val in zip(eqs._state, mus)})
