@@ -59,7 +59,8 @@ def definition(system: System) -> str | None:
 
     The coordinates (names and assumptions), the kinetic energy, the force function, the
     generalized forces by coordinate, the constraint form, the dependent coordinates, the
-    constraints and the holonomic relations as given, as a table of nodes (each subexpression once, in the order first
+    constraints and the holonomic relations as given, the branch chosen of implicit constraints
+    nonlinear in the velocities, as a table of nodes (each subexpression once, in the order first
     met; a symbol by its name and assumptions).  SymPy orders the arguments of a sum or a
     product canonically, so an equal definition gives the same digest in every process.
     Computed once per system.
@@ -78,6 +79,8 @@ def definition(system: System) -> str | None:
     if nodes is not None:
         head = [system.constraint_form, list(system._dep), len(system.coordinates), len(forces)]
         head += [len(relations)] if relations else []  # (keys of systems without them unchanged)
+        # which solution of implicit constraints nonlinear in the velocities (issue 30)
+        head += [["branch", system._branch]] if getattr(system, "_branch", None) is not None else []
         text = json.dumps([head, nodes], separators=(",", ":"), ensure_ascii=True)
         digest = hashlib.sha256(text.encode()).hexdigest()
     system.__dict__["_definition_digest"] = digest

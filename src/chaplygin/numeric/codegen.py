@@ -258,8 +258,10 @@ def _main_block(
     items = _common([*M, *F, *velocities, energy, *(a for row in A for a in row), *A0, *xd])
     cut = np.cumsum([0, dim * dim, dim, n, 1, g * n, g])
     M, F, velocities, (energy,), A, A0, xd = (items[i:j] for i, j in zip(cut, [*cut[1:], None]))
-    energy = energy.xreplace(dict(zip(xd, velocities)))
-    residual = [sum((A[b * n + j] * velocities[j] for j in range(n)), A0[b]) for b in range(g)]
+    full = dict(zip(xd, velocities))
+    energy = energy.xreplace(full)
+    # f = A q̇ + A_0 at the full velocities (A and A_0 hold q̇ where f is nonlinear in it)
+    residual = [sum((A[b * n + j] * xd[j] for j in range(n)), A0[b]).xreplace(full) for b in range(g)]
     exprs = _at([*M, *F, *velocities, energy, *residual], plain)
     return _Block(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim)
 
@@ -335,8 +337,9 @@ def _numeric_reduction_parts(s: System, model: str) -> _Parts:
 
     The state is that of the reduced model (coordinates, independent
     velocities); ``fill`` solves the constraints ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``
-    numerically, then fills the multiplier system (6) with its unknowns ordered
-    ``[q̈_σ, q̈_dep, λ]``, whose leading ε entries are the reduced model's
+    numerically (for constraints nonlinear in the velocities it takes their solved form
+    ``q̇_dep = φ(q, q̇_σ, t)``, the branch chosen), then fills the multiplier system (6) with
+    its unknowns ordered ``[q̈_σ, q̈_dep, λ]``, whose leading ε entries are the reduced model's
     accelerations at that (admissible) state.  No symbolic ``B`` is needed, so
     systems far too large for a symbolic elimination compile in seconds.  The
     Chetaev matrices are derived in SymEngine (:mod:`chaplygin.core._native`) where
@@ -363,6 +366,10 @@ def _numeric_reduction_parts(s: System, model: str) -> _Parts:
         eqs = s.equations("chetaev")
         rows, F = eqs._M.tolist(), list(eqs._F)
     _, A, A0, xd = _kinematics(s)
+    if s.is_nonlinear:  # q̇_dep = φ(q, q̇_σ, t), the branch chosen: no linear solve
+        plain.update({v.xd[i]: v.xd[i].xreplace(s._velocity_substitution).xreplace(plain) for i in dep})
+        M = [row[j] for row in rows for j in [*ind, *dep, *range(n, n + g)]]
+        return _Parts(s, layout, _Fill(_main_block(s, M, F, list(xd), plain)), n + g, len(ind))
     a_dep = [A[b][j] for b in range(g) for j in dep]
     rhs = [-(sum((A[b][i] * xd[i] for i in ind), 0) + A0[b]) for b in range(g)]
     pre = _Block(

@@ -35,6 +35,7 @@ from chaplygin.errors import ChaplyginError, ChaplyginWarning
 from chaplygin.models import registry
 from chaplygin.numeric.simulate import (
     TIME_LIMIT,
+    Degenerate,
     Trajectory,
     _atomic_write,
     simulate,
@@ -398,6 +399,14 @@ _SHARED_POLE = (
 )
 
 
+#: the fallback's note for constraints nonlinear in the velocities: the multiplier model has
+#: ``A = ∂f/∂q̇`` as its rows, which keep full rank where only ``∂f/∂q̇_dep`` is singular
+_BRANCH_POINT = (
+    "which does not solve the constraints for the dependent velocities, so their branch point "
+    "does not stop it where ∂f/∂q̇ keeps full rank"
+)
+
+
 def _rows_have_poles(system: System) -> bool:
     """Whether a coefficient of the constraints ``A q̇ + A_0 = 0`` has a coordinate in a
     denominator (``y' = tan θ x'``: ``A = [−sin θ / cos θ, 1]``)."""
@@ -480,6 +489,7 @@ def compare(
         "progress": progress,
         "time_limit": time_limit,
     }
+    defaulted = models is None  # (a default model whose vakonomic start is degenerate is left out)
     models = default_models(system) if models is None else models
     if not models:
         raise ChaplyginError("models: name at least one model.")
@@ -505,7 +515,16 @@ def compare(
     trajectories: dict[str, Trajectory] = {}
     for name, form, label in parsed:
         own = {**options, **vakonomic} if _takes_constants(name) else options
-        tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
+        try:
+            tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
+        except Degenerate as exc:
+            # (nonlinear constraints: e.g. Lindelöf's T̃ of the isokinetic particle is constant)
+            if not defaulted or label == labels[0]:
+                raise
+            note = f"{label}: left out: {exc}"
+            warnings.warn(note, ChaplyginWarning, stacklevel=2)
+            notes.append(note)
+            continue
         if tr.failure == "pole":
             fallback = registry.get(name).fallback
             if fallback is None:
@@ -516,7 +535,13 @@ def compare(
                 note = (
                     f"{label}: {tr.message.split(';')[0]}, where the reduced equations do not hold; "
                     f"shown instead: the {fallback} model (the same motion with multipliers, "
-                    + (_SHARED_POLE if _rows_have_poles(system) else "no pole")
+                    + (
+                        _BRANCH_POINT
+                        if system.is_nonlinear
+                        else _SHARED_POLE
+                        if _rows_have_poles(system)
+                        else "no pole"
+                    )
                     + ")"
                 )
                 tr = simulate(system, fallback, t_span, initial, parameters, **own)

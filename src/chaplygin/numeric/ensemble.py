@@ -409,9 +409,24 @@ def _dependent_velocities(
     system: System, Q: np.ndarray, QD: np.ndarray, params: Mapping[str, np.ndarray], t0: float
 ) -> None:
     """Fill in the dependent velocities of every member from the constraints (``initial_state``
-    for N members at once): ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``; a given one must agree."""
+    for N members at once): ``A_dep q̇_dep = −(A_ind q̇_σ + A_0)``; a given one must agree.
+    For constraints nonlinear in the velocities the solved form ``q̇_dep = φ`` (the branch
+    chosen) comes first, and the solve is a Newton step from it."""
     ind, dep = list(system._ind), list(system._dep)
     names = [c.func.__name__ for c in system.coordinates]
+    given_all = QD.copy()
+    if system.is_nonlinear:
+        phi = [system._velocity_substitution[system._vars.xd[i]] for i in dep]
+        found = _evaluate_all(system, phi, Q, QD, params, t0)
+        real = np.all(np.isfinite(found), axis=1)
+        if not real.all():
+            k = int(np.flatnonzero(~real)[0])
+            raise ChaplyginError(
+                f"initial_states[{k}]: the constraints give no real "
+                f"{', '.join(names[i] + chr(39) for i in dep)} at this state (their solved form "
+                f"{list(system.constraints.values())} is not real or not finite there)."
+            )
+        QD[:, dep] = found  # (the given ones kept in given_all, checked below)
     matrix = system._A.row_join(system._A0)
     a = _evaluate_all(system, list(matrix), Q, QD, params, t0).reshape(len(Q), *matrix.shape)
     lhs, rhs = a[:, :, dep], -(np.einsum("kij,kj->ki", a[:, :, ind], QD[:, ind]) + a[:, :, -1])
@@ -419,12 +434,19 @@ def _dependent_velocities(
     solvable[solvable] = np.linalg.matrix_rank(lhs[solvable]) == len(dep)
     if not solvable.all():
         k = int(np.flatnonzero(~solvable)[0])
+        if system.is_nonlinear:
+            from chaplygin.numeric.simulate import singular_set_text
+
+            raise ChaplyginError(
+                f"initial_states[{k}]: the state lies on the singular set of the constraints, "
+                f"{singular_set_text(system)}; start away from it."
+            )
         raise ChaplyginError(
             f"initial_states[{k}]: the constraints cannot be solved for the dependent velocities "
             f"({', '.join(names[i] + chr(39) for i in dep)}) at this configuration."
         )
     implied = np.linalg.solve(lhs, rhs[:, :, None])[:, :, 0]
-    given = QD[:, dep]
+    given = given_all[:, dep]
     wrong = ~np.isnan(given) & (np.abs(given - implied) > 1e-9 * np.maximum(1.0, np.abs(implied)))
     if wrong.any():
         k, j = (int(x) for x in np.argwhere(wrong)[0])
@@ -737,7 +759,12 @@ def _stop_at_poles(
     reached[:, 1:-1] &= times[None, :] <= res["t"][:, None]
     rows, cols = np.nonzero(reached)
     params = {name: P[rows, j] for j, name in enumerate(layout.parameters)}
-    singular_at, sign_at = pole_marks(system, tt[rows, cols], qq[rows, cols], params)
+    speeds = None
+    if system.is_nonlinear:  # (a reduced state: the independent velocities follow the coordinates)
+        e = slice(n, n + len(system._ind))
+        vv = np.concatenate([Y0[:, None, e], samples[:, :, e], res["y"][:, None, e]], axis=1)
+        speeds = vv[rows, cols]
+    singular_at, sign_at = pole_marks(system, tt[rows, cols], qq[rows, cols], params, speeds)
     singular = np.zeros(reached.shape, dtype=bool)
     sign = np.full(reached.shape, np.nan)
     singular[rows, cols], sign[rows, cols] = singular_at, sign_at

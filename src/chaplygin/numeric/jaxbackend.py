@@ -85,7 +85,7 @@ def _expressions(eqs: Equations) -> tuple[Any, list[sp.Expr], list[sp.Symbol], l
     layout, to_num, velocities, k = state_symbols(eqs)
     full_xd = {s._vars.xd[i]: velocities[i] for i in range(s.n)}
     energy = monitored(s, s._T, s._U, s._vars.xd).xreplace(full_xd)
-    residual = list(s._A * sp.Matrix(velocities) + s._A0) if s.g else []
+    residual = list(s._f.xreplace(full_xd))  # f at the full velocities (A holds q̇ where f is nonlinear)
     exprs = [*eqs._M, *eqs._F, *velocities, energy, *residual]
     n_y, n_p = len(layout.state), len(layout.parameters)
     ys = [sp.Symbol(f"_y{i}") for i in range(n_y)]

@@ -473,7 +473,9 @@ def linearize(
     model : str
         ``"chetaev"`` (the true motion with its multipliers), ``"chaplygin"`` or ``"voronets"``
         (the same motion reduced), ``"vakonomic"`` (the vakonomic motion, μ in the state),
-        ``"lindelof"`` (the constraints substituted into T).
+        ``"lindelof"`` (the constraints substituted into T).  For constraints nonlinear in the
+        velocities the true motion is linearised in its reduced form (Novoselov's equations,
+        ``"chaplygin"`` or ``"voronets"``) and ``"vakonomic"`` is refused.
     parameters : mapping
         A number for every parameter.
 
@@ -489,7 +491,16 @@ def linearize(
         For an unknown model, a model that does not apply, a system with explicit time, or a
         parameter missing or not a number.
     """
-    registry.get(model, form)
+    entry = registry.get(model, form)
+    if system.is_nonlinear and not entry.reduced:
+        # the multiplier models' admissible manifold f(q, q̇) = 0 is not linear in the velocities
+        if not entry.is_true_motion:
+            raise ChaplyginError(
+                f"{system.name}: the {model} model (with multipliers) is not linearised for constraints "
+                "nonlinear in the velocities; the vakonomic motion's reduced form is 'lindelof' (its "
+                "family at c = 0), where the system allows it."
+            )
+        model, form = registry.true_motion(system), "classic"  # Novoselov's equations: the same motion
     eqs = system.equations(model, form)
     cache = eqs.__dict__.setdefault("_linearizations", {})
     key = tuple(sorted((str(k), repr(v)) for k, v in (parameters or {}).items()))

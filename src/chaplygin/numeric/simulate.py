@@ -495,6 +495,12 @@ def initial_state(
     ):  # the solved form (the branch chosen); A q̇ + A_0 = f: the solve below is a Newton step
         qd[dep] = _nonlinear_velocities(system, q, qd, params, t0, at)
     a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
+    if not _solvable(a[:, :-1], dep) and system.is_nonlinear:
+        speeds = ", ".join(f"{names[i]}' = {qd[i]:.6g}" for i in ind)
+        raise InputError(
+            f"initial: the start ({at}, {speeds}) lies on the singular set of the constraints, "
+            f"{singular_set_text(system)}; start away from it."
+        )
     if not _solvable(a[:, :-1], dep):
         raise InputError(
             f"initial: the constraints cannot be solved for the dependent velocities ({dep_names}) "
@@ -777,6 +783,55 @@ def _check_mass(
         )
 
 
+def _check_vakonomic_start(
+    system: System,
+    model: str,
+    mu: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    params: Mapping[str, float],
+    t0: float,
+) -> None:
+    """Refuse a vakonomic start where ``L_v = T + U + Σ μ_β f_β`` is degenerate: for constraints
+    nonlinear in the velocities its Hessian in them, ``H + Σ μ_β ∂²f_β/∂q̇²``, depends on μ, and
+    where it is singular on the constraints (``Cᵀ(…)C``) the accelerations are not determined;
+    e.g. ``ẋ² + ẏ² = v²`` with ``c = 0`` (the default, Lindelöf's choice) gives μ = −m/2 and
+    ``H + 2μ I = 0``."""
+    import sympy as sp
+
+    xd = list(system._vars.xd)
+    mass = _numeric(system, system._M, q, qd, params, t0)
+    a = _numeric(system, system._A, q, qd, params, t0)
+    c = system._numeric_C(a)
+    if c is None:  # (the initial state refuses this already)
+        return
+    hv = mass + sum(
+        (m * _numeric(system, sp.hessian(f, xd), q, qd, params, t0) for m, f in zip(mu, system._f)),
+        np.zeros_like(mass),
+    )
+    reduced, plain = c.T @ hv @ c, c.T @ mass @ c
+    w = np.linalg.eigvalsh((reduced + reduced.T) / 2)
+    scale = float(np.max(np.abs(np.linalg.eigvalsh((plain + plain.T) / 2)), initial=0.0))
+    if len(w) and np.all(np.isfinite(w)) and np.min(np.abs(w)) > scale / MAX_CONDITION:
+        return
+    shown = ", ".join(f"{x:.6g}" for x in mu)
+    raise Degenerate(
+        f"the vakonomic Lagrangian T + U + Σ μ_β f_β is degenerate at the initial state with "
+        f"μ(0) = [{shown}]: its Hessian in the velocities on the constraints, "
+        f"Cᵀ(∂²T/∂q̇² + Σ μ_β ∂²f_β/∂q̇²)C, is singular there (eigenvalue "
+        f"{float(np.min(np.abs(w))) if len(w) else 0.0:.3g}; for constraints nonlinear in the "
+        "velocities it depends on μ), so the vakonomic equations do not determine the accelerations. "
+        + (
+            "Lindelöf's equations are the vakonomic family at c = 0; model 'vakonomic_family' takes "
+            "other constants (constants='match' gives μ(0) = 0)."
+            if model == "lindelof"
+            else "The constants c_β (the momenta of the dependent coordinates, default 0) fix μ(0): give "
+            "other constants (constants='match' gives μ(0) = 0)"
+            + (" or multipliers=[μ(0), ...]." if registry.get(model).multipliers_in_state else ".")
+        )
+    )
+
+
 def _numeric(
     system: System, matrix: Any, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
 ) -> np.ndarray:
@@ -951,6 +1006,14 @@ def duration(seconds: float) -> str:
     return f"{s // 86400} days"
 
 
+class Degenerate(InputError):
+    """A vakonomic start where ``T + U + Σ μ_β f_β`` is degenerate (:func:`_check_vakonomic_start`)."""
+
+
+class TooSlow(InputError):
+    """A run refused by :func:`pace_check`: at its pace it would take longer than its time limit."""
+
+
 def pace_check(
     total: float, limit: float, refusal: Callable[[str, str], str], instead: str
 ) -> Callable[[float], None]:
@@ -982,7 +1045,7 @@ def pace_check(
         elif checks[0] == 2:  # beyond it twice (a run that crawls near a pole and then stops
             # there, as the integrator finds it, is beyond it only at first)
             pace = f"from {origin[1]:.4g} to {done:.4g} in {elapsed:.1f} s"
-            raise InputError(
+            raise TooSlow(
                 f"{refusal(duration(left), pace)}, beyond the limit of {duration(limit)}; "
                 f"{instead}, or {_NO_LIMIT} to run it anyway."
             )
@@ -1098,6 +1161,19 @@ def simulate(
     family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
     if isinstance(family_c, str) and family_c == "match":
         family_c = _matching_constants(system, q, qd, params, t0)
+    entry = registry.get(model)
+    y0 = list(q) + ([*qd] if not entry.reduced else [qd[i] for i in system._ind])
+    if entry.multipliers_in_state:
+        y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
+    if entry.motion == "vakonomic" and system.is_nonlinear:
+        mu = (
+            np.array(y0[len(y0) - system.g :])
+            if entry.multipliers_in_state
+            else _multipliers_from_constants(
+                system, np.asarray(family_c if family_c is not None else [0.0] * system.g), q, qd, params, t0
+            )
+        )
+        _check_vakonomic_start(system, model, mu, q, qd, params, t0)
     from chaplygin.numeric.codegen import (
         BackendUnavailable,
         compile_model,
@@ -1116,26 +1192,31 @@ def simulate(
         compiled = loop_model(compiled)  # the shared loop's model (see _lost_definiteness)
     layout = compiled.layout
 
-    entry = registry.get(model)
-    y0 = list(q) + ([*qd] if not entry.reduced else [qd[i] for i in system._ind])
-    if entry.multipliers_in_state:
-        y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
     p = parameter_vector(layout, params)
-    tr = integrate(
-        compiled,
-        (t0, t1),
-        np.array(y0),
-        p,
-        params,
-        rtol=rtol,
-        atol=atol,
-        method=method,
-        samples=samples,
-        max_step=max_step,
-        g=system.g,
-        progress=progress,
-        time_limit=time_limit,
-    )
+    try:
+        tr = integrate(
+            compiled,
+            (t0, t1),
+            np.array(y0),
+            p,
+            params,
+            rtol=rtol,
+            atol=atol,
+            method=method,
+            samples=samples,
+            max_step=max_step,
+            g=system.g,
+            progress=progress,
+            time_limit=time_limit,
+        )
+    except TooSlow as exc:
+        if not (system.is_nonlinear and entry.reduced):
+            raise
+        # (Appell's weight rising on branch z' = +k|v| stops at v = 0 and the reduced run crawls there)
+        raise TooSlow(
+            f"{exc} A reduced run with constraints nonlinear in the velocities that crawls has often "
+            f"met the singular set of the constraints, {singular_set_text(system)}."
+        ) from None
     pole = None
     if entry.reduced and system.g and not pole_free(system):
         pole = _pole_between_samples(
@@ -1310,7 +1391,10 @@ def _watch(
         # (also past the last sample of a failed run: the pole is why the integrator failed)
         if k < k_bad or (k == len(tr.t) and not tr.success):
             k_bad, why, kind, between = k, pole[1], "pole", True
-    if reduced and compiled is not None and p is not None and k_bad > 0:
+    # (the vakonomic family's M for constraints nonlinear in the velocities is the Hessian of
+    # T̃ + Σ c_β φ_β, not a mass matrix: it may be indefinite)
+    mass = not system.is_nonlinear or registry.get(tr.model).is_true_motion
+    if reduced and mass and compiled is not None and p is not None and k_bad > 0:
         k, found = _lost_definiteness(compiled, tr, p, k_bad)
         if k < k_bad:
             k_bad, why, kind, between = k, found, "mass", False
@@ -1343,11 +1427,18 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
         return stop, ""
     names = [q.func.__name__ for q in system.coordinates]
     q = np.column_stack([tr.coordinates[c][:stop] for c in names])
-    singular, sign = pole_marks(system, tr.t[:stop], q, params)
+    speeds = np.column_stack([tr.velocities[names[i] + "'"][:stop] for i in system._ind])
+    singular, sign = pole_marks(system, tr.t[:stop], q, params, speeds)
     k = first_pole(singular, sign)
     if k == stop:
         return stop, ""
     dep_names = ", ".join(names[i] + "'" for i in system._dep)
+    if system.is_nonlinear:
+        return k, (
+            f"the singular set of the constraints {'at' if singular[k] else 'between'} t = "
+            + (f"{tr.t[k]:.6g}" if singular[k] else f"{tr.t[k - 1]:.6g} and {tr.t[k]:.6g}")
+            + f", {singular_set_text(system)}"
+        )
     if singular[k]:
         return k, (
             f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
@@ -1359,11 +1450,31 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
     )
 
 
+def singular_set_text(system: System) -> str:
+    """What the singular set of constraints nonlinear in the velocities is, in words (a clause
+    that begins "where"): ``∂f/∂q̇_dep`` singular on them, the branch points of their solved form."""
+    from chaplygin.core._symbols import describe
+
+    dep = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
+    where = " or ".join(f"{describe(e)} = 0" for e in system.singular_set)
+    branch = f" (branch={system._branch})" if system._branch is not None else ""
+    return (
+        f"where ∂f/∂({dep}) is singular{' (' + where + ')' if where else ''}, a branch point: the "
+        f"solutions of f = 0 for {dep} meet there and their solved form{branch} ends"
+    )
+
+
 def pole_marks(
-    system: System, t: np.ndarray, q: np.ndarray, params: Mapping[str, Any]
+    system: System,
+    t: np.ndarray,
+    q: np.ndarray,
+    params: Mapping[str, Any],
+    speeds: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """At ``K`` points ``(t[k], q[k])`` (``q``: K × n; each parameter a number or K numbers):
-    ``(singular, sign)``.
+    ``(singular, sign)``.  For constraints nonlinear in the velocities ``speeds`` (K × ε) gives
+    the independent velocities too: ``A = ∂f/∂q̇`` is taken on the constraints, and the
+    branch points of their solved form (:attr:`System.singular_set`) are its factors.
 
     ``singular[k]``: ``A`` (or a factor of a denominator of its entries) is not finite there,
     or the dependent block of ``A`` is singular (rows scaled to largest entry 1, smallest
@@ -1374,9 +1485,14 @@ def pole_marks(
     """
     count = len(t)
     evaluate, n_factors, _ = _pole_functions(system)
+    if system.is_nonlinear and speeds is None:
+        raise ValueError(
+            "pole_marks: constraints nonlinear in the velocities need the independent velocities"
+        )
     columns = [
         np.asarray(t, dtype=float),
         *np.asarray(q, dtype=float).T,
+        *(np.asarray(speeds, dtype=float).T if system.is_nonlinear else ()),
         *(np.broadcast_to(np.asarray(params[par.name], dtype=float), (count,)) for par in system.parameters),
     ]
     with np.errstate(all="ignore"):
@@ -1481,6 +1597,13 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
         sp.coth: lambda a: sp.cosh(a) / sp.sinh(a),
     }
     factors: list[sp.Expr] = []
+    v = system._vars
+    if system.is_nonlinear:  # A = ∂f/∂q̇ on the constraints (q̇_dep = φ), and φ's branch points
+        from chaplygin.core._nonlinear import singular_set
+
+        a = system._A.xreplace(system._velocity_substitution)
+        speeds = [v.xd[i] for i in system._ind]
+        return [TIME, *v.x, *speeds, *system.parameters], [*a, *singular_set(system)]
     for entry in [*system._A, *system._A0]:
         for fn, quotient in quotients.items():
             entry = entry.replace(fn, quotient)
@@ -1488,7 +1611,7 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
             base = factor.base if factor.is_Pow else factor
             if base.free_symbols and base not in factors:
                 factors.append(base)
-    return [TIME, *system._vars.x, *system.parameters], [*system._A, *factors]
+    return [TIME, *v.x, *system.parameters], [*system._A, *factors]
 
 
 def _fixed(system: System, exprs: list[Any]) -> bool:
@@ -1496,7 +1619,7 @@ def _fixed(system: System, exprs: list[Any]) -> bool:
     ``exprs``) are free of t and the coordinates."""
     from chaplygin.core._symbols import TIME
 
-    moving = {TIME, *system._vars.x}
+    moving = {TIME, *system._vars.x, *(system._vars.xd if system.is_nonlinear else ())}
     g, n = system.g, system.n
     block = [exprs[b * n + j] for b in range(g) for j in system._dep]
     return not any(moving & e.free_symbols for e in [*block, *exprs[g * n :]])
