@@ -224,14 +224,22 @@ def _system(
 # ------------------------------------------------------------------ numeric oracle
 def random_state(system: System, rng: np.random.Generator) -> dict[sp.Expr, sp.Expr]:
     """Random ``t``, parameters, coordinates and independent velocities; dependent
-    velocities from the constraints (form B as reported by the system)."""
-    values: dict[sp.Expr, sp.Expr] = {t: sp.Float(rng.uniform(0.2, 1.2))}
-    values.update({p: sp.Float(rng.uniform(0.5, 1.5)) for p in system.parameters})
-    values.update({q: sp.Float(rng.uniform(0.2, 1.2)) for q in system.coordinates})
-    values.update({q.diff(t): sp.Float(rng.uniform(-1, 1)) for q in system.independent})
-    for vel, rhs in system.constraints.items():
-        values[vel] = sp.Float(number(rhs, values))
-    return values
+    velocities from the constraints (form B as reported by the system); drawn again where
+    constraints nonlinear in the velocities give no real dependent velocity."""
+    for _ in range(100):
+        values: dict[sp.Expr, sp.Expr] = {t: sp.Float(rng.uniform(0.2, 1.2))}
+        values.update({p: sp.Float(rng.uniform(0.5, 1.5)) for p in system.parameters})
+        values.update({q: sp.Float(rng.uniform(0.2, 1.2)) for q in system.coordinates})
+        values.update({q.diff(t): sp.Float(rng.uniform(-1, 1)) for q in system.independent})
+        try:
+            for vel, rhs in system.constraints.items():
+                values[vel] = sp.Float(number(rhs, values))
+        except TypeError:  # a root of a negative number: outside the constraints' real domain
+            if not system.is_nonlinear:
+                raise
+            continue
+        return values
+    raise AssertionError(f"no real admissible state of {system.name} in 100 draws")
 
 
 _FLOAT_FUNCTIONS = {

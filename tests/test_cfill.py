@@ -238,10 +238,7 @@ def _gallery_sources() -> tuple[str, str]:
         if name == "whipple-bicycle":  # its true motion compiles by the numeric reduction (below)
             continue
         system = entry.constructor()
-        # constraints nonlinear in the velocities: their multiplier form (the generated code of
-        # Novoselov's reduced equations does not build yet: issue 30, helper nlnum)
-        model = "chetaev" if system.is_nonlinear else registry.true_motion(system)
-        parts = codegen._parts(system.equations(model))
+        parts = codegen._parts(system.equations(registry.true_motion(system)))
         fills.append(
             _cfill.source(parts.fill, [codegen._assignments(b) for b in parts.fill.blocks()], f"fill{k}")
         )

@@ -537,17 +537,12 @@ def catalogue_cases(**pending: str) -> list:
     ]
 
 
-#: issue 30 in parts: system files do not write branch= yet (helper nlio)
-NO_BRANCH_IN_FILES = "a system file does not carry the branch of nonlinear constraints yet (issue 30, nlio)"
 #: the generated modules of Novoselov's equations do not run yet (helper nlnum); the isokinetic
 #: particle's Lindelöf equations are degenerate (T̃ = ½ m v² is constant) though default_models takes them
 NO_REDUCED_RUNS = "reduced models of nonlinear constraints do not simulate yet (issue 30, nlnum)"
 
 
-@pytest.mark.parametrize(
-    "name",
-    catalogue_cases(**{"appell-weight": NO_BRANCH_IN_FILES, "isokinetic-particle": NO_BRANCH_IN_FILES}),
-)
+@pytest.mark.parametrize("name", catalogue_cases())
 def test_catalogue_round_trip(name: str) -> None:
     entry = examples.get(name)
     original = entry.system()
@@ -568,9 +563,7 @@ def test_catalogue_round_trip(name: str) -> None:
     assert sf.dumps() == text  # writing again gives the same file
 
 
-@pytest.mark.parametrize(
-    "name", catalogue_cases(**{"appell-weight": NO_REDUCED_RUNS, "isokinetic-particle": NO_REDUCED_RUNS})
-)
+@pytest.mark.parametrize("name", catalogue_cases())
 def test_catalogue_initial_state_simulates(name: str) -> None:
     entry = examples.get(name)
     s = entry.system()

@@ -238,7 +238,7 @@ def test_isokinetic_vakonomic_motions_are_catenaries() -> None:
     A = sol["A"]
     x1, y1 = A * sp.asinh(p0 / c), A * sp.sqrt(1 + p0**2 / c**2)
     assert zero(sp.simplify(sol["y"] - (y1 - A * sp.cosh((sol["x"] - x1) / A))).rewrite(sp.exp))
-    with pytest.raises(ModelError, match="mass matrix is singular"):
+    with pytest.raises(ModelError, match=r"T̃ = m\*v\*\*2/2 .* is degenerate in the independent velocities"):
         s.equations("lindelof").accelerations  # noqa: B018
 
 

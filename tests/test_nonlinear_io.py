@@ -169,7 +169,7 @@ IMPLICIT = 'implicit = ["x\'^2 + y\'^2 - v^2"]\ndependent = ["x"]\n'
         ),
         (
             "x'^2 + y'^2 - v^2",
-            "x'^2 + y'^2 + v^2",
+            "x'^2 + y'^2 - v^2/100",
             "[constraints] implicit: no real value of x' at the initial state (y' = 0.3)",
             "or another branch",
         ),

@@ -759,6 +759,33 @@ class System:
         and :attr:`constraints` is the solved form (the branch chosen)."""
         return self._nonlinear is not None
 
+    @cached_property
+    def _lindelof_degenerate(self) -> list[str]:
+        """Why Lindelöf's equations (Lagrange's on T̃) cannot determine the accelerations: for
+        constraints nonlinear in the velocities T̃ need not be regular in them (the isokinetic
+        particle's T̃ = m v²/2 is a constant); empty where its Hessian is regular somewhere."""
+        from chaplygin.core._sampling import StateSampler, compile_function, parameter_values
+
+        v = self._vars
+        ind_xd = [v.xd[i] for i in self._ind]
+        hessian = jacobian(gradient(self._T_reduced, ind_xd), ind_xd)
+        rng = np.random.default_rng(30)
+        sampler = StateSampler(self, parameter_values(self, rng))
+        args = [TIME, *v.x, *v.xd, *sampler.parameters]
+        fn = compile_function(hessian, args)  # (numbers: a symbolic determinant may not finish)
+        for _ in range(_SAMPLES):
+            state = sampler.draw(rng)
+            with np.errstate(all="ignore"):
+                h = np.asarray(fn(*(state[a] for a in args)), dtype=float)
+            if self._full_rank(h):
+                return []
+        shown = simplify_small(sp.expand(self._T_reduced))
+        return [
+            f"T̃ = {describe(self.to_user(shown))} (the constraints substituted into T) is degenerate in "
+            "the independent velocities (∂²T̃/∂q̇_σ∂q̇_τ is singular everywhere), so Lagrange's "
+            "equations on T̃ do not determine the accelerations"
+        ]
+
     @property
     def singular_set(self) -> list[sp.Expr]:
         """Expressions whose zeros are the states where nonlinear constraints cannot be solved

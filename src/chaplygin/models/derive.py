@@ -53,4 +53,11 @@ def derive(system: System, model: str, form: str = "classic", constants: Any = N
             + f"), so the {entry.name!r} model (Chaplygin's equations (15)) does not apply. Use model='voronets', "
             "which allows T, U and B to depend on the dependent coordinates."
         )
+    if entry.family and not entry.constants and system.is_nonlinear and system._lindelof_degenerate:
+        raise ModelError(
+            f"the {entry.name!r} model does not apply to {system.name}: "
+            + "; ".join(system._lindelof_degenerate)
+            + ". The vakonomic motions are the family with constants c ≠ 0 (model='vakonomic_family') "
+            "or the multiplier form (model='vakonomic')."
+        )
     return _BUILDERS[entry.builder](system, entry, form, constants)

@@ -98,6 +98,8 @@ class Model:
         if self.requires_chaplygin and not system.is_chaplygin:
             return "not a Chaplygin system: " + "; ".join(system.chaplygin_obstructions)
         found = family_obstructions(system) if self.family else []
+        if self.family and not self.constants and not found and system.is_nonlinear:
+            found += system._lindelof_degenerate  # (linear constraints: T̃'s Hessian is CᵀMC, regular)
         return "; ".join(found) if found else None
 
 
