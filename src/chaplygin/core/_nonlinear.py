@@ -29,7 +29,7 @@ import sympy as sp
 
 from chaplygin.core._fast import jacobian
 from chaplygin.core._rational import normal_matrix
-from chaplygin.core._symbols import describe
+from chaplygin.core._symbols import TIME, describe
 from chaplygin.errors import SystemDefinitionError
 
 if TYPE_CHECKING:
@@ -78,6 +78,7 @@ def read_nonlinear(
     else:
         f = sp.Matrix(list(exprs))
         phi = _solve(system, f, dep_xd, branch)
+    _require_smooth(system, [*f, *phi.values()], list(v.xd))
     A = jacobian(f, list(v.xd))
     A0 = f - A * sp.Matrix(v.xd)
     rhs = sp.Matrix([phi[x] for x in dep_xd])
@@ -298,6 +299,22 @@ def _check_dependent(system: System, f: sp.Matrix, dep_xd: list[sp.Symbol]) -> N
         )
 
 
+def _require_smooth(system: System, exprs: list[sp.Expr], velocities: list[sp.Symbol]) -> None:
+    """Refuse a function with a kink (abs, sign, ...) of the velocities in nonlinear constraints:
+    ``∂f/∂q̇`` (the Appell–Chetaev condition) and the differentiated constraints need it smooth."""
+    from chaplygin.core._sampling import NOT_ANALYTIC
+
+    for e in exprs:
+        for node in e.atoms(*NOT_ANALYTIC):
+            if node.has(*velocities):
+                raise SystemDefinitionError(
+                    f"constraints: {describe(system.to_user(node))} is not differentiable where its "
+                    "argument vanishes, and the Appell–Chetaev condition and the differentiated "
+                    "constraints need ∂f/∂q̇; write the branch on which the motion runs instead "
+                    "(e.g. x' for abs(x') where x' > 0), or the constraint squared with branch=."
+                )
+
+
 def _check_block(system: System, A: sp.Matrix, phi: dict[sp.Symbol, sp.Expr]) -> None:
     """Refuse constraints whose block ``∂f/∂q̇_dep`` is singular wherever they hold: the
     Appell–Chetaev condition then does not determine the dependent displacements."""
@@ -321,13 +338,13 @@ def singular_set(system: System) -> list[sp.Expr]:
     determinant, the solved form substituted, vanishes: the multiplier models' ``A_dep`` is not
     invertible) or ``B = ∂φ/∂q̇_σ`` has a pole (the branch points)."""
     found: list[sp.Expr] = []
-    xd = set(system._vars.xd)
+    state = {TIME, *system._vars.x, *system._vars.xd}  # (a factor of parameters only is no set)
     g = system.g
     block = system._A.extract(list(range(g)), list(system._dep)).xreplace(system._velocity_substitution)
     det = sp.together(block.det(method="berkowitz"))
     for part in (sp.numer(det), sp.denom(det), *(sp.denom(sp.together(e)) for e in system._B)):
         for factor in sp.Mul.make_args(sp.factor_terms(part)):
             base = factor.base if factor.is_Pow else factor
-            if base.free_symbols & xd and base not in found and not base.is_number:
+            if base.free_symbols & state and base not in found and not base.is_number:
                 found.append(base)
     return found

@@ -186,6 +186,9 @@ def vanishes(expr: sp.Expr, *, samples: int = 8, seed: int = 28) -> bool:
     verdict = _interval_signs(expr, samples, seed)
     if verdict is not None:
         return verdict
+    # (before the normal form, which may not finish: roots; not with Floats, whose rounding shows)
+    if not expr.atoms(sp.Float) and _clearly_nonzero(expr, seed):
+        return False
     expr = sp.cancel(sp.expand(expr))
     if expr == 0:
         return True
@@ -204,6 +207,20 @@ def vanishes(expr: sp.Expr, *, samples: int = 8, seed: int = 28) -> bool:
                 return False
             finite += 1
     return finite > 0 or sp.simplify(expr) == 0
+
+
+def _clearly_nonzero(expr: sp.Expr, seed: int, points: int = 3) -> bool:
+    """Whether ``expr`` is far from zero at one of a few random points, evaluated with 50 digits
+    (a value beyond 1e-20 is no round-off of a zero): complex values (a root of a negative) count."""
+    symbols = sorted(expr.free_symbols, key=str)
+    rng = np.random.default_rng(seed)
+    for _ in range(points):
+        values = {x: sp.Float(float(val), 50) for x, val in zip(symbols, _point(expr, symbols, rng))}
+        value = expr.xreplace(values).evalf(50)
+        if value.is_number and value.is_finite is not False and not value.has(sp.nan, sp.zoo):
+            if abs(complex(value)) > 1e-20:
+                return True
+    return False
 
 
 #: bits of the interval arithmetic in :func:`_interval_signs` (quadruple precision)

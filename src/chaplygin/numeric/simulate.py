@@ -1382,10 +1382,15 @@ def _watch(
             f"a pole at t = {tr.t[k]:.6g}: the velocit{'y' if len(bad) == 1 else 'ies'} "
             f"{', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not finite"
         )
-    if reduced and system.g and k_bad > 0:
+    if (reduced or system.is_nonlinear) and system.g and k_bad > 0:
+        # (constraints nonlinear in the velocities: a multiplier run stops at their singular set too)
         k, found = _pole(system, tr, params, k_bad)
         if k < k_bad:
             k_bad, why, kind = k, found, "pole"
+    if system.is_nonlinear and not reduced and k_bad > 0:
+        k, found = _left_branch(system, tr, params, k_bad)
+        if k < k_bad:
+            k_bad, why, kind = k, found, "branch"
     between = False  # a pole found between samples (:func:`_pole_between_samples`): cut at the time past it
     if pole is not None and (k := int(np.searchsorted(tr.t, pole[0]))) <= k_bad:
         # (also past the last sample of a failed run: the pole is why the integrator failed)
@@ -1418,6 +1423,53 @@ def _watch(
             f" (the multiplier model {entry.fallback!r} does not solve the constraints and has no such pole)"
         )
     return tr
+
+
+def _left_branch(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
+    """The first sample (before ``stop``) of a multiplier run whose dependent velocities are not the
+    solved form's, ``q̇_dep ≠ φ(q, q̇_σ, t)``: the run crossed the singular set of constraints
+    nonlinear in the velocities onto another solution of ``f = 0`` (``(stop, "")`` if none)."""
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME, describe
+
+    v, names = system._vars, [q.func.__name__ for q in system.coordinates]
+    phi = [system._velocity_substitution[v.xd[i]] for i in system._dep]
+    args = [TIME, *v.x, *(v.xd[i] for i in system._ind), *system.parameters]
+    columns = [
+        tr.t[:stop],
+        *(tr.coordinates[c][:stop] for c in names),
+        *(tr.velocities[names[i] + "'"][:stop] for i in system._ind),
+        *(np.full(stop, params[par.name]) for par in system.parameters),
+    ]
+    from chaplygin.core._nonlinear import singular_set
+
+    factors = singular_set(system)
+    with np.errstate(all="ignore"):
+        solved = sp.lambdify(args, phi, "numpy")(*columns)
+        at = sp.lambdify(args, factors, "numpy")(*columns) if factors else []
+    for value in at:  # a factor that fell by 12 orders of magnitude: the run sits on the set
+        size = np.abs(np.broadcast_to(np.asarray(value, dtype=complex), (stop,)))
+        low = size <= 1e-12 * size[0]
+        if low.any():
+            k = int(np.argmax(low))
+            return k, (
+                f"the singular set of the constraints at t = {tr.t[k]:.6g}, {singular_set_text(system)}; "
+                "the motion on that solution of f = 0 does not go on from there"
+            )
+    for b, i in enumerate(system._dep):
+        expected = np.broadcast_to(np.asarray(solved[b], dtype=complex), (stop,))
+        actual = tr.velocities[names[i] + "'"][:stop]
+        off = ~(np.abs(actual - expected) <= 1e-6 * (1 + np.abs(expected)))
+        if off.any():
+            k = int(np.argmax(off))
+            where = f"between t = {tr.t[k - 1]:.6g} and {tr.t[k]:.6g}" if k else f"at t = {tr.t[k]:.6g}"
+            return k, (
+                f"the run left the solved form of the constraints, {names[i]}' = "
+                f"{describe(system.to_user(phi[b]))}, {where}, for another solution of f = 0: it "
+                f"crossed their singular set, {singular_set_text(system)}"
+            )
+    return stop, ""
 
 
 def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
