@@ -804,6 +804,7 @@ def _checked(system: System) -> tuple[dict[str, Any], Any, Any]:
             "condition_28": cmp.condition_28,
             "defect_vanishes": cmp.defect_vanishes,
             "defect": {file_syntax(q): file_syntax(d) for q, d in cmp.defect.items()},
+            **({"lindelof_obstruction": cmp.lindelof_obstruction} if cmp.lindelof_obstruction else {}),
         }
         why_not = None
     except ChaplyginError as exc:

@@ -1061,6 +1061,9 @@ def _models_section(system: System) -> tuple[str, str]:
         return "\n".join(out), "no Lindelöf comparison"
     head = str(comparison).splitlines()[0]
     out.append(f'<p class="verdict">Verdict: <code>{_esc(comparison.verdict)}</code> — {_esc(head)}</p>')
+    if comparison.lindelof_obstruction is not None:  # no Lindelöf equations, no defect
+        out.append("</section>")
+        return "\n".join(out), comparison.verdict
     condition = (
         ""
         if comparison.condition_28 is None
