@@ -310,6 +310,10 @@ def test_report_says_the_constraints_are_nonlinear_and_do_work(
     assert "<msub><mi>&#955;</mi><mi>1</mi></msub>" in power and "<mi>v</mi><mn>2</mn>" in power
     assert "the constraints are nonlinear in the velocities" in page  # the integrability verdict
     assert "Novoselov's equations" in page
+    # no Lindelöf equations here, so no defect against them (on addde7f: "the models differ")
+    assert "Verdict: <code>no_lindelof</code>" in page and "Lindelöf defect" not in page
+    # the residual legend names the constraint functions (on addde7f: "max_β |Σ A_βs q̇_s + A_β0|")
+    assert "Constraint residual: max_β |f_β|" in page
     out2 = tmp_path / "appell.html"
     result = run("report", str(files["appell"]), "-o", str(out2), "-t", "0.2", "-n", "11")
     assert result.exit_code == 0, result.output

@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from chaplygin.analysis.transitions import compare_models
 from chaplygin.apps.cli import app
-from chaplygin.io.files import loads
+from chaplygin.io.files import SystemFileError, loads
 
 t = dynamicsymbols._t
 runner = CliRunner()
@@ -109,3 +109,22 @@ def test_stability_points_to_the_vakonomic_family_where_lindelof_does_not_apply(
     # on addde7f: "the vakonomic motion's reduced form is 'lindelof' (its family at c = 0)"
     assert "reduced form is 'vakonomic_family' with its constants" in out.output
     assert "reduced form is 'lindelof'" not in out.output
+
+
+def test_unsolvable_implicit_constraint_hint_names_the_dependent_velocity() -> None:
+    text = POLAR.replace("r'^2 + r^2*th'^2 - v^2", "th'^5 + th' + r'^7 + exp(th')")
+    with pytest.raises(SystemFileError) as err:
+        loads(text, source="polar.toml")
+    message = str(err.value)
+    assert "SymPy cannot solve the implicit constraints for th'" in message, message
+    # on addde7f: 'Give them solved instead, "x'" = "..." for each dependent velocity'
+    assert 'Give them solved instead, "th\'" = "..." (the branch you mean).' in message, message
+    assert '"x\'"' not in message
+
+
+def test_simulate_constants_help_states_its_default_and_the_degenerate_start() -> None:
+    result = runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "2000"})
+    text = " ".join(result.output.split())
+    # on addde7f: "match (μ(0) = 0), zero, or numbers ..." with no default and no warning
+    assert "zero (the default: every c_β = 0)" in text
+    assert "c = 0 is a degenerate start (the vakonomic Lagrangian is singular there): use match." in text

@@ -1195,7 +1195,9 @@ def _simulation_section(
     out.append("</table>")
     out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
     exact = [label for label, tr in comparison.trajectories.items() if _exact_constraints(tr)]
-    residual = "Constraint residual: max_β |Σ A_βs q̇_s + A_β0|"
+    residual = (
+        "Constraint residual: max_β |f_β| (the constraint functions; Σ_s A_βs q̇_s + A_β0 for linear ones)"
+    )
     if exact:
         residual += (
             f"; identically zero by construction for the reduced model(s) {', '.join(exact)}: they "
