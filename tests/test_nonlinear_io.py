@@ -257,15 +257,9 @@ def test_classify_and_equivalent_against_hand_derived_equations() -> None:
     # Lindelöf's equations (T̃ = m v²/2 is constant) contain no acceleration here
     assert found.residuals["lindelof"] == float("inf") and "Lindelöf's equations do not" in found.note
     assert classify(s, {ydd: -g}).verdict == "none"
+    # no Lindelöf equations (T̃ degenerate), so no defect against them (tests/test_nonlinear_review.py)
     comparison = compare_models(s)
-    assert comparison.verdict == "differ" and comparison.condition_28 is None
-    # the defect: Novoselov's m v² ÿ/(v² − ẏ²) + m g minus Lindelöf's m g (by hand)
-    assert sp.simplify(comparison.defect[y] - m * v**2 * ydd / (v**2 - yd**2)) == 0
-    assert (
-        str(comparison)
-        .splitlines()[0]
-        .endswith("Novoselov's equations = Lindelöf's (22) + the defect below.")
-    )
+    assert comparison.verdict == "no_lindelof" and comparison.condition_28 is None and not comparison.defect
 
 
 # ---------------------------------------------------------------- the command line
@@ -276,7 +270,8 @@ def test_check_says_nonlinear_branch_singular_set_and_work(files: dict[str, Path
     assert doc["singular_set"] == ["v**2 - y'**2"]
     assert doc["integrability"]["integrable"] is False
     assert doc["integrability"]["frobenius"]["holds"] is None
-    assert doc["comparison"]["verdict"] == "differ" and doc["comparison"]["condition_28"] is None
+    assert doc["comparison"]["verdict"] == "no_lindelof" and doc["comparison"]["condition_28"] is None
+    assert doc["comparison"]["defect"] == {} and "degenerate" in doc["comparison"]["lindelof_obstruction"]
     text = run("check", str(files["iso"]))
     assert text.exit_code == 0
     assert (
@@ -315,6 +310,10 @@ def test_report_says_the_constraints_are_nonlinear_and_do_work(
     assert "<msub><mi>&#955;</mi><mi>1</mi></msub>" in power and "<mi>v</mi><mn>2</mn>" in power
     assert "the constraints are nonlinear in the velocities" in page  # the integrability verdict
     assert "Novoselov's equations" in page
+    # no Lindelöf equations here, so no defect against them (on addde7f: "the models differ")
+    assert "Verdict: <code>no_lindelof</code>" in page and "Lindelöf defect" not in page
+    # the residual legend names the constraint functions (on addde7f: "max_β |Σ A_βs q̇_s + A_β0|")
+    assert "Constraint residual: max_β |f_β|" in page
     out2 = tmp_path / "appell.html"
     result = run("report", str(files["appell"]), "-o", str(out2), "-t", "0.2", "-n", "11")
     assert result.exit_code == 0, result.output

@@ -24,11 +24,13 @@ from sympy.physics.vector.printing import vlatex, vsstrrepr
 
 from chaplygin import _html
 from chaplygin.analysis.equivalence import EquationsLike, Inconsistent, _Linear, _States, where
+from chaplygin.analysis.integrability import SHOWN_OPS
 from chaplygin.analysis.integrability import shown as readable
 from chaplygin.core import _fold
 from chaplygin.core._brief import brief
 from chaplygin.core._sampling import vanishes
 from chaplygin.errors import ChaplyginError, ModelError
+from chaplygin.models import registry
 from chaplygin.models.reduced import Reduction, bracket_terms, lindelof_defect
 from chaplygin.models.vakonomic import family_obstructions
 
@@ -60,6 +62,9 @@ class ModelComparison:
     nonlinear : bool
         The constraints are nonlinear in the velocities: the reduced true motion is then
         Novoselov's equations, and ``W_βσ`` contains accelerations.
+    lindelof_obstruction : str or None
+        Why Lindelöf's equations do not apply (nonlinear constraints whose ``T̃`` is degenerate
+        in the independent velocities); then there is no defect (``defect`` is empty).
     """
 
     system_name: str
@@ -68,10 +73,13 @@ class ModelComparison:
     defect: dict[sp.Expr, sp.Expr]
     defect_vanishes: bool
     nonlinear: bool = False
+    lindelof_obstruction: str | None = None
 
     @property
     def verdict(self) -> str:
-        """``"coincide"``, ``"lindelof_right_here"`` or ``"differ"``."""
+        """``"coincide"``, ``"lindelof_right_here"``, ``"differ"`` or ``"no_lindelof"``."""
+        if self.lindelof_obstruction is not None:
+            return "no_lindelof"
         if self.coincide:
             return "coincide"
         return "lindelof_right_here" if self.defect_vanishes else "differ"
@@ -86,6 +94,8 @@ class ModelComparison:
             )
             + ", but the Lindelöf defect vanishes: Lindelöf's equations happen to be right here.",
             "differ": f"the models differ: {true} = Lindelöf's (22) + the defect below.",
+            "no_lindelof": f"Lindelöf's equations do not apply ({self.lindelof_obstruction}); "
+            f"compare {true} with the vakonomic family (vakonomic_family, with its constants) instead.",
         }[self.verdict]
         lines = [f"{self.system_name}: {head}"]
         if self.verdict == "differ":
@@ -113,16 +123,29 @@ def _require_family(system: System) -> None:
         )
 
 
+def _shown(defect: sp.Expr, nonlinear: bool) -> sp.Expr:
+    """A defect as printed: :func:`readable`; for nonlinear constraints also cancelled where that
+    is shorter (the normal form keeps a square root's square as an unexpanded factor)."""
+    out = readable(defect)
+    if nonlinear and sp.count_ops(out) <= SHOWN_OPS:
+        cancelled = sp.factor_terms(sp.cancel(out))
+        if sp.count_ops(cancelled) < sp.count_ops(out):
+            return cancelled
+    return out
+
+
 def compare_models(system: System) -> ModelComparison:
     """Which models coincide for ``system``, and the Lindelöf defect (15) − (22)."""
     _require_family(system)
-    r = Reduction(system)
     W = bracket_terms(system)
     coincide = all(vanishes(w) for row in W for w in row)
-    defect = lindelof_defect(system, r)
+    obstruction = registry.get("lindelof").obstruction(system)
+    if obstruction is not None:  # no Lindelöf equations: no defect against them
+        return ModelComparison(system.name, coincide, None, {}, False, True, obstruction)
+    defect = lindelof_defect(system, Reduction(system))
     zero = [vanishes(d) for d in defect]
     shown = {
-        system.independent[k]: system.to_user(sp.S.Zero if z else readable(d))
+        system.independent[k]: system.to_user(sp.S.Zero if z else _shown(d, system.is_nonlinear))
         for k, (d, z) in enumerate(zip(defect, zero))
     }
     if system.is_nonlinear:

@@ -765,7 +765,7 @@ def _nonlinear_lines(doc: dict[str, Any]) -> list[str]:
         "homogeneous of degree 1 in the velocities: the constraint forces do no work"
         if doc["homogeneous"]
         else "not homogeneous of degree 1 in the velocities: the constraint forces do work (their "
-        "power is not zero)"
+        "power Σ λ_β B_β0 is not identically zero)"
     )
     where = " or ".join(f"{e} = 0" for e in doc["singular_set"])
     return [
@@ -804,6 +804,7 @@ def _checked(system: System) -> tuple[dict[str, Any], Any, Any]:
             "condition_28": cmp.condition_28,
             "defect_vanishes": cmp.defect_vanishes,
             "defect": {file_syntax(q): file_syntax(d) for q, d in cmp.defect.items()},
+            **({"lindelof_obstruction": cmp.lindelof_obstruction} if cmp.lindelof_obstruction else {}),
         }
         why_not = None
     except ChaplyginError as exc:
@@ -940,6 +941,13 @@ CONSTANTS_HELP = (
     "zero, or numbers by name (c_1=0.5,c_2=-1) or in order (0.5,-1)."
 )
 
+#: ``simulate --constants``: its default is zero (``compare``'s is match)
+SIMULATE_CONSTANTS_HELP = (
+    CONSTANTS_HELP.replace("zero,", "zero (the default: every c_β = 0),")
+    + " For a speed constraint (the isokinetic particle's x'^2 + y'^2 = v^2) c = 0 is a degenerate "
+    "start (the vakonomic Lagrangian is singular there): use match."
+)
+
 
 def _constants(text: str | None) -> Any:
     """``--constants`` as written: ``"match"``, ``"zero"``, numbers in order (a list) or by name
@@ -1021,7 +1029,7 @@ def simulate(
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
     backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
-    constants: str | None = typer.Option(None, "--constants", help=CONSTANTS_HELP),
+    constants: str | None = typer.Option(None, "--constants", help=SIMULATE_CONSTANTS_HELP),
     param: list[str] | None = _param_option(),
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing output."),

@@ -1061,6 +1061,9 @@ def _models_section(system: System) -> tuple[str, str]:
         return "\n".join(out), "no Lindelöf comparison"
     head = str(comparison).splitlines()[0]
     out.append(f'<p class="verdict">Verdict: <code>{_esc(comparison.verdict)}</code> — {_esc(head)}</p>')
+    if comparison.lindelof_obstruction is not None:  # no Lindelöf equations, no defect
+        out.append("</section>")
+        return "\n".join(out), comparison.verdict
     condition = (
         ""
         if comparison.condition_28 is None
@@ -1192,7 +1195,9 @@ def _simulation_section(
     out.append("</table>")
     out += [f'<p class="warning">{_esc(note)}</p>' for note in comparison.notes]
     exact = [label for label, tr in comparison.trajectories.items() if _exact_constraints(tr)]
-    residual = "Constraint residual: max_β |Σ A_βs q̇_s + A_β0|"
+    residual = (
+        "Constraint residual: max_β |f_β| (the constraint functions; Σ_s A_βs q̇_s + A_β0 for linear ones)"
+    )
     if exact:
         residual += (
             f"; identically zero by construction for the reduced model(s) {', '.join(exact)}: they "

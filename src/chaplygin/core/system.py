@@ -873,7 +873,8 @@ class System:
     def is_affine(self) -> bool:
         """True when the constraints have a velocity-free term (``B_β0 ≠ 0``); for constraints
         nonlinear in the velocities, when the solved form ``φ`` is not homogeneous of degree one
-        in the velocities (``B_0 = φ − B q̇_σ ≠ 0``): then the constraint forces do work."""
+        in the velocities (``B_0 = φ − B q̇_σ ≠ 0``): then the power of the constraint forces,
+        ``Σ_β λ_β B_β0``, is not identically zero."""
         if self._nonlinear is not None:
             from chaplygin.core._sampling import vanishes
 

@@ -893,9 +893,10 @@ class _Reader:
             text = str(section["implicit"][k]) if one else None
         if "cannot solve" in reason:
             reason = reason.split("; ")[0]
-            allowed = (
-                'Give them solved instead, "x\'" = "..." for each dependent velocity (the branch you mean).'
-            )
+            dependent = section.get("dependent")
+            names = [str(d) for d in dependent] if isinstance(dependent, list) and dependent else ["x"]
+            keys = ", ".join(f'"{d}\'" = "..."' for d in names)
+            allowed = f"Give them solved instead, {keys} (the branch you mean)."
         else:
             allowed = _SECTION_HELP["constraints"]
         return self.error(reason, where, text=text, allowed=allowed)

@@ -98,7 +98,7 @@ class Ensemble:
         integral ``h = T₂ − T₀ − U`` where :attr:`energy_column` is ``"jacobi_integral"``
         (:func:`~chaplygin.numeric.simulate.monitor`).
     constraint_residual : ndarray (N,)
-        ``max_β |Σ_s A_βs q̇_s + A_β0|`` at :attr:`t`.
+        ``max_β |f_β|`` at :attr:`t`: the constraint functions (``Σ_s A_βs q̇_s + A_β0`` for linear ones).
     holonomic_residual : ndarray (N,)
         ``max |f(q, t)|`` of the holonomic constraints at :attr:`t` (empty without them).
     notes : list of str

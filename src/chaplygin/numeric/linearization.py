@@ -495,10 +495,15 @@ def linearize(
     if system.is_nonlinear and not entry.reduced:
         # the multiplier models' admissible manifold f(q, q̇) = 0 is not linear in the velocities
         if not entry.is_true_motion:
+            reduced = (
+                "'lindelof' (its family at c = 0), where the system allows it"
+                if registry.get("lindelof").obstruction(system) is None
+                else "'vakonomic_family' with its constants c (a number for each, as a parameter); "
+                "Lindelöf's equations (c = 0) do not apply here"
+            )
             raise ChaplyginError(
                 f"{system.name}: the {model} model (with multipliers) is not linearised for constraints "
-                "nonlinear in the velocities; the vakonomic motion's reduced form is 'lindelof' (its "
-                "family at c = 0), where the system allows it."
+                f"nonlinear in the velocities; the vakonomic motion's reduced form is {reduced}."
             )
         model, form = registry.true_motion(system), "classic"  # Novoselov's equations: the same motion
     eqs = system.equations(model, form)
