@@ -216,7 +216,10 @@ def _clearly_nonzero(expr: sp.Expr, seed: int, points: int = 3) -> bool:
     rng = np.random.default_rng(seed)
     for _ in range(points):
         values = {x: sp.Float(float(val), 50) for x, val in zip(symbols, _point(expr, symbols, rng))}
-        value = expr.xreplace(values).evalf(50)
+        try:  # (functions of t, as users write them, have no value at a number: nothing decided)
+            value = expr.xreplace(values).evalf(50)
+        except (ValueError, TypeError):
+            return False
         if value.is_number and value.is_finite is not False and not value.has(sp.nan, sp.zoo):
             if abs(complex(value)) > 1e-20:
                 return True
