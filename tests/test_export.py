@@ -36,6 +36,11 @@ CASES = [
     ("rolling_sphere", "lindelof", "classic"),
     ("rolling_disk", "chetaev", "classic"),
     ("rolling_disk", "voronets", "classic"),
+    # constraints nonlinear in the velocities (issue 30): Appell's weight, ż² = k²(ẋ² + ẏ²)
+    ("appell_weight", "chetaev", "classic"),
+    ("appell_weight", "voronets", "classic"),
+    ("appell_weight", "voronets", "new"),
+    ("appell_weight", "vakonomic", "classic"),
 ]
 
 _SYSTEMS: dict[str, Any] = {}
