@@ -490,9 +490,9 @@ def initial_state(
     dep_names = ", ".join(names[i] + "'" for i in dep)
     at = ", ".join(f"{names[i]} = {q[i]:.6g}" for i in range(n))
     given = qd.copy()
-    if (
-        system.is_nonlinear
-    ):  # the solved form (the branch chosen); A q̇ + A_0 = f: the solve below is a Newton step
+    # nonlinear constraints: the solved form (the branch chosen); A q̇ + A_0 = f, so the solve
+    # below is a Newton step from it
+    if system.is_nonlinear:
         qd[dep] = _nonlinear_velocities(system, q, qd, params, t0, at)
     a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
     if not _solvable(a[:, :-1], dep) and system.is_nonlinear:
