@@ -791,9 +791,14 @@ class System:
         """Expressions whose zeros are the states where nonlinear constraints cannot be solved
         smoothly for the dependent velocities (``∂f/∂q̇_dep`` singular on the constraints, a pole
         of ``B = ∂φ/∂q̇_σ``); empty for linear constraints."""
+        return [self.to_user(e) for e in self._singular_set]
+
+    @cached_property
+    def _singular_set(self) -> list[sp.Expr]:
+        """:attr:`singular_set` in internal symbols, found once (a determinant and its factors)."""
         from chaplygin.core._nonlinear import singular_set
 
-        return [self.to_user(e) for e in singular_set(self)] if self._nonlinear is not None else []
+        return singular_set(self) if self._nonlinear is not None else []
 
     @cached_property
     def _Q(self) -> list[sp.Expr]:

@@ -535,16 +535,10 @@ def _nonlinear_velocities(
     nonlinear in the velocities; refused where φ is not real (outside the constraints' domain)."""
     import sympy as sp
 
-    from chaplygin.core._symbols import TIME
-
     phi = sp.Matrix([system._velocity_substitution[system._vars.xd[i]] for i in system._dep])
-    values = {TIME: t0, **dict(zip(system._vars.x, q))}
-    values.update({system._vars.xd[i]: qd[i] for i in system._ind})
-    values.update({system.parameter(k): val for k, val in params.items()})
-    out = phi.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf()
-    try:
-        return np.array(out.tolist(), dtype=float).ravel()
-    except TypeError:  # a root of a negative number, or a pole: no real dependent velocity here
+    try:  # (φ holds no dependent velocity: those still NaN in qd are left out)
+        return _evaluate(system, phi, q, qd, params, t0).ravel()
+    except InputError:  # a root of a negative number, or a pole: no real dependent velocity here
         names = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
         shown = ", ".join(f"{system.coordinates[i].func.__name__}' = {qd[i]:.6g}" for i in system._ind)
         raise InputError(
@@ -558,15 +552,24 @@ def _nonlinear_velocities(
 HOLONOMIC_TOL = 1e-10
 
 
-#: the holonomic constraints' NumPy functions by system (kept off the System: it stays picklable)
-_HOLONOMIC_FUNCTIONS: weakref.WeakKeyDictionary[Any, Any] = weakref.WeakKeyDictionary()
+#: NumPy functions made from a system, by system and name (kept off the System: it stays picklable)
+_FUNCTIONS: weakref.WeakKeyDictionary[Any, dict[str, Any]] = weakref.WeakKeyDictionary()
+
+
+def _functions(system: System, name: str, make: Callable[[], Any]) -> Any:
+    """``make()`` once per system and ``name``: the functions :func:`_holonomic_functions` and
+    :func:`_left_branch` evaluate along every run."""
+    made = _FUNCTIONS.setdefault(system, {})
+    if name not in made:
+        made[name] = make()
+    return made[name]
 
 
 def _holonomic_functions(system: System) -> Any:
     """``(f, ∂f/∂q_dep)`` of the holonomic constraints as NumPy functions of
     ``(t, q_1 … q_n, parameters)``, made once per system."""
-    found = _HOLONOMIC_FUNCTIONS.get(system)
-    if found is None:
+
+    def make() -> Any:
         import sympy as sp
 
         from chaplygin.core._symbols import TIME
@@ -575,9 +578,9 @@ def _holonomic_functions(system: System) -> Any:
         fs = sp.Matrix([f for _, f in system._holonomic])
         jac = fs.jacobian([v.x[i] for i, _ in system._holonomic])
         args = [TIME, *v.x, *system.parameters]
-        found = (sp.lambdify(args, fs, "numpy"), sp.lambdify(args, jac, "numpy"))
-        _HOLONOMIC_FUNCTIONS[system] = found
-    return found
+        return sp.lambdify(args, fs, "numpy"), sp.lambdify(args, jac, "numpy")
+
+    return _functions(system, "holonomic", make)
 
 
 def solve_holonomic(system: System, q: np.ndarray, params: Mapping[str, float], t0: float) -> list[str]:
@@ -1429,25 +1432,20 @@ def _left_branch(system: System, tr: Trajectory, params: Mapping[str, float], st
     """The first sample (before ``stop``) of a multiplier run whose dependent velocities are not the
     solved form's, ``q̇_dep ≠ φ(q, q̇_σ, t)``: the run crossed the singular set of constraints
     nonlinear in the velocities onto another solution of ``f = 0`` (``(stop, "")`` if none)."""
-    import sympy as sp
-
-    from chaplygin.core._symbols import TIME, describe
+    from chaplygin.core._symbols import describe
 
     v, names = system._vars, [q.func.__name__ for q in system.coordinates]
     phi = [system._velocity_substitution[v.xd[i]] for i in system._dep]
-    args = [TIME, *v.x, *(v.xd[i] for i in system._ind), *system.parameters]
+    solve_phi, at_factors = _functions(system, "branch", lambda: _branch_functions(system))
     columns = [
         tr.t[:stop],
         *(tr.coordinates[c][:stop] for c in names),
         *(tr.velocities[names[i] + "'"][:stop] for i in system._ind),
         *(np.full(stop, params[par.name]) for par in system.parameters),
     ]
-    from chaplygin.core._nonlinear import singular_set
-
-    factors = singular_set(system)
     with np.errstate(all="ignore"):
-        solved = sp.lambdify(args, phi, "numpy")(*columns)
-        at = sp.lambdify(args, factors, "numpy")(*columns) if factors else []
+        solved = solve_phi(*columns)
+        at = at_factors(*columns) if system._singular_set else []
     for value in at:  # a factor that fell by 12 orders of magnitude: the run sits on the set
         size = np.abs(np.broadcast_to(np.asarray(value, dtype=complex), (stop,)))
         low = size <= 1e-12 * size[0]
@@ -1470,6 +1468,19 @@ def _left_branch(system: System, tr: Trajectory, params: Mapping[str, float], st
                 f"crossed their singular set, {singular_set_text(system)}"
             )
     return stop, ""
+
+
+def _branch_functions(system: System) -> tuple[Any, Any]:
+    """The solved form φ and the factors of the singular set as NumPy functions of
+    ``(t, q…, q̇_σ…, parameters…)`` (:func:`_left_branch`)."""
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    args = [TIME, *v.x, *(v.xd[i] for i in system._ind), *system.parameters]
+    phi = [system._velocity_substitution[v.xd[i]] for i in system._dep]
+    return sp.lambdify(args, phi, "numpy"), sp.lambdify(args, system._singular_set, "numpy")
 
 
 def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int) -> tuple[int, str]:
@@ -1651,11 +1662,9 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
     factors: list[sp.Expr] = []
     v = system._vars
     if system.is_nonlinear:  # A = ∂f/∂q̇ on the constraints (q̇_dep = φ), and φ's branch points
-        from chaplygin.core._nonlinear import singular_set
-
         a = system._A.xreplace(system._velocity_substitution)
         speeds = [v.xd[i] for i in system._ind]
-        return [TIME, *v.x, *speeds, *system.parameters], [*a, *singular_set(system)]
+        return [TIME, *v.x, *speeds, *system.parameters], [*a, *system._singular_set]
     for entry in [*system._A, *system._A0]:
         for fn, quotient in quotients.items():
             entry = entry.replace(fn, quotient)
