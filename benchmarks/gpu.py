@@ -298,14 +298,17 @@ def main() -> None:
     )
     parser.add_argument("--peak-tflops", type=float, default=None, help="the device's FP64 peak")
     parser.add_argument("--fmad", action="store_true", help="let NVRTC contract into fused multiply-adds")
+    parser.add_argument("--maxrregcount", type=int, default=None, help="NVRTC's register limit per thread")
     args = parser.parse_args()
-    if args.fmad:
+    if args.fmad or args.maxrregcount:
         original = _cuda.DeviceKernel.__init__
+        tuned = {"fmad": args.fmad, "registers": args.maxrregcount}
+        print(f"kernel options: {tuned}")
 
-        def with_fmad(self: Any, *a: Any, **kw: Any) -> None:
-            original(self, *a, **{**kw, "fmad": True})
+        def with_options(self: Any, *a: Any, **kw: Any) -> None:
+            original(self, *a, **{**kw, **tuned})
 
-        _cuda.DeviceKernel.__init__ = with_fmad  # type: ignore[method-assign]
+        _cuda.DeviceKernel.__init__ = with_options  # type: ignore[method-assign]
     if args.check:
         problem = _cuda.device_problem()
         if problem is not None:

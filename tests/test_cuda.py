@@ -47,6 +47,13 @@ def disk_c():
     return compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
 
 
+@pytest.fixture(scope="module", params=["symbolic", "numeric"])
+def disk_both(request):
+    """The disk's Chaplygin equations reduced symbolically, and numerically (its ``fill`` then
+    solves for the dependent velocities itself, with ``chaplygin_solve``)."""
+    return compile_model(examples.rolling_disk(), "chaplygin", "classic", "c", reduction=request.param)
+
+
 def _disk_members(c, count: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """Rolling disks at various tilts and spins; member 3 has no inertia at all (M = 0)."""
     rng = np.random.default_rng(3)
@@ -66,7 +73,8 @@ def _assert_same(a: dict, b: dict) -> None:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)  # NaN where NaN
 
 
-def test_host_build_of_the_kernel_takes_the_c_loops_steps(disk_c):
+def test_host_build_of_the_kernel_takes_the_c_loops_steps(disk_both):
+    disk_c = disk_both
     Y0, P = _disk_members(disk_c)
     host = _cuda.HostKernel(disk_c.module, Y0.shape[1], P.shape[1])
     times = np.linspace(0.0, 3.0, 7)
@@ -162,10 +170,11 @@ static inline double __longlong_as_double(long long v) { double d; std::memcpy(&
 """
 
 
-def test_the_device_source_is_valid_cuda_cpp(disk_c, tmp_path):
+def test_the_device_source_is_valid_cuda_cpp(disk_both, tmp_path):
     """NVRTC compiles C++: the device branch (``__CUDACC__``) must be valid C++ (no jump over an
     initialisation, no C-only construct), with no host header of its own."""
-    source = _cuda.kernel_source(disk_c.module, len(disk_c.layout.state), len(disk_c.layout.parameters))
+    c = disk_both
+    source = _cuda.kernel_source(c.module, len(c.layout.state), len(c.layout.parameters))
     assert "#include" not in source.split("#else")[0]  # the device branch includes nothing
     cxx = shutil.which("c++") or shutil.which("g++") or shutil.which("clang++")
     if cxx is None:  # pragma: no cover - CI has g++

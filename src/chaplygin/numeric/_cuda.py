@@ -550,7 +550,9 @@ class DeviceKernel:
     its path given, with NVRTC's log).
     """
 
-    def __init__(self, kernel: CKernel, width: int, n_params: int, *, fmad: bool = False) -> None:
+    def __init__(
+        self, kernel: CKernel, width: int, n_params: int, *, fmad: bool = False, registers: int | None = None
+    ) -> None:
         problem = device_problem()
         if problem is not None:
             raise ChaplyginError(f"backend 'cuda' cannot be used: {problem}; {INSTALL}.")
@@ -563,7 +565,11 @@ class DeviceKernel:
         kernel_dir().mkdir(parents=True, exist_ok=True)
         self.path = kernel_dir() / f"cuda_{digest}.cu"  # the source, to read when NVRTC fails
         self.path.write_text(self.source, encoding="utf-8")
-        options = ("--fmad=true",) if fmad else ("--fmad=false",)
+        # fmad: contraction into fused multiply-adds (off: the host build's arithmetic);
+        # registers: NVRTC's --maxrregcount (more threads resident per SM, more spills)
+        options: tuple[str, ...] = ("--fmad=true",) if fmad else ("--fmad=false",)
+        if registers:
+            options += (f"--maxrregcount={int(registers)}",)
         start = time.perf_counter()
         try:
             module = cupy.RawModule(code=self.source, options=options)
