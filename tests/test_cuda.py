@@ -17,12 +17,14 @@ from __future__ import annotations
 import math
 import shutil
 import subprocess
+import sys
+from typing import Any
 
 import numpy as np
 import pytest
 
 from chaplygin import ChaplyginError, examples
-from chaplygin.numeric import _cuda
+from chaplygin.numeric import _ckernel, _cuda
 from chaplygin.numeric._ckernel import Unavailable, compiler
 from chaplygin.numeric._loop import ensemble_dop853
 from chaplygin.numeric.codegen import compile_model, parameter_vector
@@ -154,6 +156,77 @@ def test_cuda_without_cupy_says_what_to_install(monkeypatch):
         simulate_ensemble(examples.rolling_disk(), "chaplygin", 1.0, [DISK_0], DISK_P, backend="cuda")
     with pytest.raises(ChaplyginError, match="backend 'cuda' cannot be used"):
         _cuda.DeviceKernel(compile_model(examples.rolling_disk(), "chaplygin", "classic", "c").module, 8, 5)
+
+
+class _Array(np.ndarray):
+    """A NumPy array with CuPy's ``get``."""
+
+    def get(self) -> np.ndarray:
+        return np.array(self)
+
+
+def _fake_cupy(free_bytes: int) -> Any:
+    """CuPy as far as DeviceKernel uses it: arrays are NumPy's, a kernel launch calls the host
+    build of the same source, and the device has ``free_bytes`` free (to force chunks)."""
+    import ctypes
+    import types
+
+    def wrap(f):
+        return lambda *a, **k: np.asarray(f(*a, **k)).view(_Array)
+
+    def pointer(x):
+        if isinstance(x, np.ndarray):
+            return x.ctypes.data_as(ctypes.c_void_p)
+        return x.item() if isinstance(x, np.generic) else x
+
+    class RawModule:
+        def __init__(self, code: str, options: tuple = ()) -> None:
+            assert "--fmad=false" in options
+            digest, so = _ckernel.library(code, "cuda_host")
+            self.lib, self.digest = ctypes.CDLL(str(so)), digest
+
+        def get_function(self, name: str):
+            fn = getattr(self.lib, f"{name}_{self.digest}")
+            fn.argtypes = None
+
+            def launch(grid, block, args):
+                assert grid[0] * block[0] >= args[0] > (grid[0] - 1) * block[0]
+                c_args = [pointer(x) for x in args]
+                c_args = [ctypes.c_double(x) if isinstance(x, float) else x for x in c_args]
+                c_args = [ctypes.c_long(x) if isinstance(x, int) else x for x in c_args]
+                if name == "chaplygin_members":  # the host build: (start, stop, members, ...)
+                    c_args = [ctypes.c_long(0), *c_args[:1], *c_args]
+                fn(*c_args)
+
+            return launch
+
+    class Device:
+        mem_info = (free_bytes, 10 * free_bytes)
+
+    cuda = types.SimpleNamespace(runtime=types.SimpleNamespace(getDeviceCount=lambda: 1), Device=Device)
+    return types.SimpleNamespace(
+        cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=wrap(np.asarray),
+        ascontiguousarray=wrap(np.ascontiguousarray), empty=wrap(np.empty), zeros=wrap(np.zeros),
+    )  # fmt: skip
+
+
+def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
+    """DeviceKernel's layout (members last), chunks and launches, with CuPy replaced by NumPy and
+    the kernel by its host build: the C loop's results, in chunks of 5 members of 12."""
+    Y0, P = _disk_members(disk_c)
+    n, k = Y0.shape[1], 7
+    per_member = 8 * 2 * (n + P.shape[1] + k * n + n + disk_c.module.N_OBSERVED + 3)
+    monkeypatch.setitem(sys.modules, "cupy", _fake_cupy(int(5.5 * per_member / _cuda.MEMORY_SHARE)))
+    gpu = _cuda.DeviceKernel(disk_c.module, n, P.shape[1])
+    assert gpu._chunk(len(Y0), per_member // 8) == 5
+    times = np.linspace(0.0, 3.0, k)
+    _assert_same(
+        gpu.run((0.0, 3.0), Y0, P, times=times),
+        ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, threads=1),
+    )
+    _assert_same(gpu.run((0.0, 1.0), Y0, P), ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, threads=1))
+    t = np.linspace(0.0, 1.0, len(Y0))
+    np.testing.assert_array_equal(gpu.observe(t, Y0, P), [disk_c.observe(*row) for row in zip(t, Y0, P)])
 
 
 # a stand-in for what NVRTC declares itself, so that the host's C++ compiler checks the device branch

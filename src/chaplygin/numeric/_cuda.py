@@ -629,8 +629,8 @@ class DeviceKernel:
             )  # fmt: skip
             self._members((math.ceil(m / BLOCK),), (BLOCK,), args)
             t_last[lo:hi] = t_d.get()
-            last[lo:hi] = last_d.T.get()
-            obs[lo:hi] = obs_d.T.get()
+            last[lo:hi] = cp.ascontiguousarray(last_d.T).get()
+            obs[lo:hi] = cp.ascontiguousarray(obs_d.T).get()
             code[lo:hi], n_rhs[lo:hi] = code_d.get(), rhs_d.get()
             if samples is not None:
                 samples[lo:hi] = cp.ascontiguousarray(out.transpose(2, 0, 1)).get()
@@ -648,4 +648,4 @@ class DeviceKernel:
             p = cp.ascontiguousarray(cp.asarray(P).T) if P.shape[1] else cp.zeros((0, m))
             args = (np.int64(m), cp.asarray(np.asarray(t, dtype=float)), y, p, obs)
             self._observe((math.ceil(m / BLOCK),), (BLOCK,), args)
-        return np.ascontiguousarray(obs.T.get())
+        return cp.ascontiguousarray(obs.T).get()
