@@ -6,16 +6,18 @@ Run from the repository root (it puts this tree's ``src`` first on the path)::
     python benchmarks/gpu.py --quick     # 10^3 … 10^6 members, at most ~10 s a cell
     python benchmarks/gpu.py             # 10^3 … 10^7 members, at most ~20 s a cell (~5 min on an H100)
     python benchmarks/gpu.py --sizes 1e5,1e6 --backends cuda,c --cases disk10 --max-seconds 60
+    python benchmarks/gpu.py --host-build --sizes 1e2,1e3 --cases disk1   # this script without a GPU
 
 Cases: the rolling disk (``examples.get("rolling-disk")``, Chaplygin's equations) to ``t = 1``
 and ``t = 10``, and the rattleback (``examples.get("rattleback")``, its true motion) to ``t = 10``;
 ``rtol = 1e-10``, ``atol = 1e-12``, final states only.  Members start near the catalogue's state
 (tilts and spins drawn uniformly, seed 0).  Each cell is one ``simulate_ensemble`` call (after one
-untimed warm-up of the backend on 256 members: compilation, NVRTC, jit); a size is skipped
+untimed warm-up of the backend on 256 members: compilation, NVRTC); a size is skipped
 when the last size's pace (for the C loop: the warm-up's) says it would take longer than
 ``--max-seconds``.  The rattleback is costly: some 9·10⁴ right-hand sides per member to t = 10
 (its spin reverses), 0.15 s per member on one CPU core.  JAX recompiles for
-every new number of members, so each of its cells runs twice and the second is reported.
+every new number of members, so each of its cells runs twice and the second is reported; it
+starts at 10⁴ members.
 
 Columns: ``wall`` the whole ``simulate_ensemble`` call, ``loop`` its integration
 (``Ensemble.wall_time``: for cuda the kernel and the transfers), trajectories/s and right-hand
@@ -92,6 +94,8 @@ CASES["rattleback10"] = ("rattleback", 10.0, None)
 FP64_PER_SM = {(6, 0): 32, (7, 0): 32, (8, 0): 32, (9, 0): 64, (10, 0): 64}
 #: members of the untimed warm-up run of each backend and case
 WARM = 256
+#: JAX runs from this many members on (each size is compiled anew, and run twice)
+JAX_FROM = 10_000
 _CALL = re.compile(r"\b(sin|cos|tan|asin|acos|atan|atan2|sinh|cosh|tanh|exp|log|sqrt|pow|fabs|fmax|fmin)\(")
 
 
@@ -205,7 +209,7 @@ def check(cases: list[str], members: int) -> bool:
 def bench(args: argparse.Namespace) -> None:
     sizes = [int(float(s)) for s in args.sizes.split(",")]
     backends = args.backends.split(",")
-    problem = _cuda.device_problem()
+    problem = _cuda.device_problem()  # (None with --host-build)
     if "cuda" in backends and problem is not None:
         print(f"cuda: skipped ({problem})")
         backends.remove("cuda")
@@ -216,7 +220,7 @@ def bench(args: argparse.Namespace) -> None:
             print(f"jax: skipped ({exc})")
             backends.remove("jax")
     peak = args.peak_tflops * 1e12 if args.peak_tflops else None
-    if problem is None:
+    if problem is None and not args.host_build:
         name, found = device()
         peak = peak or found
         print(f"device: {name}; FP64 peak {peak / 1e12:.1f} TFLOP/s" if peak else f"device: {name}")
@@ -230,14 +234,18 @@ def bench(args: argparse.Namespace) -> None:
               f"~{prob.flops:.0f} flops per RHS", flush=True)  # fmt: skip
         print(head)
         for backend in backends:
-            t = time.perf_counter()
-            prob.run(backend, prob.states(WARM))  # warm-up: compile (C, NVRTC, jit)
-            warm = time.perf_counter() - t
-            print(f"  ({backend} warm-up at {WARM} members: {warm:.2f} s)", flush=True)
-            # the CPU's pace is the warm-up's (members share the cores evenly); a GPU's and JAX's
-            # only show from a size that fills the device, so their first size always runs
-            pace = warm / WARM if backend == "c" else None
+            pace = None
+            if backend != "jax":  # (JAX compiles anew for every number of members: no warm-up)
+                t = time.perf_counter()
+                prob.run(backend, prob.states(WARM))  # warm-up: compile (C, NVRTC)
+                warm = time.perf_counter() - t
+                print(f"  ({backend} warm-up at {WARM} members: {warm:.2f} s)", flush=True)
+                # the CPU's pace is the warm-up's (members share the cores evenly); a GPU's only
+                # shows from a size that fills the device, so its first size always runs
+                pace = warm / WARM if backend == "c" else None
             for members in sizes:
+                if backend == "jax" and members < JAX_FROM:
+                    continue
                 if pace is not None and pace * members > args.max_seconds:
                     print(f"{case:13s} {backend:7s} {members:9d}  skipped (estimate {pace * members:.0f} s)")
                     continue
@@ -258,7 +266,7 @@ def bench(args: argparse.Namespace) -> None:
                     f"{rhs / wall:9.3g} {gflops:8.2f} {share} {int(np.count_nonzero(ens.code))}",
                     flush=True,
                 )
-            if backend == "cuda":  # hand CuPy's cached blocks back before JAX allocates
+            if backend == "cuda" and not args.host_build:  # CuPy's cached blocks back before JAX allocates
                 import cupy
 
                 cupy.get_default_memory_pool().free_all_blocks()
@@ -294,10 +302,13 @@ def main() -> None:
     parser.add_argument("--backends", default="cuda,jax,c")
     parser.add_argument("--cases", default=",".join(CASES))
     parser.add_argument(
-        "--max-seconds", type=float, default=20.0, help="skip a cell estimated to take longer"
+        "--max-seconds", type=float, default=None, help="skip longer cells (20 s; --quick 10 s)"
     )
     parser.add_argument("--peak-tflops", type=float, default=None, help="the device's FP64 peak")
     parser.add_argument("--fmad", action="store_true", help="let NVRTC contract into fused multiply-adds")
+    parser.add_argument(
+        "--host-build", action="store_true", help="run 'cuda' on the kernel's host build (no GPU)"
+    )
     parser.add_argument("--maxrregcount", type=int, default=None, help="NVRTC's register limit per thread")
     args = parser.parse_args()
     if args.fmad or args.maxrregcount:
@@ -316,7 +327,14 @@ def main() -> None:
             host_as_device()
         sys.exit(0 if check(args.cases.split(","), args.check_members) else 1)
     if args.quick:
-        args.sizes, args.max_seconds = "1e3,1e4,1e5,1e6", min(args.max_seconds, 10.0)
+        args.sizes = "1e3,1e4,1e5,1e6"
+    if args.max_seconds is None:
+        args.max_seconds = 10.0 if args.quick else 20.0
+    if args.host_build:
+        print(
+            "cuda: the kernel's host build stands in for the GPU (a test of this script, not a measurement)"
+        )
+        host_as_device()
     bench(args)
 
 
