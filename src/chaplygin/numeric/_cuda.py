@@ -91,6 +91,9 @@ _PRELUDE = r"""/* chaplygin: DOP853, one thread per ensemble member (chaplygin.n
 #ifndef NAN
 #define NAN __longlong_as_double(0x7ff8000000000000LL)
 #endif
+#ifndef INFINITY
+#define INFINITY CH_INF
+#endif
 #else
 #include <math.h>
 #define CH_DEVICE
