@@ -148,6 +148,23 @@ def test_auto_takes_the_gpu_for_large_ensembles_only(host_as_device, monkeypatch
     assert simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 3, DISK_P).backend == "c"
 
 
+def test_auto_runs_on_the_cpu_when_the_gpu_fails(monkeypatch):
+    """A device that is there but refuses the kernel (NVRTC, a driver) costs "auto" a warning, not
+    the ensemble; "cuda" asked for by name raises."""
+
+    def refuse(*args, **kwargs):
+        raise ChaplyginError("backend 'cuda': NVRTC could not compile the kernel (test)")
+
+    monkeypatch.setattr(_cuda, "device_problem", lambda: None)
+    monkeypatch.setattr(_cuda, "DeviceKernel", refuse)
+    monkeypatch.setattr(_cuda, "AUTO_MEMBERS", 2)
+    disk = examples.rolling_disk()
+    with pytest.warns(UserWarning, match="runs on the CPU: the GPU failed .*NVRTC"):
+        assert simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 2, DISK_P).backend == "c"
+    with pytest.raises(ChaplyginError, match="NVRTC"):
+        simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 2, DISK_P, backend="cuda")
+
+
 def test_cuda_without_cupy_says_what_to_install(monkeypatch):
     monkeypatch.setattr(_cuda, "device_problem", lambda: "CuPy cannot be imported (ModuleNotFoundError)")
     with pytest.raises(

@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass, field
@@ -910,16 +911,21 @@ def _compile(
     if backend == "cuda" or (
         backend == "auto" and members >= _cuda.AUTO_MEMBERS and _cuda.device_problem() is None
     ):
-        problem = _cuda.device_problem()
-        if problem is not None:
-            raise BackendUnavailable(f"backend 'cuda' cannot be used: {problem}; {_cuda.INSTALL}.")
         try:
-            c = compile_model(system, model, form, "c", constants=constants, reduction=reduction)
-        except BackendUnavailable as exc:
-            raise BackendUnavailable(f"backend 'cuda' builds on the C backend: {exc}") from None
-        cuda = _cuda.CudaModel(c)
-        cuda.device  # noqa: B018  # NVRTC compiles here, before any member is prepared
-        return cuda
+            problem = _cuda.device_problem()
+            if problem is not None:
+                raise BackendUnavailable(f"backend 'cuda' cannot be used: {problem}; {_cuda.INSTALL}.")
+            try:
+                c = compile_model(system, model, form, "c", constants=constants, reduction=reduction)
+            except BackendUnavailable as exc:
+                raise BackendUnavailable(f"backend 'cuda' builds on the C backend: {exc}") from None
+            cuda = _cuda.CudaModel(c)
+            cuda.device  # noqa: B018  # NVRTC compiles here, before any member is prepared
+            return cuda
+        except ChaplyginError as exc:
+            if backend == "cuda":
+                raise
+            warnings.warn(f"backend 'auto' runs on the CPU: the GPU failed ({exc})", stacklevel=3)
     if backend != "auto":
         return compile_model(system, model, form, backend, constants=constants, reduction=reduction)
     with suppress(BackendUnavailable):
