@@ -1126,7 +1126,7 @@ def sweep(
     if backend not in SWEEP_BACKENDS:
         raise ChaplyginError(
             f"backend {backend!r}: sweeps run on {', '.join(map(repr, SWEEP_BACKENDS))} "
-            "(for JAX on a GPU use chaplygin.numeric.ensemble.simulate_ensemble)."
+            "(on a GPU use chaplygin.numeric.ensemble.simulate_ensemble, backend='cuda' or 'jax')."
         )
     t_end = float(t_end)
     if not (math.isfinite(t_end) and t_end > 0):

@@ -3,10 +3,10 @@
 :func:`simulate_ensemble` integrates one model from ``N`` initial states (and,
 optionally, ``N`` sets of parameters) and keeps only what is asked for: by
 default the state reached at the end, with the energy and the constraint
-residual there.  Three engines:
+residual there.  Four engines:
 
 * ``backend="c"`` (what ``"auto"``, the default, picks where a C compiler is
-  found): the model's ``fill`` and the DOP853 loop in C
+  found, below the GPU's share): the model's ``fill`` and the DOP853 loop in C
   (:mod:`chaplygin.numeric._ckernel`, a fraction of a second to build once per
   model), chunks of members handed by one Python thread per CPU core to the
   loop, which runs without the GIL;
@@ -15,7 +15,12 @@ residual there.  Three engines:
   the C port), handed out the same way; its first compile takes seconds, once
   per installation and model;
 * ``backend="jax"``: diffrax's ``Dopri8`` under ``jax.jit(jax.vmap(...))``,
-  on a GPU when JAX sees one (optional extra ``chaplygin[jax]``).
+  on a GPU when JAX sees one (optional extra ``chaplygin[jax]``);
+* ``backend="cuda"`` (what ``"auto"`` picks from :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS`
+  members on where CuPy sees a GPU): the C backend's ``fill`` and a port of its loop compiled
+  into one GPU kernel, one thread per member with its own steps
+  (:mod:`chaplygin.numeric._cuda`; optional extra ``chaplygin[cuda]``): the C loop's steps,
+  statuses and, up to the last bits of the device's ``sin``, ``pow``, …, numbers.
 
 A member that fails (step-size underflow, a blow-up, a singular mass matrix,
 too many steps) does not stop the others: its status says so and its state is
@@ -31,6 +36,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass, field
@@ -40,6 +46,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
+from chaplygin.numeric import _cuda
 from chaplygin.numeric._loop import STATUS
 from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
 from chaplygin.numeric.simulate import (
@@ -63,8 +70,10 @@ if TYPE_CHECKING:
 
 __all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 
-#: what ``backend=`` accepts; "auto" is "c" where a C compiler is found, else "numba"
-ENSEMBLE_BACKENDS = ("auto", "c", "numba", "jax")
+#: what ``backend=`` accepts; "auto" is "cuda" for an ensemble of at least
+#: :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS` members where CuPy sees a GPU, else "c" where a
+#: C compiler is found, else "numba"
+ENSEMBLE_BACKENDS = ("auto", "c", "numba", "jax", "cuda")
 #: the status code of a member that met a pole of its solved constraints (:data:`STATUS`)
 POLE = 9
 #: a reduced model's members are checked for a pole of the solved constraints at this many
@@ -492,6 +501,8 @@ def _multipliers(
 
 
 def _observe_all(compiled: CompiledModel, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
+    if isinstance(compiled, _cuda.CudaModel):
+        return compiled.device.observe(t, Y, P)
     if compiled.backend == "jax":
         import jax
 
@@ -499,6 +510,19 @@ def _observe_all(compiled: CompiledModel, t: np.ndarray, Y: np.ndarray, P: np.nd
         if "observe_vmap" not in solvers:
             solvers["observe_vmap"] = jax.jit(jax.vmap(compiled.module.observe_jax))
         return np.asarray(solvers["observe_vmap"](t, Y, P))
+    observe_many = getattr(compiled.module, "observe_many", None)  # the C kernel's: many states, one p
+    if observe_many is not None and len(t):
+        # one call per distinct parameter vector (one for an ensemble over initial states only)
+        if np.array_equal(P, np.broadcast_to(P[0], P.shape)):  # (np.unique's row sort costs 30 times more)
+            return np.asarray(observe_many(t, Y, P[0]))
+        distinct, inverse = np.unique(P, axis=0, return_inverse=True)
+        if len(distinct) <= max(1, len(t) // 4):
+            order = np.argsort(inverse.ravel(), kind="stable")
+            ends = np.cumsum(np.bincount(inverse.ravel(), minlength=len(distinct)))
+            rows = np.empty((len(t), compiled.n_observed))
+            for k, members in enumerate(np.split(order, ends[:-1])):
+                rows[members] = observe_many(t[members], Y[members], distinct[k])
+            return rows
     observe = compiled.module.observe
     return np.array([observe(ti, yi, pi) for ti, yi, pi in zip(t, Y, P)]).reshape(len(t), -1)
 
@@ -545,11 +569,15 @@ def simulate_ensemble(
     parameters : mapping
         A number for every parameter, or an array of ``N`` numbers (one per
         member) for a parameter sweep.
-    backend : {"auto", "c", "numba", "jax"}
+    backend : {"auto", "c", "numba", "jax", "cuda"}
         The compiled DOP853 loop on all CPU cores (``threads`` of them if
         given), in C or compiled by numba, or diffrax under ``jax.vmap``
-        (``method`` ``"DOP853"`` → ``Dopri8``, ``"RK45"``, ``"RK23"``).
-        ``"auto"``: ``"c"`` where a C compiler is found and the model's
+        (``method`` ``"DOP853"`` → ``Dopri8``, ``"RK45"``, ``"RK23"``), or
+        the C loop as a GPU kernel, one thread per member (``"cuda"``: needs
+        CuPy, ``pip install 'chaplygin[cuda]'``, an NVIDIA GPU and a C compiler;
+        ``threads`` and ``time_limit`` do not apply).
+        ``"auto"``: ``"cuda"`` from :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS` members on
+        where CuPy sees a GPU, else ``"c"`` where a C compiler is found and the model's
         functions have C translations, else ``"numba"``.
     keep : "final", int, or sequence of times
         ``"final"``: only the end state.  An int ``k``: also ``k`` equally
@@ -562,7 +590,7 @@ def simulate_ensemble(
         limit).  Before the ensemble starts, the first member is integrated for up to half a
         second; an ensemble that this says would take longer (its pace, times the members, over
         the threads) is refused with an :class:`~chaplygin.errors.InputError` that gives the
-        estimate (not for jax).  So is one whose kept samples would not fit in memory.
+        estimate (not for jax and cuda).  So is one whose kept samples would not fit in memory.
 
     Returns
     -------
@@ -595,7 +623,10 @@ def simulate_ensemble(
             "an ensemble compiles one model for all; give the numbers, or use model 'vakonomic' "
             "(μ integrated), where constants='match' starts every member with μ(0) = 0."
         )
-    compiled = _compile(system, model, form, backend, family_c, reduction)
+    n = len(initial_states)
+    if n == 0:
+        raise ChaplyginError("initial_states: no initial states given.")
+    compiled = _compile(system, model, form, backend, family_c, reduction, n)
     backend = compiled.backend
     if backend == "numba":
         from chaplygin.numeric._loop import loop_model
@@ -603,9 +634,6 @@ def simulate_ensemble(
         compiled = loop_model(compiled)  # its observe is compiled (and cached) with the loop
     layout = compiled.layout
 
-    n = len(initial_states)
-    if n == 0:
-        raise ChaplyginError("initial_states: no initial states given.")
     P, param_columns = _parameter_matrix(system, layout, parameters, n)
     notes: list[str] = []
     Y0 = _states(system, model, layout, initial_states, P, vak, t0, notes)
@@ -624,10 +652,15 @@ def simulate_ensemble(
             )
 
     _check_memory(n, 0 if times is None else len(times), len(layout.state))
-    if backend != "jax" and time_limit is not None:
+    if backend not in ("jax", "cuda") and time_limit is not None:
         _check_time(compiled, (t0, t1), Y0[0], P[0], rtol, atol, max_step, max_steps, n, threads, time_limit)
 
     def integrate(rows: slice | np.ndarray, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
+        if isinstance(compiled, _cuda.CudaModel):
+            return compiled.device.run(
+                (t0, t1), Y0[rows], P[rows], times=sample_times, rtol=rtol, atol=atol,
+                max_step=max_step, max_steps=max_steps,
+            )  # fmt: skip
         if backend != "jax":
             from chaplygin.numeric._loop import ensemble_dop853
 
@@ -868,13 +901,33 @@ def _check_time(
 
 
 def _compile(
-    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
+    system: System, model: str, form: str, backend: str, constants: Any, reduction: str, members: int
 ) -> CompiledModel:
-    """The compiled model for ``backend``; ``"auto"``: the C backend, else numba."""
-    if backend != "auto":
-        return compile_model(system, model, form, backend, constants=constants, reduction=reduction)
+    """The compiled model for ``backend``; ``"auto"``: the GPU for :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS`
+    members or more where CuPy sees a device, else the C backend, else numba.  ``"cuda"`` is the
+    ``c`` backend's model (its C ``fill`` goes into the GPU kernel) with the GPU kernel built."""
     from chaplygin.numeric.codegen import BackendUnavailable
 
+    if backend == "cuda" or (
+        backend == "auto" and members >= _cuda.AUTO_MEMBERS and _cuda.device_problem() is None
+    ):
+        try:
+            problem = _cuda.device_problem()
+            if problem is not None:
+                raise BackendUnavailable(f"backend 'cuda' cannot be used: {problem}; {_cuda.INSTALL}.")
+            try:
+                c = compile_model(system, model, form, "c", constants=constants, reduction=reduction)
+            except BackendUnavailable as exc:
+                raise BackendUnavailable(f"backend 'cuda' builds on the C backend: {exc}") from None
+            cuda = _cuda.CudaModel(c)
+            cuda.device  # noqa: B018  # NVRTC compiles here, before any member is prepared
+            return cuda
+        except ChaplyginError as exc:
+            if backend == "cuda":
+                raise
+            warnings.warn(f"backend 'auto' runs on the CPU: the GPU failed ({exc})", stacklevel=3)
+    if backend != "auto":
+        return compile_model(system, model, form, backend, constants=constants, reduction=reduction)
     with suppress(BackendUnavailable):
         return compile_model(system, model, form, "c", constants=constants, reduction=reduction)
     return compile_model(system, model, form, "numba", constants=constants, reduction=reduction)

@@ -1,0 +1,654 @@
+"""The ``cuda`` ensemble backend: one GPU thread per member, DOP853 with its own steps.
+
+Why one kernel per model, one thread per member
+-----------------------------------------------
+``backend="jax"`` steps every member in lock-step under ``jax.vmap``: one kernel launch per
+stage, every intermediate through global memory.  Here, as DiffEqGPU.jl does, the model is
+compiled into one kernel in which each thread integrates one member from start to end with its
+own adaptive step size, its state and stages in its own (register or cached local) memory.
+The kernel is C: the model's generated ``fill`` (:mod:`chaplygin.numeric._cfill`, exactly the
+source of the ``c`` backend) becomes a ``__device__`` function, and the DOP853 loop is a
+line-by-line port of the C loop of :mod:`chaplygin.numeric._ckernel` (itself a port of
+:func:`chaplygin.numeric._loop._k_dop853`, SciPy's ``DOP853``): the same tableau, step-size
+controller, error norm, first-step guess, dense output at the requested times, Gaussian
+elimination with partial pivoting, and failure codes (:data:`chaplygin.numeric._loop.STATUS`:
+1 step underflow, 2 a non-finite derivative, 4 the step budget, 5 a singular mass matrix, 9 a
+non-finite velocity solved from the constraints).  Float64 throughout.
+
+It is compiled by NVRTC through CuPy (``pip install 'chaplygin[cuda]'``): no CUDA toolkit
+besides the driver and the NVRTC that CuPy's wheels bring, no numba-cuda (whose CUDA target
+would compile the Python ``fill`` line by line, slowly for large models, and whose simulator
+runs the kernel's Python, not its C).  NVRTC runs with ``--fmad=false``: no contraction into
+fused multiply-adds, as the host build (``-ffp-contract=off``), so the GPU's results differ from
+the C loop's only by the last bits of the device's ``sin``, ``pow``, … .
+
+The same source, without a GPU
+------------------------------
+:func:`kernel_source` is C that also compiles with the host's C compiler
+(:func:`chaplygin.numeric._ckernel.compiler`, :data:`~chaplygin.numeric._ckernel.FLAGS`):
+``__CUDACC__`` (defined by NVRTC) selects ``__device__``/``__constant__`` and an
+``extern "C" __global__`` entry in which a thread is a member; without it, a host function loops
+over the members.  So the suite, which has no GPU, runs this very kernel source on the CPU
+(:class:`HostKernel`) and checks it against the C loop: the same steps, the same numbers to
+the last bit, the same statuses.
+
+Layout
+------
+Members are the fastest index of every array the kernel reads or writes (struct of arrays):
+``Y0[i * members + m]``, ``P[j * members + m]``, ``out[(k * n + i) * members + m]``, … , so
+that the threads of a warp, neighbouring members, read and write neighbouring addresses.  The
+driver transposes on the device.  An ensemble whose arrays exceed a share of the device's free
+memory runs in chunks (:data:`MEMORY_SHARE`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from chaplygin.errors import ChaplyginError
+from chaplygin.numeric import _ckernel
+from chaplygin.numeric._ckernel import CKernel, CompiledModel, kernel_dir
+from chaplygin.numeric._dop853 import tolerances
+
+__all__ = [
+    "AUTO_MEMBERS",
+    "BLOCK",
+    "INSTALL",
+    "CudaModel",
+    "DeviceKernel",
+    "HostKernel",
+    "device_problem",
+    "kernel_source",
+]
+
+#: ``backend="auto"`` takes the GPU from this many members on.  An H100 keeps about 270 000
+#: threads resident (132 SMs × 2 048); below some 10⁴ members most of it idles while a launch,
+#: two transfers and the transposes still cost milliseconds, and 16 CPU cores finish 10⁴ rolling
+#: disks to t = 1 in about 0.1 s (issue 32's table: 34 900 members/s), so the GPU cannot win much.
+AUTO_MEMBERS = 10_000
+#: threads per block
+BLOCK = 128
+#: the share of the device's free memory one chunk of members may take
+MEMORY_SHARE = 0.4
+#: how to get what the backend needs
+INSTALL = (
+    "pip install 'chaplygin[cuda]' (CuPy for CUDA 12, cupy-cuda12x; for CUDA 13 install "
+    "cupy-cuda13x instead) on a machine with an NVIDIA GPU and its driver"
+)
+
+_PRELUDE = r"""/* chaplygin: DOP853, one thread per ensemble member (chaplygin.numeric._cuda).
+   The same source builds for a GPU (NVRTC: __CUDACC__) and for the host (a loop over members). */
+#ifdef __CUDACC__
+#define CH_DEVICE __device__
+#define CH_TABLE __constant__
+#define CH_INF __longlong_as_double(0x7ff0000000000000LL)
+#ifndef NAN
+#define NAN __longlong_as_double(0x7ff8000000000000LL)
+#endif
+#ifndef INFINITY
+#define INFINITY CH_INF
+#endif
+#else
+#include <math.h>
+#define CH_DEVICE
+#define CH_TABLE static const
+#define CH_INF INFINITY
+#endif
+/* finite: x - x is 0 for a finite x, NaN for an infinite or NaN one (IEEE, no fast-math) */
+#define CH_FINITE(x) ((x) - (x) == 0.0)
+"""
+
+_LOOP = r"""
+typedef struct {
+    double M[CH_DIM * CH_DIM + 1], b[CH_DIM + 1], V[CH_NV + 1], O[CH_NOBS + 1];
+} ch_work;
+
+/* b <- M^-1 b, Gaussian elimination with partial pivoting in place; 5 if singular */
+CH_DEVICE static int ch_solve(double *M, double *b)
+{
+    const int n = CH_DIM;
+    for (int c = 0; c < n; ++c) {
+        int piv = c;
+        double big = fabs(M[c * n + c]);
+        for (int r = c + 1; r < n; ++r)
+            if (fabs(M[r * n + c]) > big) { big = fabs(M[r * n + c]); piv = r; }
+        if (big == 0.0) return 5;
+        if (piv != c) {
+            for (int j = c; j < n; ++j) { double tmp = M[c * n + j]; M[c * n + j] = M[piv * n + j]; M[piv * n + j] = tmp; }
+            double tmp = b[c]; b[c] = b[piv]; b[piv] = tmp;
+        }
+        for (int r = c + 1; r < n; ++r) {
+            double factor = M[r * n + c] / M[c * n + c];
+            for (int j = c + 1; j < n; ++j) M[r * n + j] -= factor * M[c * n + j];
+            b[r] -= factor * b[c];
+        }
+    }
+    for (int c = n - 1; c >= 0; --c) {
+        double acc = b[c];
+        for (int j = c + 1; j < n; ++j) acc -= M[c * n + j] * b[j];
+        b[c] = acc / M[c * n + c];
+    }
+    return 0;
+}
+
+CH_DEVICE static void ch_fill(ch_work *w, double t, const double *y, const double *p)
+{
+    for (int i = 0; i < CH_DIM * CH_DIM; ++i) w->M[i] = 0.0;
+    chaplygin_fill(t, y, p, w->M, w->b, w->V, w->O);
+}
+
+CH_DEVICE static int ch_eval(ch_work *w, double t, const double *y, const double *p, double *f)
+{
+    ch_fill(w, t, y, p);
+    for (int i = 0; i < CH_NV; ++i) if (!CH_FINITE(w->V[i])) return 9;  /* a pole of the constraints */
+    if (ch_solve(w->M, w->b) != 0) return 5;
+    for (int i = 0; i < CH_NV; ++i) f[i] = w->V[i];
+    for (int i = 0; i < CH_N - CH_NV; ++i) f[CH_NV + i] = w->b[i];
+    for (int i = 0; i < CH_N; ++i) if (!CH_FINITE(f[i])) return 2;
+    return 0;
+}
+
+CH_DEVICE static int ch_stages(ch_work *w, int first, int last, double t, double h, const double *y,
+                               const double *p, double *K, double *y_stage, int *s_out)
+{
+    for (int s = first; s < last; ++s) {
+        for (int i = 0; i < CH_N; ++i) {
+            double acc = 0.0;
+            for (int j = 0; j < s; ++j) acc += K[j * CH_N + i] * DOP_A[s * 16 + j];
+            y_stage[i] = y[i] + acc * h;
+        }
+        int code = ch_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * CH_N);
+        if (code != 0) { *s_out = s; return code; }
+    }
+    *s_out = last - 1;
+    return 0;
+}
+
+CH_DEVICE static double ch_rms(const double *v)
+{
+    double s = 0.0;
+    for (int i = 0; i < CH_N; ++i) s += v[i] * v[i];
+    return sqrt(s / CH_N);
+}
+
+CH_DEVICE static double ch_min(double a, double b) { return a < b ? a : b; }
+CH_DEVICE static double ch_max(double a, double b) { return a > b ? a : b; }
+
+/* obs[j * stride + m] <- [O..., reactions, V] at (t, y); NaN reactions where M is singular */
+CH_DEVICE static void ch_observe(ch_work *w, double t, const double *y, const double *p, long m,
+                                 long stride, double *obs)
+{
+    ch_fill(w, t, y, p);
+    for (int j = 0; j < CH_NOBS; ++j) obs[j * stride + m] = w->O[j];
+    int first = CH_NOBS - CH_NV - CH_NREACT;
+    if (CH_NREACT > 0) {
+        int singular = ch_solve(w->M, w->b) != 0;
+        for (int j = 0; j < CH_NREACT; ++j) obs[(first + j) * stride + m] = singular ? NAN : w->b[CH_DIM - CH_NREACT + j];
+    }
+    for (int j = 0; j < CH_NV; ++j) obs[(CH_NOBS - CH_NV + j) * stride + m] = w->V[j];
+}
+
+/* member m of stride members (chaplygin_batch of the C loop, first_step 0): from Y0[:, m] with
+   parameters P[:, m] to t1, samples out[k, :, m] at t_out[k] (NaN from a failure on), the last
+   state reached last[:, m] at t_last[m], status[m], n_rhs[m] and obs[:, m] (observe there) */
+CH_DEVICE static void ch_member(long m, long stride, double t0, double t1, const double *Y0,
+                                const double *P, const double *t_out, long n_out, double rtol,
+                                const double *atol, double max_step, long max_steps, double *out,
+                                double *last, double *t_last, double *obs, long long *status_out,
+                                long long *n_rhs_out)
+{
+    ch_work w;
+    double p[CH_NP + 1], K[16 * CH_N], y[CH_N], y_new[CH_N], y_stage[CH_N], f_new[CH_N];
+    double scale[CH_N], e5[CH_N], e3[CH_N], F[7 * CH_N];
+    for (int j = 0; j < CH_NP; ++j) p[j] = P[j * stride + m];
+    for (int i = 0; i < CH_N; ++i) y[i] = Y0[i * stride + m];
+    double direction = t1 >= t0 ? 1.0 : -1.0;
+    long n_rhs = 0, n_steps = 0, filled = 0;
+    double t = t0, t_new = t0, h_abs = 0.0, interval = fabs(t1 - t0);
+    int status = 0, code = 0, s = 0;  /* (declared before the first goto: C++ jumps over no initialisation) */
+    while (filled < n_out && direction * (t_out[filled] - t0) <= 0.0) {
+        for (int i = 0; i < CH_N; ++i) out[(filled * CH_N + i) * stride + m] = y[i];
+        filled += 1;
+    }
+    code = ch_eval(&w, t, y, p, K);
+    n_rhs += 1;
+    if (code != 0) { status = code; goto done; }
+
+    if (interval == 0.0) h_abs = interval;
+    else {
+        for (int i = 0; i < CH_N; ++i) {
+            scale[i] = atol[i] + fabs(y[i]) * rtol;
+            e5[i] = y[i] / scale[i];
+            e3[i] = K[i] / scale[i];
+        }
+        double d0 = ch_rms(e5), d1 = ch_rms(e3);
+        double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
+        h0 = ch_min(h0, interval);
+        for (int i = 0; i < CH_N; ++i) y_stage[i] = y[i] + h0 * direction * K[i];
+        code = ch_eval(&w, t + h0 * direction, y_stage, p, f_new);
+        n_rhs += 1;
+        if (code != 0) { status = code; goto done; }
+        for (int i = 0; i < CH_N; ++i) e5[i] = (f_new[i] - K[i]) / scale[i];
+        double d2 = ch_rms(e5) / h0, h1;
+        if (d1 <= 1e-15 && d2 <= 1e-15) h1 = ch_max(1e-6, h0 * 1e-3);
+        else h1 = pow(0.01 / ch_max(d1, d2), 1.0 / 8.0);
+        h_abs = ch_min(ch_min(100.0 * h0, h1), ch_min(interval, max_step));
+    }
+
+    while (direction * (t - t1) < 0.0) {
+        if (max_steps > 0 && n_steps >= max_steps) { status = 4; break; }
+        double min_step = 10.0 * fabs(nextafter(t, direction * CH_INF) - t);
+        if (h_abs > max_step) h_abs = max_step;
+        else if (h_abs < min_step) h_abs = min_step;
+        int rejected = 0, accepted = 0;
+        double h = 0.0;
+        while (!accepted) {
+            if (h_abs < min_step) { status = 1; break; }
+            t_new = t + h_abs * direction;
+            if (direction * (t_new - t1) > 0.0) t_new = t1;
+            h = t_new - t;
+            h_abs = fabs(h);
+            code = ch_stages(&w, 1, 12, t, h, y, p, K, y_stage, &s);
+            n_rhs += s;
+            if (code != 0) { status = code; goto done; }
+            for (int i = 0; i < CH_N; ++i) {
+                double acc = 0.0;
+                for (int j = 0; j < 12; ++j) acc += K[j * CH_N + i] * DOP_B[j];
+                y_new[i] = y[i] + h * acc;
+            }
+            code = ch_eval(&w, t + h, y_new, p, K + 12 * CH_N);
+            n_rhs += 1;
+            if (code != 0) { status = code; goto done; }
+            for (int i = 0; i < CH_N; ++i) {
+                scale[i] = atol[i] + ch_max(fabs(y[i]), fabs(y_new[i])) * rtol;
+                double a5 = 0.0, a3 = 0.0;
+                for (int j = 0; j < 13; ++j) { a5 += K[j * CH_N + i] * DOP_E5[j]; a3 += K[j * CH_N + i] * DOP_E3[j]; }
+                e5[i] = a5 / scale[i];
+                e3[i] = a3 / scale[i];
+            }
+            double n5 = 0.0, n3 = 0.0, error;
+            for (int i = 0; i < CH_N; ++i) { n5 += e5[i] * e5[i]; n3 += e3[i] * e3[i]; }
+            if (n5 == 0.0 && n3 == 0.0) error = 0.0;
+            else error = h_abs * n5 / sqrt((n5 + 0.01 * n3) * CH_N);
+            if (error < 1.0) {
+                double factor = error == 0.0 ? 10.0 : ch_min(10.0, 0.9 * pow(error, -1.0 / 8.0));
+                if (rejected) factor = ch_min(1.0, factor);
+                h_abs *= factor;
+                accepted = 1;
+            } else {
+                h_abs *= ch_max(0.2, 0.9 * pow(error, -1.0 / 8.0));
+                rejected = 1;
+            }
+        }
+        if (status != 0) break;
+        n_steps += 1;
+        if (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
+            code = ch_stages(&w, 13, 16, t, h, y, p, K, y_stage, &s);
+            n_rhs += s - 12;
+            if (code != 0) { status = code; goto done; }
+            for (int i = 0; i < CH_N; ++i) {
+                double dy = y_new[i] - y[i];
+                F[0 * CH_N + i] = dy;
+                F[1 * CH_N + i] = h * K[i] - dy;
+                F[2 * CH_N + i] = 2.0 * dy - h * (K[12 * CH_N + i] + K[i]);
+                for (int r = 0; r < 4; ++r) {
+                    double acc = 0.0;
+                    for (int j = 0; j < 16; ++j) acc += DOP_D[r * 16 + j] * K[j * CH_N + i];
+                    F[(3 + r) * CH_N + i] = h * acc;
+                }
+            }
+            while (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
+                double x = (t_out[filled] - t) / h;
+                for (int i = 0; i < CH_N; ++i) {
+                    double v = 0.0;
+                    for (int r = 0; r < 7; ++r) {
+                        v += F[(6 - r) * CH_N + i];
+                        v *= (r % 2 == 0) ? x : 1.0 - x;
+                    }
+                    out[(filled * CH_N + i) * stride + m] = v + y[i];
+                }
+                filled += 1;
+            }
+        }
+        t = t_new;
+        for (int i = 0; i < CH_N; ++i) { y[i] = y_new[i]; K[i] = K[12 * CH_N + i]; }
+    }
+done:
+    for (long k = filled; k < n_out; ++k)
+        for (int i = 0; i < CH_N; ++i) out[(k * CH_N + i) * stride + m] = NAN;
+    for (int i = 0; i < CH_N; ++i) last[i * stride + m] = y[i];
+    t_last[m] = t;
+    status_out[m] = status;
+    n_rhs_out[m] = n_rhs;
+    ch_observe(&w, t, y, p, m, stride, obs);
+}
+
+/* obs[:, m] <- observe(t[m], Y[:, m], P[:, m]) */
+CH_DEVICE static void ch_observe_member(long m, long stride, const double *t, const double *Y,
+                                        const double *P, double *obs)
+{
+    ch_work w;
+    double p[CH_NP + 1], y[CH_N];
+    for (int j = 0; j < CH_NP; ++j) p[j] = P[j * stride + m];
+    for (int i = 0; i < CH_N; ++i) y[i] = Y[i * stride + m];
+    ch_observe(&w, t[m], y, p, m, stride, obs);
+}
+
+#define CH_MEMBER_ARGS double t0, double t1, const double *Y0, const double *P, const double *t_out, \
+    long n_out, double rtol, const double *atol, double max_step, long max_steps, double *out, \
+    double *last, double *t_last, double *obs, long long *status, long long *n_rhs
+#define CH_MEMBER_CALL t0, t1, Y0, P, t_out, n_out, rtol, atol, max_step, max_steps, out, last, \
+    t_last, obs, status, n_rhs
+
+#ifdef __CUDACC__
+extern "C" __global__ void chaplygin_members(long members, CH_MEMBER_ARGS)
+{
+    long m = (long)blockIdx.x * blockDim.x + threadIdx.x;
+    if (m < members) ch_member(m, members, CH_MEMBER_CALL);
+}
+
+extern "C" __global__ void chaplygin_observe(long members, const double *t, const double *Y,
+                                             const double *P, double *obs)
+{
+    long m = (long)blockIdx.x * blockDim.x + threadIdx.x;
+    if (m < members) ch_observe_member(m, members, t, Y, P, obs);
+}
+#else
+/* the host build: members start .. stop-1 of members, one after the other */
+int chaplygin_members_@DIGEST@(long start, long stop, long members, CH_MEMBER_ARGS)
+{
+    for (long m = start; m < stop; ++m) ch_member(m, members, CH_MEMBER_CALL);
+    return 0;
+}
+
+int chaplygin_observe_@DIGEST@(long members, const double *t, const double *Y, const double *P, double *obs)
+{
+    for (long m = 0; m < members; ++m) ch_observe_member(m, members, t, Y, P, obs);
+    return 0;
+}
+#endif
+"""
+
+
+def _table(name: str, values: Any) -> str:
+    flat = np.asarray(values, dtype=float).ravel()
+    return f"CH_TABLE double {name}[{flat.size}] = {{{', '.join(repr(float(v)) for v in flat)}}};"
+
+
+def _device_fill(fill_source: str) -> str:
+    """The ``c`` backend's ``fill`` source as a function both builds call: ``chaplygin_fill``,
+    ``__device__`` under NVRTC, no host header (the prelude includes ``math.h`` on the host)."""
+    head = "void chaplygin_fill_@DIGEST@("
+    if fill_source.count(head) != 1:
+        raise ChaplyginError(f"the generated C fill has no single {head!r}; it cannot be put in a kernel")
+    text = fill_source.replace("#include <math.h>\n", "")
+    text = text.replace("static void chaplygin_solve(", "CH_DEVICE static void chaplygin_solve(")
+    return text.replace(head, "CH_DEVICE static void chaplygin_fill(")
+
+
+def kernel_source(kernel: CKernel, width: int, n_params: int) -> str:
+    """The CUDA/C source of the ensemble kernel of one model (its ``c`` backend's ``kernel``).
+
+    ``width`` is the length of the state, ``n_params`` of the parameter vector; the sizes are
+    compile-time constants, so every array of a member is a fixed-size local array.
+    """
+    from chaplygin.numeric import _dop853 as tab
+
+    sizes = {
+        "CH_N": width,
+        "CH_NV": kernel.N,
+        "CH_DIM": kernel.DIM,
+        "CH_NOBS": kernel.N_OBSERVED,
+        "CH_NREACT": kernel.n_react,
+        "CH_NP": n_params,
+    }
+    tables = [_table(f"DOP_{name}", getattr(tab, name)) for name in ("A", "B", "C", "E3", "E5", "D")]
+    return "\n".join(
+        [
+            _PRELUDE,
+            *(f"#define {name} {value}" for name, value in sizes.items()),
+            *tables,
+            _device_fill(kernel.fill_source),
+            _LOOP,
+        ]
+    )
+
+
+class CudaModel(CompiledModel):
+    """A ``c``-backend model whose ensembles run on the GPU: ``rhs``/``observe`` are the C
+    kernel's (host), :attr:`device` the GPU kernel (built on first use)."""
+
+    def __init__(self, compiled: CompiledModel) -> None:
+        super().__init__(compiled.layout, compiled.module, "cuda")
+        self._device: DeviceKernel | None = None
+
+    @property
+    def device(self) -> DeviceKernel:
+        if self._device is None:
+            self._device = DeviceKernel(self.module, len(self.layout.state), len(self.layout.parameters))
+        return self._device
+
+
+def device_problem() -> str | None:
+    """Why the GPU cannot be used here (None: CuPy is installed and sees a device)."""
+    try:
+        import cupy
+    except Exception as exc:  # ImportError, or CuPy's own failure to find CUDA libraries
+        return f"CuPy cannot be imported ({type(exc).__name__}: {exc})"
+    try:
+        count = int(cupy.cuda.runtime.getDeviceCount())
+    except Exception as exc:  # CUDARuntimeError: no driver, no device
+        return f"CuPy finds no CUDA device ({exc})"
+    return None if count > 0 else "CuPy finds no CUDA device"
+
+
+def _soa(a: np.ndarray) -> np.ndarray:
+    """Members last: (members, k) → (k, members), C-contiguous."""
+    return np.ascontiguousarray(a.T)
+
+
+class _Arrays:
+    """Checked inputs of one ensemble run."""
+
+    def __init__(self, Y0: Any, P: Any, times: Any, rtol: float, atol: Any, n_obs: int) -> None:
+        self.Y0 = np.ascontiguousarray(Y0, dtype=float)
+        self.P = np.ascontiguousarray(P, dtype=float)
+        self.members, self.n = self.Y0.shape
+        if self.P.shape[0] != self.members:
+            raise ChaplyginError(
+                f"P: one row of parameters per member ({self.members}), not {self.P.shape[0]}."
+            )
+        self.rtol, self.atol = tolerances(rtol, atol, self.n)
+        self.t_out = np.empty(0) if times is None else np.ascontiguousarray(times, dtype=float)
+        self.n_obs = n_obs
+
+
+def _result(
+    t_last: np.ndarray, last: np.ndarray, obs: np.ndarray, code: np.ndarray, n_rhs: np.ndarray, samples: Any
+) -> dict[str, np.ndarray]:
+    """The arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`, members first."""
+    result = {"t": t_last, "y": last, "observed": obs, "code": code, "n_rhs": n_rhs}
+    if samples is not None:
+        result["samples"] = samples
+    return result
+
+
+class HostKernel:
+    """:func:`kernel_source` built by the host's C compiler: the GPU kernel's code, run on the CPU
+    one member after another (tests, and ``benchmarks/gpu.py --check`` without a GPU)."""
+
+    def __init__(self, kernel: CKernel, width: int, n_params: int) -> None:
+        self.kernel = kernel
+        self.source = kernel_source(kernel, width, n_params)
+        digest, so = _ckernel.library(self.source, "cuda_host")
+        lib = ctypes.CDLL(str(so))
+        d, ll, i64, dbl = (
+            ctypes.POINTER(ctypes.c_double),
+            ctypes.POINTER(ctypes.c_longlong),
+            ctypes.c_long,
+            ctypes.c_double,
+        )
+        self._members = getattr(lib, f"chaplygin_members_{digest}")
+        self._members.argtypes = [i64, i64, i64, dbl, dbl, d, d, d, i64, dbl, d, dbl, i64, d, d, d, d, ll, ll]
+        self._observe = getattr(lib, f"chaplygin_observe_{digest}")
+        self._observe.argtypes = [i64, d, d, d, d]
+        self._lib = lib
+
+    def run(
+        self,
+        t_span: tuple[float, float],
+        Y0: np.ndarray,
+        P: np.ndarray,
+        *,
+        times: np.ndarray | None = None,
+        rtol: float = 1e-10,
+        atol: Any = 1e-12,
+        max_step: float = np.inf,
+        max_steps: int = 0,
+    ) -> dict[str, np.ndarray]:
+        """Every row of ``Y0`` (parameters ``P``): the arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`."""
+        a = _Arrays(Y0, P, times, rtol, atol, self.kernel.N_OBSERVED)
+        m, n, k = a.members, a.n, a.t_out.size
+        y0, p = _soa(a.Y0), _soa(a.P)
+        out, last = np.empty((k, n, m)), np.empty((n, m))
+        t_last, obs = np.empty(m), np.empty((a.n_obs, m))
+        code, n_rhs = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+
+        def ptr(x: np.ndarray) -> Any:
+            return x.ctypes.data_as(
+                ctypes.POINTER(ctypes.c_longlong if x.dtype == np.int64 else ctypes.c_double)
+            )
+
+        self._members(
+            0, m, m, float(t_span[0]), float(t_span[1]), ptr(y0), ptr(p), ptr(a.t_out), k, a.rtol,
+            ptr(a.atol), float(max_step), int(max_steps), ptr(out), ptr(last), ptr(t_last), ptr(obs),
+            ptr(code), ptr(n_rhs),
+        )  # fmt: skip
+        samples = np.ascontiguousarray(out.transpose(2, 0, 1)) if times is not None else None
+        return _result(t_last, _soa(last), _soa(obs), code, n_rhs, samples)
+
+    def observe(self, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """``observe`` of every member at ``(t[m], Y[m], P[m])``, one row each."""
+        t = np.ascontiguousarray(t, dtype=float)
+        y, p = _soa(np.asarray(Y, dtype=float)), _soa(np.asarray(P, dtype=float))
+        obs = np.empty((self.kernel.N_OBSERVED, len(t)))
+        d = ctypes.POINTER(ctypes.c_double)
+        self._observe(
+            len(t), t.ctypes.data_as(d), y.ctypes.data_as(d), p.ctypes.data_as(d), obs.ctypes.data_as(d)
+        )
+        return _soa(obs)
+
+
+class DeviceKernel:
+    """:func:`kernel_source` compiled by NVRTC (CuPy), one thread per member.
+
+    Raises :class:`~chaplygin.errors.ChaplyginError` without CuPy or a device (naming what to
+    install), or where NVRTC refuses the source (the source is written to the kernel cache and
+    its path given, with NVRTC's log).
+    """
+
+    def __init__(
+        self, kernel: CKernel, width: int, n_params: int, *, fmad: bool = False, registers: int | None = None
+    ) -> None:
+        problem = device_problem()
+        if problem is not None:
+            raise ChaplyginError(f"backend 'cuda' cannot be used: {problem}; {INSTALL}.")
+        import cupy
+
+        self.cp = cupy
+        self.kernel = kernel
+        self.source = kernel_source(kernel, width, n_params)
+        digest = hashlib.sha256(self.source.encode()).hexdigest()[:24]
+        kernel_dir().mkdir(parents=True, exist_ok=True)
+        self.path = kernel_dir() / f"cuda_{digest}.cu"  # the source, to read when NVRTC fails
+        self.path.write_text(self.source, encoding="utf-8")
+        # fmad: contraction into fused multiply-adds (off: the host build's arithmetic);
+        # registers: NVRTC's --maxrregcount (more threads resident per SM, more spills)
+        options: tuple[str, ...] = ("--fmad=true",) if fmad else ("--fmad=false",)
+        if registers:
+            options += (f"--maxrregcount={int(registers)}",)
+        start = time.perf_counter()
+        try:
+            module = cupy.RawModule(code=self.source, options=options)
+            self._members = module.get_function("chaplygin_members")
+            self._observe = module.get_function("chaplygin_observe")
+        except Exception as exc:  # cupy.cuda.compiler.CompileException carries NVRTC's log
+            raise ChaplyginError(
+                f"backend 'cuda': NVRTC could not compile the kernel ({type(exc).__name__}: "
+                f"{str(exc)[:2000]}); its source is {self.path}"
+            ) from None
+        #: seconds NVRTC took (0 where CuPy found the kernel in its cache)
+        self.compile_seconds = time.perf_counter() - start
+
+    def _chunk(self, members: int, per_member: int) -> int:
+        free, _ = self.cp.cuda.Device().mem_info
+        return max(1, min(members, int(MEMORY_SHARE * free) // (8 * per_member)))
+
+    def run(
+        self,
+        t_span: tuple[float, float],
+        Y0: np.ndarray,
+        P: np.ndarray,
+        *,
+        times: np.ndarray | None = None,
+        rtol: float = 1e-10,
+        atol: Any = 1e-12,
+        max_step: float = np.inf,
+        max_steps: int = 0,
+        chunk: int | None = None,
+    ) -> dict[str, np.ndarray]:
+        """Every row of ``Y0`` (parameters ``P``) on the GPU, in chunks that fit its memory: the
+        arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`."""
+        cp = self.cp
+        a = _Arrays(Y0, P, times, rtol, atol, self.kernel.N_OBSERVED)
+        m_all, n, k = a.members, a.n, a.t_out.size
+        width_p = a.P.shape[1]
+        # per member: inputs and outputs, each once members-first and once members-last
+        per_member = 2 * (n + width_p + k * n + n + a.n_obs + 3)
+        step = chunk or self._chunk(m_all, per_member)
+        t_last, last = np.empty(m_all), np.empty((m_all, n))
+        obs = np.empty((m_all, a.n_obs))
+        code, n_rhs = np.empty(m_all, dtype=np.int64), np.empty(m_all, dtype=np.int64)
+        samples = np.empty((m_all, k, n)) if times is not None else None
+        t_out, atol_d = cp.asarray(a.t_out), cp.asarray(a.atol)
+        for lo in range(0, m_all, step):
+            hi = min(m_all, lo + step)
+            m = hi - lo
+            y0 = cp.ascontiguousarray(cp.asarray(a.Y0[lo:hi]).T)
+            p = cp.ascontiguousarray(cp.asarray(a.P[lo:hi]).T) if width_p else cp.zeros((0, m))
+            out, last_d = cp.empty((k, n, m)), cp.empty((n, m))
+            t_d, obs_d = cp.empty(m), cp.empty((a.n_obs, m))
+            code_d, rhs_d = cp.empty(m, dtype=cp.int64), cp.empty(m, dtype=cp.int64)
+            args = (
+                np.int64(m), np.float64(t_span[0]), np.float64(t_span[1]), y0, p, t_out, np.int64(k),
+                np.float64(a.rtol), atol_d, np.float64(max_step), np.int64(max_steps), out, last_d, t_d,
+                obs_d, code_d, rhs_d,
+            )  # fmt: skip
+            self._members((math.ceil(m / BLOCK),), (BLOCK,), args)
+            t_last[lo:hi] = t_d.get()
+            last[lo:hi] = cp.ascontiguousarray(last_d.T).get()
+            obs[lo:hi] = cp.ascontiguousarray(obs_d.T).get()
+            code[lo:hi], n_rhs[lo:hi] = code_d.get(), rhs_d.get()
+            if samples is not None:
+                samples[lo:hi] = cp.ascontiguousarray(out.transpose(2, 0, 1)).get()
+            del out, last_d, t_d, obs_d, code_d, rhs_d, y0, p
+        return _result(t_last, last, obs, code, n_rhs, samples)
+
+    def observe(self, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
+        """``observe`` of every member at ``(t[m], Y[m], P[m])``, one row each, on the GPU."""
+        cp = self.cp
+        m = len(t)
+        Y, P = np.asarray(Y, dtype=float), np.asarray(P, dtype=float)
+        obs = cp.empty((self.kernel.N_OBSERVED, m))
+        if m:
+            y = cp.ascontiguousarray(cp.asarray(Y).T)
+            p = cp.ascontiguousarray(cp.asarray(P).T) if P.shape[1] else cp.zeros((0, m))
+            args = (np.int64(m), cp.asarray(np.asarray(t, dtype=float)), y, p, obs)
+            self._observe((math.ceil(m / BLOCK),), (BLOCK,), args)
+        return cp.ascontiguousarray(obs.T).get()

@@ -1,0 +1,304 @@
+"""The ``cuda`` ensemble backend (:mod:`chaplygin.numeric._cuda`), tested without a GPU.
+
+The GPU kernel's source is C that also builds for the host (a loop over members standing in
+for the threads).  Built so, it must take the C loop's steps exactly: the same states, samples,
+observations, right-hand-side counts and statuses, bit for bit, members that fail included (a
+singular mass matrix, a blow-up, the step budget).  That reference, the C loop of
+:mod:`chaplygin.numeric._ckernel`, is not produced by the code under test: it is a separate
+port of SciPy's DOP853 that test_backends.py checks against SciPy.  The driver of
+``simulate_ensemble(backend="cuda")`` is run on the host build too (the pole checks of a reduced
+model, the initial observations), and the device source must be valid C++ for NVRTC (checked
+with the host's C++ compiler, and nvcc where there is one).  Tests on a real GPU skip without
+CuPy and a device.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+import sys
+from typing import Any
+
+import numpy as np
+import pytest
+
+from chaplygin import ChaplyginError, examples
+from chaplygin.numeric import _ckernel, _cuda
+from chaplygin.numeric._ckernel import Unavailable, compiler
+from chaplygin.numeric._loop import ensemble_dop853
+from chaplygin.numeric.codegen import compile_model, parameter_vector
+from chaplygin.numeric.ensemble import simulate_ensemble
+
+try:
+    compiler()
+except Unavailable as exc:  # pragma: no cover - every CI machine has a C compiler
+    pytest.skip(f"no C compiler: {exc}", allow_module_level=True)
+
+DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
+DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
+KNIFE_P = {"m": 1.0, "J": 0.5}
+KNIFE_0 = [
+    {"x": 0.0, "y": 0.0, "phi": 1.2, "x'": 1.0, "phi'": 1.0},  # φ = π/2 at t = π/2 − 1.2 ≈ 0.371
+    {"x": 0.0, "y": 0.0, "phi": 0.1, "x'": 1.0, "phi'": 0.2},  # φ ≤ 0.3: never
+]
+
+
+@pytest.fixture(scope="module")
+def disk_c():
+    return compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
+
+
+@pytest.fixture(scope="module", params=["symbolic", "numeric"])
+def disk_both(request):
+    """The disk's Chaplygin equations reduced symbolically, and numerically (its ``fill`` then
+    solves for the dependent velocities itself, with ``chaplygin_solve``)."""
+    return compile_model(examples.rolling_disk(), "chaplygin", "classic", "c", reduction=request.param)
+
+
+def _disk_members(c, count: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Rolling disks at various tilts and spins; member 3 has no inertia at all (M = 0)."""
+    rng = np.random.default_rng(3)
+    Y0 = np.tile([DISK_0[name] for name in c.layout.state], (count, 1))
+    Y0[:, c.layout.state.index("theta")] += rng.uniform(-0.25, 0.25, count)
+    Y0[:, c.layout.state.index("phi'")] += rng.uniform(-1.0, 1.0, count)
+    P = np.tile(parameter_vector(c.layout, DISK_P), (count, 1))
+    for name in ("m", "A", "C"):
+        P[3, c.layout.parameters.index(name)] = 0.0
+    return Y0, P
+
+
+def _assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key in a:
+        assert a[key].shape == b[key].shape, key
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)  # NaN where NaN
+
+
+def test_host_build_of_the_kernel_takes_the_c_loops_steps(disk_both):
+    disk_c = disk_both
+    Y0, P = _disk_members(disk_c)
+    host = _cuda.HostKernel(disk_c.module, Y0.shape[1], P.shape[1])
+    times = np.linspace(0.0, 3.0, 7)
+    for budget in (0, 40):  # no limit; then a step budget that stops every member (code 4)
+        ours = host.run((0.0, 3.0), Y0, P, times=times, max_steps=budget)
+        ref = ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, max_steps=budget, threads=1)
+        _assert_same(ours, ref)
+        expected = [0 if budget == 0 else 4] * len(Y0)
+        expected[3] = 5
+        assert list(ours["code"]) == expected
+        if budget == 0:  # NaN samples after the failure, and only there
+            assert np.isnan(ours["samples"][3, 1:]).all() and np.isfinite(ours["samples"][[0, 1, 2]]).all()
+    # final states only, a tighter tolerance and a bounded step
+    _assert_same(
+        host.run((0.0, 1.0), Y0, P, rtol=1e-12, atol=1e-14, max_step=0.05),
+        ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, rtol=1e-12, atol=1e-14, max_step=0.05, threads=1),
+    )
+    # observe at many states at once, each with its own parameters: the C kernel's observe
+    t = np.linspace(0.0, 1.0, len(Y0))
+    expected_obs = np.array([disk_c.observe(ti, y, p) for ti, y, p in zip(t, Y0, P)])
+    np.testing.assert_array_equal(host.observe(t, Y0, P), expected_obs)
+
+
+def test_host_build_reports_the_c_loops_failures(failing):
+    """A blow-up of ẍ = k ẋ² at t = 1/(k ẋ(0)) and a mass that drops to 0 at t = a (test_backends)."""
+    c = compile_model(failing, "chaplygin", "classic", "c")
+    params = [{"a": 100.0, "k": 1.0}, {"a": 0.5, "k": 0.0}, {"a": 100.0, "k": 0.1}]
+    P = np.array([parameter_vector(c.layout, p) for p in params])
+    start = {"x": 0.0, "y": 0.0, "z": 0.0, "x'": 1.0, "y'": 1.0}
+    Y0 = np.tile([start[name] for name in c.layout.state], (len(P), 1))
+    host = _cuda.HostKernel(c.module, Y0.shape[1], P.shape[1])
+    times = np.linspace(0.0, 2.0, 21)
+    ours = host.run((0.0, 2.0), Y0, P, times=times)
+    _assert_same(ours, ensemble_dop853(c, (0.0, 2.0), Y0, P, times=times, threads=1))
+    assert ours["code"][0] in (1, 2) and ours["t"][0] == pytest.approx(1.0, abs=1e-3)  # the blow-up
+    assert ours["code"][1] == 5 and 0.0 < ours["t"][1] < 0.5  # a step that met the singular mass matrix
+    assert ours["code"][2] == 0 and ours["t"][2] == 2.0  # blows up at t = 10 only
+
+
+@pytest.fixture
+def host_as_device(monkeypatch):
+    """simulate_ensemble's "cuda" backend with the host build standing in for the GPU."""
+    monkeypatch.setattr(_cuda, "device_problem", lambda: None)
+    monkeypatch.setattr(_cuda, "DeviceKernel", _cuda.HostKernel)
+
+
+def test_cuda_ensemble_stops_members_at_a_pole_as_the_c_backend(host_as_device):
+    knife = examples.knife_edge()
+    runs = {
+        b: simulate_ensemble(knife, "chaplygin", 1.0, KNIFE_0, KNIFE_P, backend=b, keep=5)
+        for b in ("cuda", "c")
+    }
+    ens, ref = runs["cuda"], runs["c"]
+    assert ens.backend == "cuda" and list(ens.code) == [9, 0] and list(ens.failure) == ["pole", ""]
+    assert ens.t[0] < math.pi / 2 - 1.2 <= ens.t_pole[0]
+    for field in ("t", "y", "t_pole", "samples", "energy", "energy_initial", "constraint_residual"):
+        np.testing.assert_array_equal(getattr(ens, field), getattr(ref, field), err_msg=field)
+    assert ens.messages == ref.messages
+
+
+def test_auto_takes_the_gpu_for_large_ensembles_only(host_as_device, monkeypatch):
+    disk = examples.rolling_disk()
+    monkeypatch.setattr(_cuda, "AUTO_MEMBERS", 3)
+    small = simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 2, DISK_P)
+    large = simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 3, DISK_P)
+    assert (small.backend, large.backend) == ("c", "cuda")
+    np.testing.assert_array_equal(large.y[0], small.y[0])
+    monkeypatch.setattr(_cuda, "device_problem", lambda: "CuPy finds no CUDA device")
+    assert simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 3, DISK_P).backend == "c"
+
+
+def test_auto_runs_on_the_cpu_when_the_gpu_fails(monkeypatch):
+    """A device that is there but refuses the kernel (NVRTC, a driver) costs "auto" a warning, not
+    the ensemble; "cuda" asked for by name raises."""
+
+    def refuse(*args, **kwargs):
+        raise ChaplyginError("backend 'cuda': NVRTC could not compile the kernel (test)")
+
+    monkeypatch.setattr(_cuda, "device_problem", lambda: None)
+    monkeypatch.setattr(_cuda, "DeviceKernel", refuse)
+    monkeypatch.setattr(_cuda, "AUTO_MEMBERS", 2)
+    disk = examples.rolling_disk()
+    with pytest.warns(UserWarning, match="runs on the CPU: the GPU failed .*NVRTC"):
+        assert simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 2, DISK_P).backend == "c"
+    with pytest.raises(ChaplyginError, match="NVRTC"):
+        simulate_ensemble(disk, "chaplygin", 0.5, [DISK_0] * 2, DISK_P, backend="cuda")
+
+
+def test_cuda_without_cupy_says_what_to_install(monkeypatch):
+    monkeypatch.setattr(_cuda, "device_problem", lambda: "CuPy cannot be imported (ModuleNotFoundError)")
+    with pytest.raises(
+        ChaplyginError, match=r"backend 'cuda' cannot be used: CuPy cannot.*chaplygin\[cuda\]"
+    ):
+        simulate_ensemble(examples.rolling_disk(), "chaplygin", 1.0, [DISK_0], DISK_P, backend="cuda")
+    with pytest.raises(ChaplyginError, match="backend 'cuda' cannot be used"):
+        _cuda.DeviceKernel(compile_model(examples.rolling_disk(), "chaplygin", "classic", "c").module, 8, 5)
+
+
+class _Array(np.ndarray):
+    """A NumPy array with CuPy's ``get``."""
+
+    def get(self) -> np.ndarray:
+        return np.array(self)
+
+
+def _fake_cupy(free_bytes: int) -> Any:
+    """CuPy as far as DeviceKernel uses it: arrays are NumPy's, a kernel launch calls the host
+    build of the same source, and the device has ``free_bytes`` free (to force chunks)."""
+    import ctypes
+    import types
+
+    def wrap(f):
+        return lambda *a, **k: np.asarray(f(*a, **k)).view(_Array)
+
+    def pointer(x):
+        if isinstance(x, np.ndarray):
+            return x.ctypes.data_as(ctypes.c_void_p)
+        return x.item() if isinstance(x, np.generic) else x
+
+    class RawModule:
+        def __init__(self, code: str, options: tuple = ()) -> None:
+            assert "--fmad=false" in options
+            digest, so = _ckernel.library(code, "cuda_host")
+            self.lib, self.digest = ctypes.CDLL(str(so)), digest
+
+        def get_function(self, name: str):
+            fn = getattr(self.lib, f"{name}_{self.digest}")
+            fn.argtypes = None
+
+            def launch(grid, block, args):
+                assert grid[0] * block[0] >= args[0] > (grid[0] - 1) * block[0]
+                c_args = [pointer(x) for x in args]
+                c_args = [ctypes.c_double(x) if isinstance(x, float) else x for x in c_args]
+                c_args = [ctypes.c_long(x) if isinstance(x, int) else x for x in c_args]
+                if name == "chaplygin_members":  # the host build: (start, stop, members, ...)
+                    c_args = [ctypes.c_long(0), *c_args[:1], *c_args]
+                fn(*c_args)
+
+            return launch
+
+    class Device:
+        mem_info = (free_bytes, 10 * free_bytes)
+
+    cuda = types.SimpleNamespace(runtime=types.SimpleNamespace(getDeviceCount=lambda: 1), Device=Device)
+    return types.SimpleNamespace(
+        cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=wrap(np.asarray),
+        ascontiguousarray=wrap(np.ascontiguousarray), empty=wrap(np.empty), zeros=wrap(np.zeros),
+    )  # fmt: skip
+
+
+def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
+    """DeviceKernel's layout (members last), chunks and launches, with CuPy replaced by NumPy and
+    the kernel by its host build: the C loop's results, in chunks of 5 members of 12."""
+    Y0, P = _disk_members(disk_c)
+    n, k = Y0.shape[1], 7
+    per_member = 8 * 2 * (n + P.shape[1] + k * n + n + disk_c.module.N_OBSERVED + 3)
+    monkeypatch.setitem(sys.modules, "cupy", _fake_cupy(int(5.5 * per_member / _cuda.MEMORY_SHARE)))
+    gpu = _cuda.DeviceKernel(disk_c.module, n, P.shape[1])
+    assert gpu._chunk(len(Y0), per_member // 8) == 5
+    times = np.linspace(0.0, 3.0, k)
+    _assert_same(
+        gpu.run((0.0, 3.0), Y0, P, times=times),
+        ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, threads=1),
+    )
+    _assert_same(gpu.run((0.0, 1.0), Y0, P), ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, threads=1))
+    t = np.linspace(0.0, 1.0, len(Y0))
+    np.testing.assert_array_equal(gpu.observe(t, Y0, P), [disk_c.observe(*row) for row in zip(t, Y0, P)])
+
+
+# a stand-in for what NVRTC declares itself, so that the host's C++ compiler checks the device branch
+_NVRTC_SHIM = r"""
+#include <cmath>
+#include <cstring>
+using std::fabs; using std::sqrt; using std::pow; using std::nextafter;
+#define __device__
+#define __constant__
+#define __global__
+struct ch_dim3 { unsigned x; };
+static ch_dim3 blockIdx, blockDim, threadIdx;
+static inline double __longlong_as_double(long long v) { double d; std::memcpy(&d, &v, 8); return d; }
+"""
+
+
+def test_the_device_source_is_valid_cuda_cpp(disk_both, tmp_path):
+    """NVRTC compiles C++: the device branch (``__CUDACC__``) must be valid C++ (no jump over an
+    initialisation, no C-only construct), with no host header of its own."""
+    c = disk_both
+    source = _cuda.kernel_source(c.module, len(c.layout.state), len(c.layout.parameters))
+    # the one header is math.h of the host build (the fill's own include is taken out)
+    assert [line for line in source.splitlines() if "#include" in line] == ["#include <math.h>"]
+    assert source.index("#include") > source.index("#else")
+    cxx = shutil.which("c++") or shutil.which("g++") or shutil.which("clang++")
+    if cxx is None:  # pragma: no cover - CI has g++
+        pytest.skip("no C++ compiler")
+    (tmp_path / "shim.h").write_text(_NVRTC_SHIM)
+    (tmp_path / "kernel.cu").write_text(source)
+    cmd = [cxx, "-fsyntax-only", "-x", "c++", "-D__CUDACC__", "-include", str(tmp_path / "shim.h")]
+    run = subprocess.run([*cmd, str(tmp_path / "kernel.cu")], capture_output=True, text=True, check=False)
+    assert run.returncode == 0, run.stderr[:3000]
+    nvcc = shutil.which("nvcc")
+    if nvcc:  # the real front end, where the CUDA toolkit is installed (no GPU needed)
+        run = subprocess.run(
+            [nvcc, "-arch=sm_90", "--fmad=false", "-ptx", "-x", "cu", str(tmp_path / "kernel.cu"), "-o", str(tmp_path / "k.ptx")],
+            capture_output=True, text=True, check=False, timeout=300,
+        )  # fmt: skip
+        assert run.returncode == 0, run.stderr[:3000]
+
+
+# ------------------------------------------------------------------ on a GPU
+_NO_GPU = _cuda.device_problem()
+
+
+@pytest.mark.skipif(_NO_GPU is not None, reason=f"no GPU: {_NO_GPU}")
+def test_gpu_kernel_agrees_with_the_c_loop(disk_c):  # pragma: no cover - needs a GPU
+    Y0, P = _disk_members(disk_c, 64)
+    times = np.linspace(0.0, 3.0, 7)
+    gpu = _cuda.DeviceKernel(disk_c.module, Y0.shape[1], P.shape[1]).run(
+        (0.0, 3.0), Y0, P, times=times, chunk=17
+    )
+    ref = ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, threads=1)
+    np.testing.assert_array_equal(gpu["code"], ref["code"])
+    ok = ref["code"] == 0
+    np.testing.assert_allclose(gpu["y"][ok], ref["y"][ok], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(gpu["samples"][ok], ref["samples"][ok], rtol=1e-8, atol=1e-8)
+    assert np.abs(gpu["n_rhs"] - ref["n_rhs"]).max() <= 0.05 * ref["n_rhs"].max()
