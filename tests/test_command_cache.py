@@ -171,3 +171,25 @@ def test_warnings_are_replayed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     assert cold[0] == 0 and "warning:" in cold[2], cold
     Loads(monkeypatch, fail=True)
     assert run(args) == cold
+
+
+def test_a_warm_sweep_derives_nothing(sleigh: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sweep whose model is compiled in the cache runs it without deriving its equations (main
+    e48c17f derived them again to see that the model applies). Its summary and rows hold wall
+    times, so a sweep is run, not replayed: the rows but those are the same."""
+    import pyarrow.parquet as pq
+
+    from chaplygin.core.system import System
+
+    out = tmp_path / "sweep.parquet"
+    args = ["sweep", str(sleigh), "-g", "theta'=0.1,0.2", "-t", "1", "-n", "11", "-o", str(out), "--force"]
+    assert run(args)[0] == 0
+    cold = pq.read_table(out).drop(["wall_time"])
+
+    def derive(*args: object, **kwargs: object) -> object:
+        raise AssertionError("the warm sweep derived")
+
+    monkeypatch.setattr(System, "equations", derive)
+    warm = run(args)
+    assert warm[0] == 0, warm
+    assert pq.read_table(out).drop(["wall_time"]).equals(cold)
