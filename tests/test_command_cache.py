@@ -98,12 +98,13 @@ def test_a_changed_file_option_or_version_misses(
     assert run(args) == first and loads.count == 1  # the hit
     assert run([*args, "--prefix", "sleigh_"])[1] != first[1] and loads.count == 2  # another option
     assert run([*args, "--form", "new"])[0] == 0 and loads.count == 3  # another form
+    assert run([*args, "--model", "voronets"])[0] == 0 and loads.count == 4  # another model
     sleigh.write_text(sleigh.read_text(encoding="utf-8").replace("m = 1.0", "m = 2.0"), encoding="utf-8")
-    assert run(args)[0] == 0 and loads.count == 4  # another file
+    assert run(args)[0] == 0 and loads.count == 5  # another file
     monkeypatch.setattr(cache, "_version", lambda: "another version")
-    assert run(args)[0] == 0 and loads.count == 5  # another chaplygin
+    assert run(args)[0] == 0 and loads.count == 6  # another chaplygin
     monkeypatch.setenv("CHAPLYGIN_MODEL_CACHE", "off")  # the caches switched off: nothing replayed
-    assert run(args)[0] == 0 and run(args)[0] == 0 and loads.count == 7
+    assert run(args)[0] == 0 and run(args)[0] == 0 and loads.count == 8
 
 
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "edit"])

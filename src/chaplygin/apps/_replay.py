@@ -10,10 +10,10 @@ The same command again finds it and replays it: the same bytes on stdout, the sa
 the same files, without importing SymPy, NumPy or the system.
 
 The key (:func:`key`) is the SHA-256 of the command's name, the system file's bytes (or the
-example's name), every option as given (the output paths too; not ``--force``), whether stdout is a terminal
-and its width (the tables of ``compare`` depend on them), the C compiler and whether numba
-and JAX are installed (``--backend auto`` chooses by them), :data:`FORMAT`, and
-:func:`chaplygin.numeric.cache.key`'s library version and source digest: a different file,
+example's name), every option as given (the output paths too; not ``--force``), whether stdout
+is a terminal, its width and colours (the tables of ``compare`` depend on them), the C compiler
+and whether numba and JAX are installed (``--backend auto`` chooses by them), :data:`FORMAT`,
+and :func:`chaplygin.numeric.cache.key`'s library version and source digest: a different file,
 option, model, form, environment or chaplygin version never finds the entry.  With
 ``CHAPLYGIN_MODEL_CACHE=off`` nothing is replayed nor stored (every run derives anew).
 
@@ -90,9 +90,20 @@ def key(command: str, definition: bytes | None, params: Mapping[str, Any]) -> st
         return None
     given = {k: getattr(v, "value", v) for k, v in params.items() if k != "force"}  # (not the result)
     options = json.dumps(given, sort_keys=True, default=str, ensure_ascii=True)
-    terminal = sys.stdout.isatty()
-    width = str(os.get_terminal_size(sys.stdout.fileno()).columns) if terminal else "piped"
-    return cache.key("command-result", str(FORMAT), command, definition, options, width, _environment())
+    return cache.key("command-result", str(FORMAT), command, definition, options, _terminal(), _environment())
+
+
+def _terminal() -> str:
+    """``"piped"``, or what rich draws a terminal's tables and colours by: its width and
+    ``$TERM``, ``$COLORTERM``, ``$NO_COLOR``, ``$FORCE_COLOR``, ``$COLUMNS``."""
+    try:
+        if not sys.stdout.isatty():
+            return "piped"
+        width = os.get_terminal_size(sys.stdout.fileno()).columns
+    except (OSError, ValueError, AttributeError):  # no file descriptor (a captured stream)
+        return "piped"
+    names = ("TERM", "COLORTERM", "NO_COLOR", "FORCE_COLOR", "COLUMNS")
+    return "\0".join([f"terminal {width}", *(os.environ.get(name, "-") for name in names)])
 
 
 def _environment() -> str:
