@@ -46,7 +46,7 @@ FORMAT = 1
 #: itself, ``simulate`` its run plans: :mod:`chaplygin.apps._quick`)
 REPLAYED = ("check", "compare", "report", "export", "stability")
 #: results whose files together exceed this many bytes are not stored
-LIMIT = 64 * 2**20
+LIMIT = 16 * 2**20
 
 
 @dataclass
