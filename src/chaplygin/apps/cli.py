@@ -32,6 +32,7 @@ import typer
 from rich.console import Console
 from typer.core import TyperCommand, TyperGroup
 
+from chaplygin.apps import _replay
 from chaplygin.apps._wording import cli_wording
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
@@ -57,7 +58,19 @@ class _FlagsWithoutType:
 
 
 class _Command(_FlagsWithoutType, TyperCommand):
-    """Every command of the command line (``@app.command(cls=_Command)``)."""
+    """Every command of the command line (``@app.command(cls=_Command)``).
+
+    The result of ``check``, ``compare``, ``report``, ``export`` and ``stability`` is kept in the
+    cache and a second run of the same command replays it (:mod:`chaplygin.apps._replay`)."""
+
+    def invoke(self, ctx: Any) -> Any:
+        k = None
+        if self.name in _replay.REPLAYED:
+            k = _replay.key(self.name, _definition(str(ctx.params.get("file", ""))), ctx.params)
+            if _replay.replay(k, bool(ctx.params.get("force"))):
+                return None
+        with _replay.recording(k):
+            return super().invoke(ctx)
 
 
 class _Group(_FlagsWithoutType, TyperGroup):
@@ -317,6 +330,7 @@ def _failures() -> Iterator[None]:
                 if text not in seen:
                     seen.add(text)
                     _stderr().print(f"warning: {text}", markup=False)
+                    _replay.warned(text)
 
 
 @contextmanager
@@ -419,6 +433,13 @@ def _numbers(
         {**dict(loaded.parameters or {}), **_overrides(params, "--param")},
         {**dict(loaded.initial or {}), **given},
     )
+
+
+def _emit_created(created: str) -> None:
+    """Say that writing an output created its folder (a line a replayed run never prints: it
+    replays only into folders that exist, :mod:`chaplygin.apps._replay`)."""
+    with _replay.paused():
+        _emit(f"created {created}: it did not exist")
 
 
 def _created(path: Path) -> str | None:
@@ -1143,7 +1164,7 @@ def simulate(
         for note in tr.notes:
             _emit(f"  note: {note}")
         if created is not None:
-            _emit(f"created {created}: it did not exist")
+            _emit_created(created)
         _stopped_early({label: tr}, lambda _label: str(out))
 
 
@@ -1349,6 +1370,7 @@ def compare(
                 _write_comparison(comparison, out)
                 steps.step("drawing figures")
                 written = comparison.save_figures(out, fmt=figure_format.value)
+                _replay.wrote(*written)
         _print_comparison(comparison)
         if out is None:
             _stopped_early(runs, lambda label: None)
@@ -1360,7 +1382,7 @@ def compare(
             + ", ".join(p.name for p in written)
         )
         if created is not None:
-            _emit(f"created {created}: it did not exist")
+            _emit_created(created)
         _stopped_early(runs, lambda label: str(out / f"{_safe(label)}.csv"))
 
 
@@ -1369,11 +1391,12 @@ def _write_comparison(comparison: Comparison, directory: Path) -> None:
 
     directory.mkdir(parents=True, exist_ok=True)
     for label, tr in comparison.trajectories.items():
-        tr.to_csv(directory / f"{_safe(label)}.csv")
+        _replay.wrote(tr.to_csv(directory / f"{_safe(label)}.csv"))
     summary = comparison.summary() + "\n"
     _atomic_write(directory / "summary.txt", lambda fh: fh.write(summary.encode("utf-8")), text=False)
     doc = json.dumps(_comparison_json(comparison), indent=2, ensure_ascii=False) + "\n"
     _atomic_write(directory / "summary.json", lambda fh: fh.write(doc.encode("utf-8")), text=False)
+    _replay.wrote(directory / "summary.txt", directory / "summary.json")
 
 
 # ====================================================================== sweep
@@ -1751,6 +1774,7 @@ def stability(
             _emit(json.dumps(doc, indent=2, ensure_ascii=False))
         else:
             _emit(_steady.text(system, params, rows, locus, found))
+        _replay.wrote(*written)
         for path in written:
             _emit(f"wrote {path}")
 
@@ -1841,9 +1865,10 @@ def report(
                 progress=_report_progress(steps),
                 stability=found,
             )
+        _replay.wrote(out)
         _emit(f"wrote {out}: the simulations run to t = {t_end:g} ({samples} samples)")
         if created is not None:
-            _emit(f"created {created}: it did not exist")
+            _emit_created(created)
         if comparison is not None:
             _stopped_early(comparison.trajectories, lambda _label: str(out))
 
@@ -2058,12 +2083,13 @@ def export(
 
         created = _created(out)
         _atomic_write(out, lambda fh: fh.write(source.encode("utf-8")), text=False)
+        _replay.wrote(out)
         _emit(
             f"wrote {out}: {prefix}rhs{f' and {prefix}jacobian' if jacobian else ''} of "
             f"{model}/{form.value} in {to.value}"
         )
         if created is not None:
-            _emit(f"created {created}: it did not exist")
+            _emit_created(created)
 
 
 # ====================================================================== models

@@ -1176,8 +1176,13 @@ def sweep(
             f"initial: {', '.join(unknown)} follow from the constraints; give coordinates and the "
             f"independent velocities ({', '.join(initial_names)})."
         )
-    if not registry.get(model).constants:  # (the family is derived with its constants, in the runs)
-        sys_.equations(model, form)  # a model that does not apply fails here, before any run
+    from chaplygin.numeric.codegen import is_compiled
+
+    # a model that does not apply fails here, before any run; one compiled before (in the disk
+    # cache) applies, and its runs load it without deriving (the family is derived with its
+    # constants, in the runs)
+    if not registry.get(model).constants and not is_compiled(sys_, model, form, backend):
+        sys_.equations(model, form)
 
     plan = _Plan(
         recipe,
