@@ -352,3 +352,16 @@ def test_a_derivation_converts_each_expression_to_symengine_once(monkeypatch) ->
     ind = [v.xd[i] for i in system._ind]
     hessian = sp.hessian(system._T_reduced, ind)
     assert (eqs.mass_matrix - system.to_user(hessian)).applyfunc(sp.simplify) == sp.zeros(*hessian.shape)
+
+
+def test_symengine_expressions_with_assumed_parameters_pickle() -> None:
+    """A parameter with assumptions crosses into SymEngine as a symbol that converts back to
+    itself; expressions holding it pickle and come back with the assumption."""
+    import pickle
+
+    from chaplygin.core._fast import native, to_sympy
+
+    m = sp.Symbol("m", positive=True)
+    (e,) = native([m * sp.sin(sp.Symbol("x"))])
+    back = to_sympy(pickle.loads(pickle.dumps(e)))
+    assert back == m * sp.sin(sp.Symbol("x")) and m in back.free_symbols

@@ -57,8 +57,11 @@ if HAVE_SYMENGINE:
         ``original``, the SymPy symbol with assumptions it stands for."""
 
         def __init__(self, original: sp.Symbol) -> None:
-            super().__init__(original.name, store_pickle=False)
-            self.original = original
+            self.original = original  # before SymEngine's init, which stores __reduce__'s value
+            super().__init__(original.name, store_pickle=True)
+
+        def __reduce__(self) -> tuple[Any, ...]:
+            return (_Kept, (self.original,))
 
         def _sympy_(self) -> sp.Symbol:
             return self.original
