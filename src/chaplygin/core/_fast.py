@@ -87,7 +87,7 @@ _UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of t
 #: converts the same pieces many times (each entry of B once per independent coordinate in
 #: Voronets' D_σ, T̃ once per σ); the bound keeps a long session's memory in check
 _CONVERTED: dict[sp.Basic, Any] = {}
-_CONVERTED_MAX = 20_000
+_CONVERTED_MAX = 4096
 
 
 def _convert_one(e: sp.Basic) -> Any:
