@@ -33,6 +33,14 @@ seconds is stopped (SIGALRM) and reported as ``>budget``.
 
     .venv/bin/python benchmarks/scaling.py                 # N = 1 2 4 8 16 32
     .venv/bin/python benchmarks/scaling.py --sizes 1 2 4 --budget 60
+    .venv/bin/python benchmarks/scaling.py --crossover --repeat 3   # where reduction="auto" switches
+
+``--crossover`` times, for chains of 5 to 9 coordinates whose first g = 1, 2, 3 bodies have
+knife edges (the systems ``reduction="auto"`` decides by size alone: 4 or more constraints
+always reduce numerically), chaplygin's route from nothing to a right-hand side with the default
+backend (the C kernel), symbolic against numeric reduction, and Kane's derive + lambdify on the
+same chain; interleaved, best and median of the repeats, each from a cold SymPy cache and an
+empty code cache.
 
 Every run starts with an empty code cache (a temporary ``CHAPLYGIN_CACHE``), so
 code generation, the C compiler and numba all start cold; ``--warm`` keeps the
@@ -60,7 +68,9 @@ from sympy.core.cache import clear_cache
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+import chaplygin
 from chaplygin import examples
+from chaplygin.numeric import _modelcache
 from chaplygin.numeric.codegen import compile_model
 
 
@@ -104,8 +114,10 @@ def per_call(fn, *args, seconds: float = 0.3) -> float:
 
 
 # ---------------------------------------------------------------- KanesMethod
-def kane_chain(n: int):
-    """The same chain for KanesMethod; returns (KanesMethod, q, u, parameters)."""
+def kane_chain(n: int, g: int | None = None):
+    """The same chain for KanesMethod (knife edges on the first ``g`` bodies, all by default);
+    returns (KanesMethod, q, u, parameters)."""
+    g = n + 1 if g is None else g
     q = me.dynamicsymbols(f"x y theta0:{n + 1}")
     u = me.dynamicsymbols(f"u0:{n + 3}")
     m, inertia, length = sp.symbols("m I L", positive=True)
@@ -128,17 +140,17 @@ def kane_chain(n: int):
     km = me.KanesMethod(
         frame,
         q_ind=q,
-        u_ind=[u[0], u[2]],
-        u_dependent=[u[1], *u[3:]],
+        u_ind=[u[0], u[2], *u[g + 2 :]],
+        u_dependent=[u[1], *u[3 : g + 2]],
         kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)],
-        velocity_constraints=constraints,
+        velocity_constraints=constraints[:g],
     )
     km.kanes_equations(bodies, [])
     return km, q, u, [m, inertia, length]
 
 
-def kane_derive(n: int):
-    km, q, u, params = kane_chain(n)
+def kane_derive(n: int, g: int | None = None):
+    km, q, u, params = kane_chain(n, g)
     return km.mass_matrix_full, km.forcing_full, q, u, params
 
 
@@ -212,6 +224,52 @@ def run(n: int, budget: float, symbolic_max: int, rng: np.random.Generator) -> d
     return row
 
 
+def knife_edges(n: int, g: int):
+    """``examples.sleigh_chain(n)`` with knife edges on its first ``g`` bodies only (dependent
+    ``y, θ_1 … θ_{g−1}``): n + 3 coordinates, g constraints."""
+    chain = examples.sleigh_chain(n)
+    x, y, *th = chain.coordinates
+    L = sp.Symbol("L", positive=True)
+    dx, dy, dth = x.diff(), y.diff(), [tj.diff() for tj in th]
+    cons = [
+        -sp.sin(th[i]) * dx
+        + sp.cos(th[i]) * dy
+        - L * sp.Add(*(dth[j] * sp.cos(th[j] - th[i]) for j in range(1, i + 1)))
+        for i in range(g)
+    ]
+    return chaplygin.System(chain.coordinates, chain.kinetic_energy, cons, dependent=[y, *th[1:g]])
+
+
+def crossover(repeat: int, budget: float) -> None:
+    """Symbolic against numeric reduction (default backend) and Kane, by size: see the docstring."""
+    routes = {
+        "symbolic": lambda n, g: compile_model(
+            knife_edges(n, g), "voronets", backend="c", reduction="symbolic"
+        ),
+        "numeric": lambda n, g: compile_model(
+            knife_edges(n, g), "voronets", backend="c", reduction="numeric"
+        ),
+        "kane": lambda n, g: kane_codegen(kane_derive(n, g)),
+    }
+    cases = [(n, g) for n in range(2, 7) for g in (1, 2, 3)]
+    times: dict = {(case, route): [] for case in cases for route in routes}
+    for _ in range(repeat):
+        for case in cases:
+            for route, fn in routes.items():  # interleaved
+                clear_cache()
+                _modelcache._LOADED.clear()  # compiled models this process holds: none
+                os.environ["CHAPLYGIN_CACHE"] = tempfile.mkdtemp(prefix="chaplygin-crossover-")
+                times[case, route].append(timed(budget, fn, *case)[0])
+                shutil.rmtree(os.environ["CHAPLYGIN_CACHE"], ignore_errors=True)
+    print(f"load average {os.getloadavg()[0]:.2f}; seconds from nothing to a right-hand side, best / median")
+    print(f"{'coords':>6} {'g':>2} " + " ".join(f"{r:>15}" for r in routes) + "  faster")
+    for case in cases:
+        cells = {r: (min(times[case, r]), float(np.median(times[case, r]))) for r in routes}
+        best = min(("symbolic", "numeric"), key=lambda r: cells[r][1])
+        row = " ".join(f"{b:7.3f} / {m:5.3f}" for b, m in cells.values())
+        print(f"{case[0] + 3:>6} {case[1]:>2} {row}  {best}", flush=True)
+
+
 def fmt(value) -> str:
     if value is None:
         return "-"
@@ -227,7 +285,12 @@ def main() -> None:
     ap.add_argument("--symbolic-max", type=int, default=2, help="largest N for symbolic Voronets")
     ap.add_argument("--json", type=Path, help="also write the rows here")
     ap.add_argument("--warm", action="store_true", help="use the user's code cache (default: a fresh one)")
+    ap.add_argument("--crossover", action="store_true", help="symbolic vs numeric reduction by size")
+    ap.add_argument("--repeat", type=int, default=3, help="repeats of --crossover")
     args = ap.parse_args()
+    if args.crossover:
+        crossover(args.repeat, args.budget)
+        return
     if not args.warm:
         os.environ["CHAPLYGIN_CACHE"] = tempfile.mkdtemp(prefix="chaplygin-scaling-")
         atexit.register(shutil.rmtree, os.environ["CHAPLYGIN_CACHE"], ignore_errors=True)

@@ -328,3 +328,40 @@ def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     ]
     assert np.all(np.isfinite(rhs))
     np.testing.assert_allclose(rhs, [rhs[0]] * 4, rtol=1e-12)
+
+
+def test_a_derivation_converts_each_expression_to_symengine_once(monkeypatch) -> None:
+    """Voronets' equations of a sleigh chain: every SymPy expression crosses into SymEngine once
+    (D_σ took each entry of B, and Lagrange's operator T̃, once per independent coordinate), and
+    what comes back keeps the parameters' assumptions without a substitution pass."""
+    from chaplygin.core import _fast
+
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(
+        _fast, "_to_symengine", lambda e: (isinstance(e, sp.Basic) and seen.append(e), convert(e))[1]
+    )
+    monkeypatch.setattr(_fast, "_CONVERTED", {}, raising=False)  # nothing converted yet
+    system = examples.sleigh_chain(2)
+    eqs = system.equations("voronets")
+    assert len(seen) == len(set(seen)), "an expression was converted twice"
+    L = sp.Symbol("L", positive=True)
+    assert L in eqs.forcing.free_symbols and sp.Symbol("L") not in eqs.forcing.free_symbols
+    # the same equations as SymPy's own derivative of T̃ (an independent route): M = ∂²T̃/∂ẋ∂ẋ
+    v = system._vars
+    ind = [v.xd[i] for i in system._ind]
+    hessian = sp.hessian(system._T_reduced, ind)
+    assert (eqs.mass_matrix - system.to_user(hessian)).applyfunc(sp.simplify) == sp.zeros(*hessian.shape)
+
+
+def test_symengine_expressions_with_assumed_parameters_pickle() -> None:
+    """A parameter with assumptions crosses into SymEngine as a symbol that converts back to
+    itself; expressions holding it pickle and come back with the assumption."""
+    import pickle
+
+    from chaplygin.core._fast import native, to_sympy
+
+    m = sp.Symbol("m", positive=True)
+    (e,) = native([m * sp.sin(sp.Symbol("x"))])
+    back = to_sympy(pickle.loads(pickle.dumps(e)))
+    assert back == m * sp.sin(sp.Symbol("x")) and m in back.free_symbols

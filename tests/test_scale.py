@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import sympy as sp
+import sympy.physics.mechanics as me
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -55,6 +56,28 @@ def test_numeric_reduction_equals_chaplygin_and_voronets_on_examples(name: str) 
 
 def test_numeric_reduction_of_a_sleigh_chain() -> None:
     assert_same_rhs(examples.sleigh_chain(2), "voronets", np.random.default_rng(3))
+
+
+def test_auto_reduces_numerically_from_six_coordinates() -> None:
+    """A knife edge carrying three free rotors (6 coordinates, 1 constraint) reduces numerically,
+    the rolling disk (5 coordinates, 2 constraints) symbolically: from 6 coordinates on the numeric
+    route is the faster one from nothing to a right-hand side (``benchmarks/scaling.py
+    --crossover``: 7–8 coordinates with 3 knife edges 0.4–0.5 s against 1.2–1.5 s symbolic); and
+    the run ``auto`` picks gives the symbolic equations' accelerations."""
+    from chaplygin import System
+    from chaplygin.numeric.codegen import reduces_numerically
+
+    x, y, th, a, b, c = me.dynamicsymbols("x y theta a b c")
+    T = sum(q.diff() ** 2 for q in (x, y, th, a, b, c)) / 2 + sp.cos(a) * th.diff() * b.diff()
+    knife = System([x, y, th, a, b, c], T, [sp.sin(th) * x.diff() - sp.cos(th) * y.diff()], dependent=[y])
+    assert reduces_numerically(knife, "voronets")
+    assert not reduces_numerically(examples.rolling_disk(), "chaplygin")
+    auto = compile_model(knife, "voronets")
+    assert auto.layout.form == "numeric"
+    symbolic = compile_model(knife, "voronets", reduction="symbolic")
+    rng = np.random.default_rng(5)
+    y0, p = rng.uniform(-0.7, 0.7, len(auto.layout.state)), np.array([])
+    np.testing.assert_allclose(auto.rhs(0.0, y0, p), symbolic.rhs(0.0, y0, p), rtol=1e-12, atol=1e-14)
 
 
 def test_chaplygin_of_a_non_chaplygin_system_is_refused_numerically_too() -> None:

@@ -670,8 +670,12 @@ def _check_backend(backend: str) -> None:
 #: (numba needs ~20 ms a line, a C compiler ~1 ms; see :mod:`chaplygin.numeric._cfill`)
 C_FILL_FROM_LINES = 200
 
-#: ``reduction="auto"`` reduces numerically from this many coordinates on
-NUMERIC_REDUCTION_FROM = 9
+#: ``reduction="auto"`` reduces numerically from this many coordinates on: from nothing to a
+#: right-hand side it is the faster route from 5 coordinates on, whatever the constraints (a
+#: chain of 7–8 coordinates with 3 knife edges: 0.41–0.49 s against 1.24–1.48 s symbolic and
+#: Kane's 0.60–0.80 s; ``benchmarks/scaling.py --crossover``); the 5-coordinate systems keep
+#: their compact symbolic equations, whose right-hand side long runs call millions of times
+NUMERIC_REDUCTION_FROM = 6
 #: ... or from this many constraints on (the Whipple bicycle: 8 coordinates, 5 constraints,
 #: whose symbolic Voronets equations did not finish in 10 minutes and 19 GB)
 NUMERIC_REDUCTION_FROM_CONSTRAINTS = 4
