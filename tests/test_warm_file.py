@@ -144,6 +144,10 @@ def test_the_plan_answers_what_the_full_path_would(snakeboard):
         assert built and same(
             other, chaplygin.simulate(system, "chetaev", 2.0, {**initial, **override}, parameters, **RUN)
         ), override
+    moved = chaplygin.load(snakeboard)
+    moved.initial["phi"] = 0.2  # the file's numbers as they are at the run
+    expected = chaplygin.simulate(system, "chetaev", 2.0, {**initial, "phi": 0.2}, parameters, **RUN)
+    assert same(chaplygin.simulate(moved, "chetaev", 2.0, **RUN), expected) and "system" in vars(moved)
     other, built = warm("chetaev", {}, {"m": 2.0})
     assert built and same(
         other, chaplygin.simulate(system, "chetaev", 2.0, initial, {**parameters, "m": 2.0}, **RUN)

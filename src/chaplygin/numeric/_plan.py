@@ -352,7 +352,8 @@ def simulate_file(
     full path runs on ``loaded.system`` and, where it can, leaves a plan for the next run."""
     from chaplygin.numeric.simulate import METHODS, _check_options, check_time_limit, simulate, time_span
 
-    given, values = dict(initial or {}), dict(parameters or {})
+    # the numbers of the run: the file's, as they are now, and the ones given over them
+    start, numbers = {**loaded.initial, **(initial or {})}, {**loaded.parameters, **(parameters or {})}
     t0, t1 = time_span(t_span)
     _check_options(t0, t1, options["samples"], options["rtol"], options["atol"], options["max_step"])
     plain = (
@@ -362,7 +363,7 @@ def simulate_file(
         and options["max_step"] == np.inf
         and options["reduction"] == "auto"
         and options["method"] in METHODS
-        and all(isinstance(k, str) and isinstance(v, (int, float)) for k, v in (given | values).items())
+        and all(isinstance(k, str) and isinstance(v, (int, float)) for k, v in (start | numbers).items())
     )
     if plain:
         found = run(
@@ -375,8 +376,8 @@ def simulate_file(
             options["method"],
             options["constants"],
             options["step"],
-            {k.strip(): float(v) for k, v in values.items()},
-            {k.strip(): float(v) for k, v in given.items()},
+            {k.strip(): float(v) for k, v in numbers.items()},
+            {k.strip(): float(v) for k, v in start.items()},
             options["rtol"],
             options["atol"],
             options["progress"],
@@ -386,9 +387,7 @@ def simulate_file(
         if found is not None:
             return found
     system = loaded.system
-    tr = simulate(
-        system, model, t_span, {**loaded.initial, **given}, {**loaded.parameters, **values}, **options
-    )
+    tr = simulate(system, model, t_span, start, numbers, **options)
     definition = loaded.definition
     if plain and definition is not None and plan(definition, model, options["form"], tr.backend) is None:
         remember(definition, model, options["form"], loaded, tr)  # (once, not at every run)
