@@ -83,16 +83,17 @@ def snakeboard(tmp_path, monkeypatch):
 def same(a: chaplygin.Trajectory, b: chaplygin.Trajectory) -> bool:
     """Every column, the status and the labels of two runs equal, bit for bit."""
     columns = a.columns == b.columns and all(np.array_equal(a[k], b[k]) for k in a.columns)
-    labels = (a.status, a.message, a.model, a.backend, a.energy_column, a.energy_conserved, a.notes)
-    return columns and labels == (
-        b.status,
-        b.message,
-        b.model,
-        b.backend,
-        b.energy_column,
-        b.energy_conserved,
-        b.notes,
+    labels = (
+        "status",
+        "message",
+        "failure",
+        "model",
+        "backend",
+        "energy_column",
+        "energy_conserved",
+        "notes",
     )
+    return columns and all(getattr(a, k) == getattr(b, k) for k in labels)
 
 
 def test_a_file_without_a_body_imports_no_mechanics(tmp_path, snakeboard):
@@ -159,6 +160,31 @@ def test_the_plan_answers_what_the_full_path_would(snakeboard):
         assert built is not planned and same(
             other, chaplygin.simulate(system, "chaplygin", 2.0, {**initial, **override}, parameters, **RUN)
         ), override
+
+
+@pytest.mark.parametrize("broken", ["non-finite", "pole"])
+def test_a_run_the_full_path_would_judge_takes_the_full_path(snakeboard, monkeypatch, broken):
+    """A multiplier model's plan does not judge a run that failed or went non-finite: the full
+    path's watch (its cut, its message, its failure label) decides, so both routes agree."""
+    from chaplygin.numeric import simulate as module
+
+    chaplygin.simulate(chaplygin.load(snakeboard), "chetaev", 2.0, **RUN)  # the plan
+    integrate = module.integrate
+
+    def breaking(*args, **kwargs):  # what a run that meets trouble at its 6th sample returns
+        tr = integrate(*args, **kwargs)
+        if broken == "non-finite":
+            tr.velocities["x'"][5:] = np.nan
+        else:  # the compiled loop's own report of a singular step (its code 9)
+            tr.status, tr.message = "failed", "a pole at t = 1: the mass matrix is singular"
+        return tr
+
+    monkeypatch.setattr(module, "integrate", breaking)
+    f = chaplygin.load(snakeboard)
+    tr = chaplygin.simulate(f, "chetaev", 2.0, **RUN)
+    assert "system" in vars(f) and tr.status == "failed"
+    assert tr.failure == "pole" and len(tr.t) == (11 if broken == "pole" else 5)  # (cut at the 6th)
+    assert same(tr, chaplygin.simulate(f.system, "chetaev", 2.0, f.initial, f.parameters, **RUN))
 
 
 def test_a_file_from_its_summary_is_the_file(snakeboard):

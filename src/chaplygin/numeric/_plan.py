@@ -309,8 +309,10 @@ def _run(
         progress=progress,
         time_limit=time_limit,
     )
-    if start is not None and not all(np.all(np.isfinite(v)) for v in tr.velocities.values()):
-        return None  # the full path cuts the run where a velocity stops being finite, and says so
+    if start is not None and not (tr.success and all(np.all(np.isfinite(v)) for v in tr.velocities.values())):
+        return (
+            None  # the full path says why a multiplier run failed, and cuts it where a velocity is not finite
+        )
     tr.energy_conserved = bool(found["energy_conserved"])
     tr.energy_column = str(found["energy_column"])
     return tr
