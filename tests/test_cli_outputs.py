@@ -23,7 +23,7 @@ runner = CliRunner()
 COMMANDS = {
     "simulate": (
         ["simulate", "example:knife-edge", "-t", "1", "-o", "{bad}/k.csv"],
-        "chaplygin.apps._quick.run",
+        "chaplygin.numeric._plan.run",
     ),
     "compare": (
         ["compare", "example:knife-edge", "-t", "1", "-o", "{bad}/cmp"],

@@ -112,10 +112,10 @@ _HOME = {
     },
     "from_mechanics": "chaplygin.io.mechanics",
     "show_rolling": "chaplygin.apps.bodyview",
-    "SystemFile": "chaplygin.io.files",
+    "SystemFile": "chaplygin.io._file",
     "SystemFileError": "chaplygin.io.files",
     "dumps": "chaplygin.io.files",
-    "load": "chaplygin.io.files",
+    "load": "chaplygin.io._file",
     "loads": "chaplygin.io.files",
     **{
         name: "chaplygin.errors"

@@ -43,7 +43,7 @@ __all__ = ["FORMAT", "REPLAYED", "key", "paused", "recording", "replay", "wrote"
 #: bumped whenever the shape of an entry changes
 FORMAT = 1
 #: the commands whose results are stored and replayed (``derive`` keeps its printed text
-#: itself, ``simulate`` its run plans: :mod:`chaplygin.apps._quick`)
+#: itself, ``simulate`` its run plans: :mod:`chaplygin.numeric._plan`)
 REPLAYED = ("check", "compare", "report", "export", "stability")
 #: results whose files together exceed this many bytes are not stored
 LIMIT = 16 * 2**20

@@ -425,7 +425,7 @@ def _overrides(values: list[str] | None, option: str) -> dict[str, float]:
 def _numbers(
     loaded: Any, params: list[str] | None, initial: list[str] | None
 ) -> tuple[dict[str, float], dict[str, float]]:
-    from chaplygin.apps._quick import warn_defaulted
+    from chaplygin.numeric._plan import warn_defaulted
 
     given = _overrides(initial, "--initial")
     warn_defaulted(getattr(loaded, "defaulted", ()), given)
@@ -1091,10 +1091,10 @@ def simulate(
     _overrides(param, "--param"), _overrides(initial, "--initial")  # syntax first: exit 2
     with _failures():
         _refuse_existing([out], force)
-        from chaplygin.apps import _quick
+        from chaplygin.numeric import _plan
 
         definition = _definition(file)
-        asked = model if model is not None else _quick.TRUE_MOTION
+        asked = model if model is not None else _plan.TRUE_MOTION
 
         def named(name: str) -> str:
             return name if form is Form.classic else f"{name}/{form.value}"
@@ -1102,8 +1102,8 @@ def simulate(
         wanted = named(model or "the true motion")
         with _Steps(3, f"simulating {wanted}") as steps:
             steps.step(f"deriving {wanted}")
-            # a run plan in the cache answers without SymPy (chaplygin.apps._quick); else the full path
-            tr = _quick.run(
+            # a run plan in the cache answers without SymPy (chaplygin.numeric._plan); else the full path
+            tr = _plan.run(
                 definition,
                 asked,
                 form.value,
@@ -1153,7 +1153,7 @@ def simulate(
                 from chaplygin.numeric.simulate import simulate as run
 
                 tr = run(system, model, t_end, start, params, **options)
-                _quick.remember(definition, asked, form.value, loaded, tr)
+                _plan.remember(definition, asked, form.value, loaded, tr)
             else:
                 model = tr.model
             steps.step(f"writing {out}")

@@ -27,10 +27,9 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
 
 from chaplygin.bodies.shapes import Shape, positive
-from chaplygin.core._symbols import TIME
+from chaplygin.core._symbols import TIME, function_of_time
 from chaplygin.core.system import System
 from chaplygin.errors import SystemDefinitionError
 
@@ -218,7 +217,7 @@ def rolling_body(
                 f"(relative to its {shape.reference})."
             )
 
-    psi, theta, phi, x, y = dynamicsymbols("psi theta phi x y")
+    psi, theta, phi, x, y = map(function_of_time, ("psi", "theta", "phi", "x", "y"))
 
     def d(q: Any) -> Any:
         return q.diff(TIME)

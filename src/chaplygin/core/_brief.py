@@ -11,7 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import sympy as sp
-from sympy.physics.vector.printing import vsstrrepr
+
+from chaplygin.core._symbols import vsstrrepr
 
 #: the longest expression a summary prints in full, in characters
 MAX_BRIEF = 300

@@ -15,9 +15,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
 
-TIME: sp.Symbol = dynamicsymbols._t
+#: the time, ``sympy.physics.mechanics.dynamicsymbols._t`` (the same symbol: ``Symbol("t")``),
+#: written here so that nothing imports ``sympy.physics`` (0.15 s, its units) unless asked
+TIME: sp.Symbol = sp.Symbol("t")
+
+
+def function_of_time(name: str) -> sp.Expr:
+    """The coordinate ``name(t)``: the same object as ``dynamicsymbols(name)``."""
+    return sp.Function(name)(TIME)
 
 
 @dataclass(frozen=True)
@@ -202,6 +208,14 @@ def _printer() -> Any:
             return "exp(1)"
 
     return FilePrinter
+
+
+def vsstrrepr(expr: Any) -> str:
+    """``expr`` as ``str`` prints it with ``sympy.physics.vector`` loaded (``q'``-free, ``q(t)``
+    as ``q``): :func:`sympy.physics.vector.printing.vsstrrepr`, imported on first use."""
+    from sympy.physics.vector.printing import vsstrrepr as printed
+
+    return str(printed(expr))
 
 
 def describe(value: object) -> str:

@@ -55,12 +55,9 @@ from __future__ import annotations
 import difflib
 import json
 import math
-import os
 import re
 import sys
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import sympy as sp
@@ -72,6 +69,7 @@ from chaplygin.bodies.builder import ANGLES
 from chaplygin.core._symbols import TIME, file_syntax
 from chaplygin.core.system import System
 from chaplygin.errors import SystemDefinitionError
+from chaplygin.io._file import MAX_FILE_SIZE, SystemFile, load
 from chaplygin.io.parser import (
     RESERVED,
     Names,
@@ -104,8 +102,6 @@ __all__ = [
     "loads",
 ]
 
-#: Largest file, in characters (and bytes for :func:`load`).
-MAX_FILE_SIZE = 1_000_000
 #: Most coordinates in one system.
 MAX_COORDINATES = 32
 #: Most parameters in one system.
@@ -152,116 +148,7 @@ _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)\s*$")
 _TOML_EOF = re.compile(r"\(at end of document\)\s*$")
 
 
-@dataclass
-class SystemFile:
-    """A system read from a file, with its default parameter values and initial state.
-
-    Attributes
-    ----------
-    system : System
-        The mechanical system; its parameters are real SymPy symbols.
-    parameters : dict of str → float
-        The ``[parameters]`` defaults, by name (exactly the system's parameters).
-    initial : dict of str → float
-        The initial state: every coordinate, then the velocities of the
-        independent coordinates (``"theta'"``), in that order; values missing
-        from ``[initial]`` are 0.
-    name : str
-        The system's name (``name = ...``, else the file's stem, else ``"system"``).
-    source : str
-        The path it was read from, or ``"<string>"``.
-    defaulted : tuple of str
-        The keys of :attr:`initial` that ``[initial]`` did not give (set to 0).
-    body : dict or None
-        The ``[body]`` table as read (TOML values), for a system built from a body.
-    exact : dict of str → sympy.Expr
-        The values of :attr:`parameters` and :attr:`initial` given as strings of constants,
-        exactly as SymPy numbers (``"pi/6"`` → ``pi/6``), by key; for display: the
-        computations use the floats.
-    """
-
-    system: System
-    parameters: dict[str, float]
-    initial: dict[str, float]
-    name: str
-    source: str
-    defaulted: tuple[str, ...] = ()
-    body: dict[str, Any] | None = None
-    exact: dict[str, sp.Expr] = field(default_factory=dict)
-
-    def _repr_html_(self) -> str:
-        """The system (as :class:`System` shows itself), then the file's parameters and initial
-        state, symbolic values as written (``pi/6``)."""
-        from chaplygin import _html
-
-        def values(table: dict[str, float]) -> str:
-            rows = [
-                (
-                    _html.escape(k),
-                    _html.math(sp.latex(self.exact[k])) if k in self.exact else _html.escape(f"{v:g}"),
-                )
-                for k, v in table.items()
-            ]
-            return _html.table(rows, ["name", "value"]) if rows else "<p>none</p>"
-
-        return (
-            self.system._repr_html_()
-            + _html.heading("parameters")
-            + values(self.parameters)
-            + _html.heading("initial state")
-            + values(self.initial)
-        )
-
-    def dumps(self) -> str:
-        """This file written back as TOML: its ``[body]`` table if it has one, else as :func:`dumps`."""
-        if self.body is None:
-            return dumps(self.system, self.parameters, self.initial)
-        out = [f"# chaplygin system file: {self.name}", f"name = {_toml_string(self.name)}", "", "[body]"]
-        out += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in self.body.items()]
-        out += ["", "[parameters]"]
-        out += [
-            f"{_toml_key(k)} = {_toml_number(v, f'the parameter {k}')}" for k, v in self.parameters.items()
-        ]
-        out += ["", "[initial]"]
-        out += [
-            f"{_toml_key(k)} = {_toml_number(v, f'the initial value of {k}')}"
-            for k, v in self.initial.items()
-        ]
-        return "\n".join(out) + "\n"
-
-
 # ---------------------------------------------------------------------------- reading
-def load(path: str | os.PathLike[str]) -> SystemFile:
-    """Read a system file.
-
-    Raises
-    ------
-    SystemFileError
-        If the file cannot be read, is not valid TOML, or describes an invalid system.
-    """
-    source = os.fspath(path)
-    try:
-        with open(path, "rb") as fh:
-            raw = fh.read(MAX_FILE_SIZE + 1)
-    except OSError as exc:
-        raise SystemFileError(f"cannot read the file: {exc.strerror or exc}", source=source) from None
-    if len(raw) > MAX_FILE_SIZE:
-        raise SystemFileError(
-            f"the file is larger than {MAX_FILE_SIZE} bytes",
-            source=source,
-            allowed=f"Limit: {MAX_FILE_SIZE} bytes per system file.",
-        )
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SystemFileError(
-            f"the file is not UTF-8 text (byte {exc.start})",
-            source=source,
-            allowed="System files are TOML, encoded in UTF-8.",
-        ) from None
-    return _loads(text, source, Path(source).stem)
-
-
 def loads(text: str, *, source: str = "<string>") -> SystemFile:
     """Read a system file from a string (see :func:`load`); ``source`` names it in messages."""
     return _loads(text, source, None)

@@ -8,14 +8,12 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import sympy as sp
-from sympy.physics.mechanics import dynamicsymbols
-from sympy.physics.vector.printing import vsstrrepr
 
 from chaplygin.core import _fold
 from chaplygin.core._angles import contracted, has_angle_sums
 from chaplygin.core._rational import floated, linear_forms, normal_all, normal_matrix, simplified
 from chaplygin.core._sampling import vanishes
-from chaplygin.core._symbols import TIME, replace_shared
+from chaplygin.core._symbols import TIME, function_of_time, replace_shared, vsstrrepr
 from chaplygin.errors import ChaplyginWarning, ModelError
 from chaplygin.models.registry import MODELS
 
@@ -77,7 +75,7 @@ class Equations:
         self._state = list((derivatives or {}).keys())
         self._to_fun = dict(system._to_fun)
         for lam in self._multipliers:
-            self._to_fun[lam] = dynamicsymbols(lam.name)
+            self._to_fun[lam] = function_of_time(lam.name)
         for mu, mu_dot in (derivatives or {}).items():
             self._to_fun[mu_dot] = self._to_fun[mu].diff(TIME)
         self.constants: tuple[sp.Symbol, ...] = tuple(constants)

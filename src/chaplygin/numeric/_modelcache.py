@@ -9,7 +9,7 @@ is a miss): its :class:`~chaplygin.numeric.codegen.Layout` and its generated sou
 ``fill`` of the ``c`` backend, the Python module of the ``numpy`` and ``numba`` backends);
 and so are the pole functions of :func:`chaplygin.numeric.simulate.simulate`'s checks and the
 linearisations of :mod:`chaplygin.numeric.linearization` (:func:`load_source`).  Nothing from the cache is run but source the library generated and
-stored itself, after its SHA-256 checked, as :mod:`chaplygin.apps._quick`'s run plans do.
+stored itself, after its SHA-256 checked, as :mod:`chaplygin.numeric._plan`'s run plans do.
 
 The key (:func:`model_key`) is the SHA-256 of the system's definition (:func:`definition`:
 the coordinates, T, the force function U, the generalized forces, the constraints as given

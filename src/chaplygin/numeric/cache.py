@@ -16,7 +16,7 @@ not.  An entry is one JSON document in ``cache_dir()/derivations`` (see
   (truncated, edited, unreadable, from another version) is deleted and
   reported as a miss, so the caller derives anew and overwrites it.  Nothing
   in an entry is ever evaluated but generated source that the library itself
-  stored (the run plans of :mod:`chaplygin.apps._quick`, the compiled models of
+  stored (the run plans of :mod:`chaplygin.numeric._plan`, the compiled models of
   :mod:`chaplygin.numeric._modelcache`), once these checks passed; the rest is data.
 
 SymPy expressions are stored as data too: :func:`expressions_to_data` writes

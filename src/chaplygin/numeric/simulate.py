@@ -45,9 +45,10 @@ from chaplygin.models import registry
 from chaplygin.numeric._dop853 import StepFailure as _StepFailure
 
 if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
-    # warm run of the command line (chaplygin.apps._quick) needs none of them
+    # warm run of the command line (chaplygin.numeric._plan) needs none of them
     from chaplygin.core.system import System
     from chaplygin.numeric._ckernel import CompiledModel
+    from chaplygin.numeric._plan import LoadedFile
 
 __all__ = [
     "BACKENDS",
@@ -1084,10 +1085,10 @@ def _budget(progress: Progress | None, t1: float, limit: float | None) -> Progre
 
 
 def simulate(
-    system: System,
+    system: System | LoadedFile,
     model: str,
     t_span: tuple[float, float] | float,
-    initial: Mapping[Any, float],
+    initial: Mapping[Any, float] | None = None,
     parameters: Mapping[Any, float] | None = None,
     *,
     form: str = "classic",
@@ -1124,7 +1125,36 @@ def simulate(
     positive and finite, parameters or initial values that are not finite, a
     start on a pole of the solved constraints, and a reduced mass matrix that is
     not positive definite or whose condition number exceeds :data:`MAX_CONDITION`.
+
+    ``system`` may be a loaded system file (:func:`chaplygin.load`): its ``[initial]`` and
+    ``[parameters]`` are then the defaults that ``initial`` and ``parameters`` override, and a
+    warm run (the same file's bytes, model and options run before) integrates the compiled
+    model stored for it without building the system: no SymPy (:mod:`chaplygin.numeric._plan`).
     """
+    from chaplygin.numeric._plan import LoadedFile, simulate_file
+
+    if isinstance(system, LoadedFile):
+        options = {
+            "form": form,
+            "rtol": rtol,
+            "atol": atol,
+            "method": method,
+            "samples": samples,
+            "backend": backend,
+            "constants": constants,
+            "multipliers": multipliers,
+            "max_step": max_step,
+            "step": step,
+            "reduction": reduction,
+            "progress": progress,
+            "time_limit": time_limit,
+        }
+        return simulate_file(system, model, t_span, initial, parameters, options)
+    if initial is None:
+        raise ChaplyginError(
+            "initial: no initial state; give every coordinate and the independent velocities by "
+            "name, e.g. {'x': 0.0, \"x'\": 1.0} (a loaded system file takes its [initial])."
+        )
     t0, t1 = time_span(t_span)
     _check_options(t0, t1, samples, rtol, atol, max_step)
     time_limit = check_time_limit(time_limit)

@@ -1,8 +1,9 @@
-"""Warm runs of ``chaplygin simulate`` without SymPy: run plans.
+"""Warm runs of a system file without SymPy: run plans.
 
-A run of ``chaplygin simulate`` spends half a second importing SymPy and
-building the system before it integrates for a few milliseconds.  So after a
-run the command line stores a *run plan* in the derivation cache
+A run of a system file spends half a second importing SymPy and building the
+system before it integrates for a few milliseconds.  So after a run of a file
+(``chaplygin simulate FILE`` or ``chaplygin.simulate(chaplygin.load(FILE), …)``,
+:func:`simulate_file`) a *run plan* is stored in the derivation cache
 (:mod:`chaplygin.numeric.cache`: JSON, keyed by the system file's bytes or the
 example's name, the model, form, backend and library version, verified on
 read): the model's layout, its generated code (source, not code: the C
@@ -13,14 +14,19 @@ and initial state.  The next run of the same system, model and backend loads
 the compiled code (or builds it from the stored source) and integrates
 without importing SymPy (nor SciPy or numba, with the ``c`` backend).
 
-A plan answers only what it can answer exactly as the full path would: a
-reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose state is the
-coordinates and the independent velocities, taken as given), DOP853, no
-constants, no holonomic constraints (their coordinates are solved at the start and their
-residual monitored: the full path), overrides naming known parameters, coordinates or velocities.  A
-given dependent velocity is checked against the constraints (the kernel's
-velocities); anything else, a disagreement included, returns ``None`` and the
-full path runs (and reports the error).
+A plan answers only what it can answer exactly as the full path would, and is
+made only by a run from the file's own parameters and coordinates (the run that
+passed the checks of the start there): DOP853, no constants, no holonomic
+constraints (their coordinates are solved at the start and their residual
+monitored: the full path), overrides naming known parameters, coordinates or
+velocities.  A reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose
+state is the coordinates and the independent velocities, taken as given) answers
+other velocities, and checks a given dependent velocity against the constraints
+(the kernel's velocities).  A multiplier model (``chetaev``, constraints linear
+in the velocities) keeps the start of the run that made it, the dependent
+velocities solved from the constraints, and answers that start only.  Anything
+else, a disagreement included, returns ``None`` and the full path runs (and
+reports the error).
 """
 
 from __future__ import annotations
@@ -36,17 +42,49 @@ from chaplygin.numeric import cache
 if TYPE_CHECKING:
     from chaplygin.numeric.simulate import Trajectory
 
-__all__ = ["key", "plan", "remember", "run"]
+__all__ = ["LoadedFile", "key", "plan", "remember", "run", "simulate_file"]
 
 #: the reduced models without constants, whose state a plan builds from the given numbers alone
 REDUCED = tuple(m.name for m in registry.MODELS.values() if m.reduced and not m.constants)
+#: the multiplier models whose state is the coordinates and velocities (a plan keeps its start)
+MULTIPLIER = tuple(
+    m.name
+    for m in registry.MODELS.values()
+    if not m.reduced and not m.constants and not m.multipliers_in_state
+)
 #: the backends whose runs a plan answers
 PLANNED = ("c", "numpy", "numba")
 #: what the command line asks for when no --model is given: the true motion (Chaplygin's
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
-#: bumped whenever the plan's shape changes
-FORMAT = 5
+#: bumped whenever the plan's (or the file summary's) shape changes
+FORMAT = 6
+#: what a plan keeps of the file it was made from (:func:`summary_key`): every field of a
+#: :class:`~chaplygin.io.files.SystemFile` but the SymPy ones
+SUMMARY = ("parameters", "initial", "name", "defaulted", "body")
+
+
+class LoadedFile:
+    """What :func:`chaplygin.numeric.simulate.simulate` runs from a file's defaults and plans
+    (:class:`chaplygin.io.files.SystemFile` derives from it; told apart without importing SymPy).
+
+    A subclass gives ``system``, ``parameters``, ``initial`` and ``defaulted`` (as
+    :class:`~chaplygin.io.files.SystemFile` does) and ``definition``: the bytes a plan is keyed
+    by (the file's), or None (no plan).
+    """
+
+    system: Any
+    parameters: dict[str, float]
+    initial: dict[str, float]
+    defaulted: tuple[str, ...]
+    definition: bytes | None = None
+
+
+def summary_key(definition: bytes, stem: str) -> str:
+    """The cache key of the summary of the file of bytes ``definition`` named ``stem`` (the
+    name it takes without ``name = …``), stored with a plan made from it: the file was read and
+    validated, and :func:`chaplygin.load` of the same bytes returns it without reading them again."""
+    return cache.key("system file", str(FORMAT), definition, stem)
 
 
 def key(definition: bytes, model: str, form: str, backend: str) -> str:
@@ -62,7 +100,7 @@ def applies(backend: str, model: str, method: str, constants: Any, step: Any) ->
     from chaplygin.numeric.simulate import choose_backend
 
     return (
-        model in (*REDUCED, TRUE_MOTION)
+        model in (*REDUCED, *MULTIPLIER, TRUE_MOTION)
         and method == "DOP853"
         and constants is None
         and step is None
@@ -71,23 +109,35 @@ def applies(backend: str, model: str, method: str, constants: Any, step: Any) ->
 
 
 def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: Trajectory) -> None:
-    """Store the plan of a finished ``c``-backend run (a no-op for anything a plan cannot answer).
+    """Store the plan of a finished run (a no-op for anything a plan cannot answer).
 
     ``asked`` is the model as the command line asked for it (:data:`TRUE_MOTION` for none);
-    only a run that succeeded makes a plan, so the checks of its start passed.
+    only a run that succeeded from the file's own parameters and coordinates makes a plan, so
+    the checks of its start passed there.
     """
-    if definition is None or tr.backend not in PLANNED or tr.model not in REDUCED or not tr.success:
+    if definition is None or tr.backend not in PLANNED or not tr.success or not len(tr.t):
         return
-    if getattr(loaded.system, "holonomic", None):  # its start is solved and its residual monitored
+    system = loaded.system
+    reduced = tr.model in REDUCED
+    if not reduced and (tr.model not in MULTIPLIER or system.is_nonlinear):
+        return  # (nonlinear constraints: a multiplier run is watched for their singular set)
+    if getattr(system, "holonomic", None):  # its start is solved and its residual monitored
         return
+    defaults = {k: float(v) for k, v in (loaded.initial or {}).items()}
+    started = {c: float(tr.coordinates[c][0]) for c in tr.coordinates}
+    if not reduced:  # the start kept: every velocity, the dependent ones solved from the constraints
+        started |= {v: float(tr.velocities[v][0]) for v in tr.velocities}
+    if tr.parameters != loaded.parameters or any(
+        started[k] != v for k, v in defaults.items() if k in started
+    ):
+        return  # a run from other numbers: its checks say nothing of the file's
     from pathlib import Path
 
     from chaplygin.numeric.codegen import compile_model
 
     # the run's model (cached on the system)
-    compiled = compile_model(loaded.system, tr.model, form, tr.backend)
+    compiled = compile_model(system, tr.model, form, tr.backend)
     kernel, layout = compiled.module, compiled.layout
-    system = loaded.system
     if tr.backend == "c":
         code = {"fill": kernel.fill_source, "dim": kernel.DIM, "n": kernel.N, "k": kernel.K}
         code |= {"n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react}
@@ -104,10 +154,17 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         "energy_conserved": tr.energy_conserved,
         "energy_column": tr.energy_column,
         "parameters": {k: float(v) for k, v in (loaded.parameters or {}).items()},
-        "initial": {k: float(v) for k, v in (loaded.initial or {}).items()},
+        "initial": defaults,
         "defaulted": list(getattr(loaded, "defaulted", ())),
+        "start": None if reduced else [started[c] for c in layout.coordinates + layout.velocities],
     }
     cache.store(key(definition, asked, form, tr.backend), value)
+    if getattr(loaded, "definition", None) == definition:  # a file read by chaplygin.load
+        try:
+            summary = {k: getattr(loaded, k) for k in SUMMARY}
+            cache.store(summary_key(definition, Path(loaded.source).stem), summary)
+        except (TypeError, ValueError):  # a [body] value that JSON does not hold: no summary
+            pass
 
 
 def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
@@ -148,11 +205,13 @@ def run(
     atol: float = 1e-12,
     progress: Callable[[float], None] | None = None,
     time_limit: float | None = None,
+    warn: bool = True,
 ) -> Trajectory | None:
     """The run from a stored plan, or None where the full path must run.
 
     ``progress`` is told the time the integration reaches, and ``time_limit`` is applied, as by
-    :func:`chaplygin.numeric.simulate.simulate`.
+    :func:`chaplygin.numeric.simulate.simulate`; ``warn``: warn of the velocities that neither the
+    file nor ``initial`` gave, as the command line does (:func:`warn_defaulted`).
 
     ``params`` and ``initial`` are the command line's overrides (by name).  The
     full path checks the start (a positive definite, well-conditioned mass
@@ -175,7 +234,7 @@ def run(
     if found is None:
         return None
     try:
-        return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress, time_limit)
+        return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress, time_limit, warn)
     except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
         return None
 
@@ -191,6 +250,7 @@ def _run(
     atol: float,
     progress: Callable[[float], None] | None = None,
     time_limit: float | None = None,
+    warn: bool = True,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import Layout
     from chaplygin.numeric.simulate import integrate
@@ -210,12 +270,20 @@ def _run(
     if not all(np.isfinite(v) for v in state.values()):
         return None
     every = set(layout.coordinates) | {c + "'" for c in layout.coordinates}
-    if not set(state) <= every or not set(layout.coordinates) | set(layout.velocities) <= set(state):
+    start = found["start"]
+    if start is not None and state != found["initial"]:
+        return None  # a multiplier model's plan answers the start it kept, and no other
+    if not set(state) <= every or (
+        start is None and not set(layout.coordinates) | set(layout.velocities) <= set(state)
+    ):
         return None
     compiled = _compiled(found, layout, backend)
     if compiled is None:
         return None
-    y0 = np.array([state[name] for name in layout.coordinates + layout.velocities], dtype=float)
+    names = layout.coordinates + layout.velocities
+    y0 = np.array(start if start is not None else [state[name] for name in names], dtype=float)
+    if len(y0) != len(names):
+        return None
     p = np.array([values[name] for name in layout.parameters], dtype=float)
     velocities = compiled.observe(0.0, y0, p)[-len(layout.coordinates) :]
     for name, implied in zip(layout.coordinates, velocities):
@@ -224,7 +292,8 @@ def _run(
             given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))
         ):
             return None  # a dependent velocity that violates the constraints: the full path's error
-    warn_defaulted(found["defaulted"], initial)  # as the full path does (chaplygin.apps.cli._numbers)
+    if warn:  # as the command line's full path does (chaplygin.apps.cli._numbers)
+        warn_defaulted(found["defaulted"], initial)
     tr = integrate(
         compiled,
         (0.0, float(t_end)),
@@ -240,6 +309,10 @@ def _run(
         progress=progress,
         time_limit=time_limit,
     )
+    if start is not None and not (tr.success and all(np.all(np.isfinite(v)) for v in tr.velocities.values())):
+        return (
+            None  # the full path says why a multiplier run failed, and cuts it where a velocity is not finite
+        )
     tr.energy_conserved = bool(found["energy_conserved"])
     tr.energy_column = str(found["energy_column"])
     return tr
@@ -265,3 +338,59 @@ def _compiled(found: dict[str, Any], layout: Any, backend: str) -> Any:
 
         compiled = loop_model(compiled)
     return compiled
+
+
+def simulate_file(
+    loaded: LoadedFile,
+    model: str,
+    t_span: tuple[float, float] | float,
+    initial: Mapping[Any, float] | None,
+    parameters: Mapping[Any, float] | None,
+    options: dict[str, Any],
+) -> Trajectory:
+    """:func:`chaplygin.numeric.simulate.simulate` of a loaded file (``options``: its keyword
+    arguments): ``initial`` and ``parameters`` override the file's ``[initial]`` and
+    ``[parameters]``; a stored plan answers without building the system (no SymPy), else the
+    full path runs on ``loaded.system`` and, where it can, leaves a plan for the next run."""
+    from chaplygin.numeric.simulate import METHODS, _check_options, check_time_limit, simulate, time_span
+
+    # the numbers of the run: the file's, as they are now, and the ones given over them
+    start, numbers = {**loaded.initial, **(initial or {})}, {**loaded.parameters, **(parameters or {})}
+    t0, t1 = time_span(t_span)
+    _check_options(t0, t1, options["samples"], options["rtol"], options["atol"], options["max_step"])
+    plain = (
+        loaded.definition is not None
+        and t0 == 0.0
+        and options["multipliers"] is None
+        and options["max_step"] == np.inf
+        and options["reduction"] == "auto"
+        and options["method"] in METHODS
+        and all(isinstance(k, str) and isinstance(v, (int, float)) for k, v in (start | numbers).items())
+    )
+    if plain:
+        found = run(
+            loaded.definition,
+            model,
+            options["form"],
+            t1,
+            options["samples"],
+            options["backend"],
+            options["method"],
+            options["constants"],
+            options["step"],
+            {k.strip(): float(v) for k, v in numbers.items()},
+            {k.strip(): float(v) for k, v in start.items()},
+            options["rtol"],
+            options["atol"],
+            options["progress"],
+            check_time_limit(options["time_limit"]),
+            warn=False,
+        )
+        if found is not None:
+            return found
+    system = loaded.system
+    tr = simulate(system, model, t_span, start, numbers, **options)
+    definition = loaded.definition
+    if plain and definition is not None and plan(definition, model, options["form"], tr.backend) is None:
+        remember(definition, model, options["form"], loaded, tr)  # (once, not at every run)
+    return tr
