@@ -325,3 +325,14 @@ def test_gpu_kernel_agrees_with_the_c_loop(disk_c):  # pragma: no cover - needs 
     np.testing.assert_allclose(gpu["y"][ok], ref["y"][ok], rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(gpu["samples"][ok], ref["samples"][ok], rtol=1e-8, atol=1e-8)
     assert np.abs(gpu["n_rhs"] - ref["n_rhs"]).max() <= 0.05 * ref["n_rhs"].max()
+
+
+def test_row_maxima_of_the_ensembles_checks_are_numpys():
+    """The constraint residuals of an ensemble (``_row_max_abs``, column at a time, for 10⁶
+    members 4 ms instead of NumPy's 60 ms) are ``np.max(np.abs(a), axis=1)``, NaN rows included."""
+    from chaplygin.numeric.ensemble import _row_max_abs
+
+    a = np.random.default_rng(5).normal(size=(50, 8))
+    a[3, 2], a[7, 0] = np.nan, -np.inf
+    for cols in (slice(0, 1), slice(1, 3), slice(5, 8)):
+        np.testing.assert_array_equal(_row_max_abs(a[:, cols]), np.max(np.abs(a[:, cols]), axis=1))
