@@ -184,6 +184,10 @@ def check(cases: list[str], members: int) -> bool:
             t = time.perf_counter()
             gpu = prob.run("cuda", Y0, params, max_steps=budget)
             t_gpu = time.perf_counter() - t
+            if BUILT and budget == 1_000_000:
+                print(
+                    f"  (cuda kernel of {case}: {resident(BUILT[0])[1]}; NVRTC {BUILT[0].compile_seconds:.1f} s)"
+                )
             t = time.perf_counter()
             ref = prob.run("c", Y0, params, max_steps=budget)
             t_c = time.perf_counter() - t
@@ -334,10 +338,11 @@ def bench(args: argparse.Namespace) -> None:
                     continue
                 if backend == "cuda":
                     waves = -(-members // capacity) if capacity else members  # (unknown: per member)
-                    pace = wave if wave is not None else guess
-                    if pace is not None and pace * waves > args.max_seconds:
-                        print(f"{case:13s} {label:12s} {members:9d}  skipped (estimate {pace * waves:.3g} s "
-                              f"= {waves} x {pace:.3g} s{'' if wave else ', a guess'})")  # fmt: skip
+                    # the guess (a wave, or a member) bounds the first run, or the probe of one wave
+                    pace, count = (wave, waves) if wave is not None else (guess, 1 if capacity else members)
+                    if pace is not None and pace * count > args.max_seconds:
+                        print(f"{case:13s} {label:12s} {members:9d}  skipped (estimate {pace * count:.3g} s "
+                              f"= {count} x {pace:.3g} s{'' if wave else ', a guess'})")  # fmt: skip
                         continue
                     if wave is None and capacity and members > capacity:  # one full wave: the pace
                         t = time.perf_counter()
@@ -349,9 +354,14 @@ def bench(args: argparse.Namespace) -> None:
                                 f"{case:13s} {label:12s} {members:9d}  skipped (estimate {wave * waves:.0f} s)"
                             )
                             continue
-                elif backend == "c" and guess is not None and guess * members > args.max_seconds:
+                elif (
+                    backend == "c"
+                    and guess is not None
+                    and guess * members > args.max_seconds
+                    and (base is not None or members > max(2 * cores, int(args.subset_seconds / guess)))
+                ):
                     if base is None:  # a subset of these members, measured, and scaled
-                        subset = min(members, max(2 * cores, int(args.max_seconds / 2 / guess)))
+                        subset = min(members, max(2 * cores, int(args.subset_seconds / guess)))
                         ens = prob.run(backend, prob.states(members)[:subset])
                         base = (subset, ens.wall_time, float(ens.rhs_evaluations.sum()), ens.code)
                         guess = ens.wall_time / subset  # (the loop: the work around it is not scaled)
@@ -411,17 +421,17 @@ def bench(args: argparse.Namespace) -> None:
             if b.startswith("cuda"):
                 over = ", ".join(f"{v / w:.1f}x {o}" for o, w in best.items() if not o.startswith("cuda"))
                 print(f"  {'':13s} {b}: {over or '-'}")
-    variants = sorted({r[1] for r in rows if r[1].startswith("cuda")})
-    if len(variants) > 1:
-        print("the cuda variants, at each case's largest size they all ran (fastest first):")
-        for case in dict.fromkeys(r[0] for r in rows):
-            common = [m for m in sizes if all(any(r[:3] == (case, v, m) for r in rows) for v in variants)]
-            if common:
-                times = sorted(
-                    (r[3], r[1]) for r in rows if r[0] == case and r[2] == common[-1] and r[1] in variants
-                )
-                print(f"  {case:13s} {common[-1]:9d}: " + ", ".join(f"{v} {w:.3f} s" for w, v in times)
-                      + f"  -> choose {times[0][1]}")  # fmt: skip
+    print("the cuda variants, at each case's largest size most of them ran (fastest first):")
+    for case in dict.fromkeys(r[0] for r in rows):
+        ran = {
+            m: [(r[3], r[1]) for r in rows if r[0] == case and r[2] == m and r[1].startswith("cuda")]
+            for m in sizes
+        }
+        size = max((m for m in sizes if ran[m]), key=lambda m: (len(ran[m]), m), default=None)
+        if size is not None:
+            times = sorted(ran[size])
+            print(f"  {case:13s} {size:9d}: " + ", ".join(f"{v} {w:.3f} s" for w, v in times)
+                  + f"  -> choose {times[0][1]}")  # fmt: skip
 
 
 def main() -> None:
@@ -434,6 +444,12 @@ def main() -> None:
     parser.add_argument("--cases", default=",".join(CASES))
     parser.add_argument(
         "--max-seconds", type=float, default=None, help="skip longer cells (20 s; --quick 10 s)"
+    )
+    parser.add_argument(
+        "--subset-seconds",
+        type=float,
+        default=5.0,
+        help="the C loop's measured subset, where it extrapolates",
     )
     parser.add_argument("--peak-tflops", type=float, default=None, help="the device's FP64 peak")
     parser.add_argument("--fmad", action="store_true", help="let NVRTC contract into fused multiply-adds")
