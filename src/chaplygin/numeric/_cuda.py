@@ -687,12 +687,15 @@ class DeviceKernel:
             block = block_size(m, self.multiprocessors)
             self._members((math.ceil(m / block),), (block,), args)
             mark = self._lap(clock, "kernel", mark)
-            t_last[lo:hi] = t_d.get()
-            last[lo:hi] = cp.ascontiguousarray(last_d.T).get()
-            obs[lo:hi] = cp.ascontiguousarray(obs_d.T).get()
-            code[lo:hi], n_rhs[lo:hi] = code_d.get(), rhs_d.get()
+            # straight into the results (rows lo:hi of a C-contiguous array are contiguous): no
+            # host copy of each download (10⁶ disks: 150 MB)
+            t_d.get(out=t_last[lo:hi])
+            cp.ascontiguousarray(last_d.T).get(out=last[lo:hi])
+            cp.ascontiguousarray(obs_d.T).get(out=obs[lo:hi])
+            code_d.get(out=code[lo:hi])
+            rhs_d.get(out=n_rhs[lo:hi])
             if samples is not None:
-                samples[lo:hi] = cp.ascontiguousarray(out.transpose(2, 0, 1)).get()
+                cp.ascontiguousarray(out.transpose(2, 0, 1)).get(out=samples[lo:hi])
             del out, last_d, t_d, obs_d, code_d, rhs_d, y0, p
             self._lap(clock, "download", mark)
         self.timings = clock
