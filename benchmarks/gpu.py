@@ -214,7 +214,12 @@ def check(cases: list[str], members: int) -> bool:
 
 
 #: the cuda variants a backend label may name after "cuda:", joined by "+" (e.g. cuda:r128+fmad)
-VARIANTS = {"inline": {"inline": True}, "libpow": {"library_pow": True}, "fmad": {"fmad": True}}
+VARIANTS = {
+    "inline": {"inline": True},
+    "libpow": {"library_pow": True},
+    "fmad": {"fmad": True},
+    "l1": {"carveout": 0},  # all of L1 as cache (the stages K live in local memory)
+}
 #: DeviceKernel options of the cell being run (set per backend label; read by the patched __init__)
 TUNED: dict[str, Any] = {}
 #: DeviceKernel options of every cuda label (--fmad, --maxrregcount)

@@ -590,6 +590,7 @@ class DeviceKernel:
         registers: int | None = None,
         inline: bool = False,
         library_pow: bool = False,
+        carveout: int | None = None,
     ) -> None:
         problem = device_problem()
         if problem is not None:
@@ -627,6 +628,12 @@ class DeviceKernel:
             ) from None
         #: seconds NVRTC took (0 where CuPy found the kernel in its cache)
         self.compile_seconds = time.perf_counter() - start
+        if carveout is not None:  # the shared-memory share of L1 in percent (0: all of it cache)
+            try:  # CU_FUNC_ATTRIBUTE_PREFERRED_SHARED_MEMORY_CARVEOUT
+                cupy.cuda.driver.funcSetAttribute(self._members.ptr, 9, int(carveout))
+                self.options += (f"carveout={int(carveout)}",)
+            except Exception as exc:  # a CuPy or driver without it
+                self.options += (f"carveout not set: {exc}",)
         try:  # cudaDevAttrMultiProcessorCount
             self.multiprocessors: int | None = int(
                 cupy.cuda.runtime.deviceGetAttribute(16, cupy.cuda.Device().id)
