@@ -89,6 +89,7 @@ from chaplygin.numeric.ensemble import simulate_ensemble
 
 #: case → (catalogue name, t_end, model or None for the true motion)
 CASES = {"disk1": ("rolling-disk", 1.0, "chaplygin"), "disk10": ("rolling-disk", 10.0, "chaplygin")}
+CASES["rattleback1"] = ("rattleback", 1.0, None)
 CASES["rattleback10"] = ("rattleback", 10.0, None)
 #: FP64 units per SM by compute capability (A100: 32, H100/H200/B200: 64; consumer parts: 2)
 FP64_PER_SM = {(6, 0): 32, (7, 0): 32, (8, 0): 32, (9, 0): 64, (10, 0): 64}
@@ -126,9 +127,11 @@ class Problem:
                 Y0[:, j] *= rng.uniform(0.9, 1.1, members)
         return Y0
 
-    def run(self, backend: str, Y0: np.ndarray, params: Any = None, **kw: Any) -> Any:
+    def run(
+        self, backend: str, Y0: np.ndarray, params: Any = None, t_end: float | None = None, **kw: Any
+    ) -> Any:
         return simulate_ensemble(
-            self.system, self.model, self.t_end, Y0, params or self.parameters, backend=backend,
+            self.system, self.model, t_end or self.t_end, Y0, params or self.parameters, backend=backend,
             rtol=1e-10, atol=1e-12, time_limit=None, **kw,
         )  # fmt: skip
 
@@ -181,6 +184,10 @@ def check(cases: list[str], members: int) -> bool:
             t = time.perf_counter()
             gpu = prob.run("cuda", Y0, params, max_steps=budget)
             t_gpu = time.perf_counter() - t
+            if BUILT and budget == 1_000_000:
+                print(
+                    f"  (cuda kernel of {case}: {resident(BUILT[0])[1]}; NVRTC {BUILT[0].compile_seconds:.1f} s)"
+                )
             t = time.perf_counter()
             ref = prob.run("c", Y0, params, max_steps=budget)
             t_c = time.perf_counter() - t
@@ -206,13 +213,71 @@ def check(cases: list[str], members: int) -> bool:
     return good
 
 
+#: the cuda variants a backend label may name after "cuda:", joined by "+" (e.g. cuda:r128+fmad)
+VARIANTS = {
+    "inline": {"inline": True},
+    "libpow": {"library_pow": True},
+    "fmad": {"fmad": True},
+    "l1": {"carveout": 0},  # all of L1 as cache (the stages K live in local memory)
+}
+#: DeviceKernel options of the cell being run (set per backend label; read by the patched __init__)
+TUNED: dict[str, Any] = {}
+#: DeviceKernel options of every cuda label (--fmad, --maxrregcount)
+BASE: dict[str, Any] = {}
+#: the DeviceKernel built last (its registers, local memory, timings)
+BUILT: list[Any] = []
+#: a warm-up integrates to this share of the case's t_end (a slow kernel's warm-up stays short)
+WARM_SHARE = 0.02
+
+
+def variant(label: str) -> dict[str, Any]:
+    """DeviceKernel options of a backend label: ``cuda`` {}, ``cuda:r128+inline`` {registers: 128, inline: True}."""
+    options: dict[str, Any] = {}
+    for token in label.partition(":")[2].split("+") if ":" in label else []:
+        if token.startswith("r") and token[1:].isdigit():
+            options["registers"] = int(token[1:])
+        elif token in VARIANTS:
+            options.update(VARIANTS[token])
+        else:
+            sys.exit(f"gpu.py: backend {label!r}: unknown cuda variant {token!r} (rN, {', '.join(VARIANTS)})")
+    return options
+
+
+def patch_device_kernel() -> None:
+    """DeviceKernel built with :data:`TUNED`'s options, and remembered in :data:`BUILT`."""
+    original = _cuda.DeviceKernel.__init__
+
+    def tuned(self: Any, *a: Any, **kw: Any) -> None:
+        original(self, *a, **{**kw, **TUNED})
+        BUILT[:] = [self]
+
+    _cuda.DeviceKernel.__init__ = tuned  # type: ignore[method-assign]
+
+
+def resident(kernel: Any, block: int = _cuda.BLOCK) -> tuple[int | None, str]:
+    """Members the device runs at once (a wave), from the kernel's registers; and a description."""
+    fn = getattr(kernel, "_members", None)
+    regs, local = getattr(fn, "num_regs", None), getattr(fn, "local_size_bytes", None)
+    sms = getattr(kernel, "multiprocessors", None)
+    text = (
+        f"{regs} registers, {local} bytes local memory per thread, options {getattr(kernel, 'options', '?')}"
+    )
+    if not (regs and sms):
+        return None, text
+    per_warp = -(-regs // 8) * 8 * 32  # registers are allocated per warp, 8 per thread at a time
+    warps = min(64, 65536 // per_warp // (block // 32) * (block // 32))  # whole blocks per SM
+    return sms * warps * 32, text + f"; {warps} warps per SM resident, a wave = {sms * warps * 32} members"
+
+
 def bench(args: argparse.Namespace) -> None:
     sizes = [int(float(s)) for s in args.sizes.split(",")]
     backends = args.backends.split(",")
     problem = _cuda.device_problem()  # (None with --host-build)
-    if "cuda" in backends and problem is not None:
-        print(f"cuda: skipped ({problem})")
-        backends.remove("cuda")
+    for label in [b for b in backends if b.startswith("cuda")]:
+        variant(label)  # (an unknown variant stops here, before any work)
+        if problem is not None:
+            print(f"{label}: skipped ({problem})")
+            backends.remove(label)
     if "jax" in backends:
         try:
             import chaplygin.numeric.jaxbackend  # noqa: F401
@@ -224,30 +289,94 @@ def bench(args: argparse.Namespace) -> None:
         name, found = device()
         peak = peak or found
         print(f"device: {name}; FP64 peak {peak / 1e12:.1f} TFLOP/s" if peak else f"device: {name}")
-    print(f"CPU cores: {len(os.sched_getaffinity(0))}; load average {os.getloadavg()[0]:.2f}", flush=True)
+    cores = len(os.sched_getaffinity(0))
+    print(f"CPU cores: {cores}; load average {os.getloadavg()[0]:.2f}", flush=True)
     rows = []
-    head = f"{'case':13s} {'backend':7s} {'members':>9s} {'wall s':>8s} {'loop s':>8s} {'traj/s':>10s} "
+    head = f"{'case':13s} {'backend':12s} {'members':>9s} {'wall s':>8s} {'loop s':>8s} {'traj/s':>10s} "
     head += f"{'RHS/s':>9s} {'GFLOP/s':>8s} {'% peak':>7s} failed"
+
+    def row(
+        case: str, label: str, members: int, wall: float, loop: float, rhs: float, failed: Any, note: str = ""
+    ) -> None:
+        gflops = rhs * prob.flops / wall / 1e9
+        share = f"{100 * gflops * 1e9 / peak:6.2f}%" if peak and label != "c" else "      -"
+        rows.append((case, label, members, wall, loop, members / wall, note))
+        print(
+            f"{case:13s} {label:12s} {members:9d} {wall:8.3f} {loop:8.3f} {members / wall:10.4g} "
+            f"{rhs / wall:9.3g} {gflops:8.2f} {share} {failed}{note}",
+            flush=True,
+        )
+
     for case in args.cases.split(","):
         prob = Problem(case)
         print(f"\n{case}: {prob.system.name}, {prob.model}, t = {prob.t_end:g}, state {len(prob.layout.state)}, "
               f"~{prob.flops:.0f} flops per RHS", flush=True)  # fmt: skip
         print(head)
-        for backend in backends:
-            pace = None
+        short = WARM_SHARE * prob.t_end
+        for label in backends:
+            backend = label.partition(":")[0]
+            TUNED.clear()
+            TUNED.update({**BASE, **variant(label)} if backend == "cuda" else {})
+            guess = wave = None  # seconds: a guess for one member (c) or one wave (cuda); a wave measured
+            capacity = None
             if backend != "jax":  # (JAX compiles anew for every number of members: no warm-up)
                 t = time.perf_counter()
-                prob.run(backend, prob.states(WARM))  # warm-up: compile (C, NVRTC)
+                prob.run(backend, prob.states(WARM), t_end=short)  # compile (C, NVRTC) and a first run
+                first = time.perf_counter() - t
+                t = time.perf_counter()
+                prob.run(backend, prob.states(WARM), t_end=short)  # warm: what one run costs
                 warm = time.perf_counter() - t
-                print(f"  ({backend} warm-up at {WARM} members: {warm:.2f} s)", flush=True)
-                # the CPU's pace is the warm-up's (members share the cores evenly); a GPU's only
-                # shows from a size that fills the device, so its first size always runs
-                pace = warm / WARM if backend == "c" else None
+                # to t_end: C's members share the cores evenly (seconds per member); a GPU's time does
+                # not grow with members until the device is full, and a full wave keeps the SMs
+                # busier than WARM members do (×4, a guard only: the wave is measured below)
+                guess = warm / WARM / WARM_SHARE if backend == "c" else 4 * warm / WARM_SHARE
+                if backend == "cuda" and BUILT and not args.host_build:
+                    capacity, text = resident(BUILT[0])
+                    print(f"  ({label} kernel: {text})", flush=True)
+                if backend == "cuda" and not capacity:  # (a wave unknown: seconds per member)
+                    guess = guess / WARM
+                print(f"  ({label} warm-up, {WARM} members to t = {short:g}: {first:.2f} s with compilation, "
+                      f"then {warm:.3f} s)", flush=True)  # fmt: skip
+            base = None  # (members, wall, loop, rhs) of the C loop's measured subset
             for members in sizes:
                 if backend == "jax" and members < JAX_FROM:
                     continue
-                if pace is not None and pace * members > args.max_seconds:
-                    print(f"{case:13s} {backend:7s} {members:9d}  skipped (estimate {pace * members:.0f} s)")
+                if backend == "cuda":
+                    waves = -(-members // capacity) if capacity else members  # (unknown: per member)
+                    # the guess (a wave, or a member) bounds the first run, or the probe of one wave
+                    pace, count = (wave, waves) if wave is not None else (guess, 1 if capacity else members)
+                    if pace is not None and pace * count > args.max_seconds:
+                        print(f"{case:13s} {label:12s} {members:9d}  skipped (estimate {pace * count:.3g} s "
+                              f"= {count} x {pace:.3g} s{'' if wave else ', a guess'})")  # fmt: skip
+                        continue
+                    if wave is None and capacity and members > capacity:  # one full wave: the pace
+                        t = time.perf_counter()
+                        prob.run(backend, prob.states(capacity))
+                        wave = time.perf_counter() - t
+                        print(f"  ({label} one wave, {capacity} members: {wave:.3f} s)", flush=True)
+                        if wave * waves > args.max_seconds:
+                            print(
+                                f"{case:13s} {label:12s} {members:9d}  skipped (estimate {wave * waves:.0f} s)"
+                            )
+                            continue
+                elif (
+                    backend == "c"
+                    and guess is not None
+                    and guess * members > args.max_seconds
+                    and (base is not None or members > max(2 * cores, int(args.subset_seconds / guess)))
+                ):
+                    if base is None:  # a subset of these members, measured, and scaled
+                        subset = min(members, max(2 * cores, int(args.subset_seconds / guess)))
+                        ens = prob.run(backend, prob.states(members)[:subset])
+                        base = (subset, ens.wall_time, float(ens.rhs_evaluations.sum()), ens.code)
+                        guess = ens.wall_time / subset  # (the loop: the work around it is not scaled)
+                    subset, loop, rhs, codes = base
+                    scale = members / subset
+                    row(case, label, members, loop * scale, loop * scale, rhs * scale,
+                        f"{int(np.count_nonzero(codes))} of {subset}", f"  (extrapolated from {subset} members)")  # fmt: skip
+                    continue
+                elif backend == "jax" and guess is not None and guess * members > args.max_seconds:
+                    print(f"{case:13s} {label:12s} {members:9d}  skipped (estimate {guess * members:.0f} s)")
                     continue
                 Y0 = prob.states(members)
                 if backend == "jax":
@@ -255,42 +384,59 @@ def bench(args: argparse.Namespace) -> None:
                 t = time.perf_counter()
                 ens = prob.run(backend, Y0)
                 wall = time.perf_counter() - t
-                pace = wall / members
-                rhs = float(ens.rhs_evaluations.sum())
-                gflops = rhs * prob.flops / wall / 1e9
-                share = f"{100 * gflops * 1e9 / peak:6.2f}%" if peak and backend != "c" else "      -"
-                row = (case, backend, members, wall, ens.wall_time, members / wall, rhs / wall, gflops)
-                rows.append(row)
-                print(
-                    f"{case:13s} {backend:7s} {members:9d} {wall:8.3f} {ens.wall_time:8.3f} {members / wall:10.4g} "
-                    f"{rhs / wall:9.3g} {gflops:8.2f} {share} {int(np.count_nonzero(ens.code))}",
-                    flush=True,
-                )
+                if backend != "cuda":
+                    guess = wall / members
+                elif not capacity:
+                    wave = wall / members
+                elif members >= capacity:
+                    wave = wall / -(-members // capacity)
+                row(case, label, members, wall, ens.wall_time, float(ens.rhs_evaluations.sum()),
+                    int(np.count_nonzero(ens.code)))  # fmt: skip
+                if backend == "cuda" and BUILT:
+                    parts = ", ".join(f"{k} {v:.3f}" for k, v in BUILT[0].timings.items())
+                    print(
+                        f"{'':13s} {'':12s} {'':9s} (loop: {parts}; outside the loop {wall - ens.wall_time:.3f} s)"
+                    )
             if backend == "cuda" and not args.host_build:  # CuPy's cached blocks back before JAX allocates
                 import cupy
 
                 cupy.get_default_memory_pool().free_all_blocks()
-    print("\nspeed-up of cuda (wall), same case and members:")
-    for case, backend, members, wall, *_ in rows:
-        if backend != "cuda":
+    print("\nspeed-up of each cuda variant (wall), same case and members:")
+    for case, label, members, wall, *_ in rows:
+        if not label.startswith("cuda"):
             continue
-        others = {b: w for c, b, m, w, *_ in rows if c == case and m == members and b != "cuda"}
-        ratios = (
-            ", ".join(f"{w / wall:.1f}x over {b}" for b, w in others.items())
-            or "no other backend at this size"
+        others = {
+            b: (w, note)
+            for c, b, m, w, _, _, note in rows
+            if c == case and m == members and not b.startswith("cuda")
+        }
+        ratios = ", ".join(
+            f"{w / wall:.1f}x over {b}" + (" (extrapolated)" if note else "")
+            for b, (w, note) in others.items()
         )
-        print(f"  {case:13s} {members:9d}: {ratios}")
-    print("best trajectories/s of each backend (any size), and cuda's over it:")
+        print(f"  {case:13s} {label:12s} {members:9d}: {ratios or 'no other backend at this size'}")
+    print("best trajectories/s of each backend (any size), and each cuda variant's over it:")
     for case in dict.fromkeys(r[0] for r in rows):
         best = {
             b: max(r[5] for r in rows if r[0] == case and r[1] == b)
             for b in dict.fromkeys(r[1] for r in rows if r[0] == case)
         }
-        ratios = ", ".join(
-            f"{b} {v:.4g}" + (f" (cuda {best['cuda'] / v:.1f}x)" if "cuda" in best and b != "cuda" else "")
-            for b, v in best.items()
-        )
-        print(f"  {case:13s} {ratios}")
+        print(f"  {case:13s} " + ", ".join(f"{b} {v:.4g}" for b, v in best.items()))
+        for b, v in best.items():
+            if b.startswith("cuda"):
+                over = ", ".join(f"{v / w:.1f}x {o}" for o, w in best.items() if not o.startswith("cuda"))
+                print(f"  {'':13s} {b}: {over or '-'}")
+    print("the cuda variants, at each case's largest size most of them ran (fastest first):")
+    for case in dict.fromkeys(r[0] for r in rows):
+        ran = {
+            m: [(r[3], r[1]) for r in rows if r[0] == case and r[2] == m and r[1].startswith("cuda")]
+            for m in sizes
+        }
+        size = max((m for m in sizes if ran[m]), key=lambda m: (len(ran[m]), m), default=None)
+        if size is not None:
+            times = sorted(ran[size])
+            print(f"  {case:13s} {size:9d}: " + ", ".join(f"{v} {w:.3f} s" for w, v in times)
+                  + f"  -> choose {times[0][1]}")  # fmt: skip
 
 
 def main() -> None:
@@ -304,6 +450,12 @@ def main() -> None:
     parser.add_argument(
         "--max-seconds", type=float, default=None, help="skip longer cells (20 s; --quick 10 s)"
     )
+    parser.add_argument(
+        "--subset-seconds",
+        type=float,
+        default=5.0,
+        help="the C loop's measured subset, where it extrapolates",
+    )
     parser.add_argument("--peak-tflops", type=float, default=None, help="the device's FP64 peak")
     parser.add_argument("--fmad", action="store_true", help="let NVRTC contract into fused multiply-adds")
     parser.add_argument(
@@ -311,15 +463,11 @@ def main() -> None:
     )
     parser.add_argument("--maxrregcount", type=int, default=None, help="NVRTC's register limit per thread")
     args = parser.parse_args()
-    if args.fmad or args.maxrregcount:
-        original = _cuda.DeviceKernel.__init__
-        tuned = {"fmad": args.fmad, "registers": args.maxrregcount}
-        print(f"kernel options: {tuned}")
-
-        def with_options(self: Any, *a: Any, **kw: Any) -> None:
-            original(self, *a, **{**kw, **tuned})
-
-        _cuda.DeviceKernel.__init__ = with_options  # type: ignore[method-assign]
+    patch_device_kernel()
+    if args.fmad or args.maxrregcount:  # (for every cuda label; variants: --backends cuda:r128,...)
+        BASE.update({"fmad": args.fmad, "registers": args.maxrregcount})
+        print(f"kernel options: {BASE}")
+    TUNED.update(BASE)
     if args.check:
         problem = _cuda.device_problem()
         if problem is not None:

@@ -63,6 +63,7 @@ __all__ = [
     "CudaModel",
     "DeviceKernel",
     "HostKernel",
+    "block_size",
     "device_problem",
     "kernel_source",
 ]
@@ -72,7 +73,7 @@ __all__ = [
 #: two transfers and the transposes still cost milliseconds, and 16 CPU cores finish 10⁴ rolling
 #: disks to t = 1 in about 0.1 s (issue 32's table: 34 900 members/s), so the GPU cannot win much.
 AUTO_MEMBERS = 10_000
-#: threads per block
+#: threads per block (at most: :func:`block_size`)
 BLOCK = 128
 #: the share of the device's free memory one chunk of members may take
 MEMORY_SHARE = 0.4
@@ -94,7 +95,23 @@ _PRELUDE = r"""/* chaplygin: DOP853, one thread per ensemble member (chaplygin.n
 #ifndef INFINITY
 #define INFINITY CH_INF
 #endif
+/* one copy of the right-hand side (fill and solve) in the kernel, called from every site: the
+   inlined copies (six) made the rattleback's kernel 325 kB of code and 255 registers with
+   spills; -DCH_INLINE_EVAL restores them (for comparison) */
+#ifdef CH_INLINE_EVAL
+#define CH_EVAL_ATTR
 #else
+#define CH_EVAL_ATTR __noinline__
+#endif
+/* pow(x, 2) of the fill as x * x (the library's pow is a call of some 150 instructions with
+   spills; x * x is exact to the rounding); -DCH_LIBRARY_POW keeps the library's */
+#ifndef CH_LIBRARY_POW
+CH_DEVICE static inline double ch_pow(double x, double y) { return pow(x, y); }
+CH_DEVICE static inline double ch_pow(double x, int n) { return n == 2 ? x * x : pow(x, (double)n); }
+#define pow ch_pow
+#endif
+#else
+#define CH_EVAL_ATTR
 #include <math.h>
 #define CH_DEVICE
 #define CH_TABLE static const
@@ -143,7 +160,7 @@ CH_DEVICE static void ch_fill(ch_work *w, double t, const double *y, const doubl
     chaplygin_fill(t, y, p, w->M, w->b, w->V, w->O);
 }
 
-CH_DEVICE static int ch_eval(ch_work *w, double t, const double *y, const double *p, double *f)
+CH_EVAL_ATTR CH_DEVICE static int ch_eval(ch_work *w, double t, const double *y, const double *p, double *f)
 {
     ch_fill(w, t, y, p);
     for (int i = 0; i < CH_NV; ++i) if (!CH_FINITE(w->V[i])) return 9;  /* a pole of the constraints */
@@ -448,6 +465,16 @@ def device_problem() -> str | None:
     return None if count > 0 else "CuPy finds no CUDA device"
 
 
+def block_size(members: int, multiprocessors: int | None) -> int:
+    """Threads per block: :data:`BLOCK`, or fewer (a multiple of 32, a warp) where blocks of
+    :data:`BLOCK` would leave multiprocessors idle: 1 000 members in blocks of 128 run on 8 of an
+    H100's 132, in blocks of 32 on 32 of them."""
+    if not multiprocessors:
+        return BLOCK
+    per_processor = -(-members // multiprocessors)
+    return int(min(BLOCK, max(32, 32 * -(-per_processor // 32))))
+
+
 def _soa(a: np.ndarray) -> np.ndarray:
     """Members last: (members, k) → (k, members), C-contiguous."""
     return np.ascontiguousarray(a.T)
@@ -554,7 +581,16 @@ class DeviceKernel:
     """
 
     def __init__(
-        self, kernel: CKernel, width: int, n_params: int, *, fmad: bool = False, registers: int | None = None
+        self,
+        kernel: CKernel,
+        width: int,
+        n_params: int,
+        *,
+        fmad: bool = False,
+        registers: int | None = None,
+        inline: bool = False,
+        library_pow: bool = False,
+        carveout: int | None = None,
     ) -> None:
         problem = device_problem()
         if problem is not None:
@@ -569,10 +605,17 @@ class DeviceKernel:
         self.path = kernel_dir() / f"cuda_{digest}.cu"  # the source, to read when NVRTC fails
         self.path.write_text(self.source, encoding="utf-8")
         # fmad: contraction into fused multiply-adds (off: the host build's arithmetic);
-        # registers: NVRTC's --maxrregcount (more threads resident per SM, more spills)
+        # registers: NVRTC's --maxrregcount (more threads resident per SM, more spills);
+        # inline: the right-hand side inlined at each of its call sites (the prelude's
+        # CH_INLINE_EVAL); library_pow: pow(x, 2) by the library's pow (CH_LIBRARY_POW)
         options: tuple[str, ...] = ("--fmad=true",) if fmad else ("--fmad=false",)
         if registers:
             options += (f"--maxrregcount={int(registers)}",)
+        if inline:
+            options += ("-DCH_INLINE_EVAL",)
+        if library_pow:
+            options += ("-DCH_LIBRARY_POW",)
+        self.options = options
         start = time.perf_counter()
         try:
             module = cupy.RawModule(code=self.source, options=options)
@@ -585,6 +628,20 @@ class DeviceKernel:
             ) from None
         #: seconds NVRTC took (0 where CuPy found the kernel in its cache)
         self.compile_seconds = time.perf_counter() - start
+        if carveout is not None:  # the shared-memory share of L1 in percent (0: all of it cache)
+            try:  # CU_FUNC_ATTRIBUTE_PREFERRED_SHARED_MEMORY_CARVEOUT
+                cupy.cuda.driver.funcSetAttribute(self._members.ptr, 9, int(carveout))
+                self.options += (f"carveout={int(carveout)}",)
+            except Exception as exc:  # a CuPy or driver without it
+                self.options += (f"carveout not set: {exc}",)
+        try:  # cudaDevAttrMultiProcessorCount
+            self.multiprocessors: int | None = int(
+                cupy.cuda.runtime.deviceGetAttribute(16, cupy.cuda.Device().id)
+            )
+        except Exception:  # a CuPy without it: blocks of BLOCK
+            self.multiprocessors = None
+        #: seconds of the last :meth:`run`: host (checks, arrays), upload, kernel, download
+        self.timings: dict[str, float] = {}
 
     def _chunk(self, members: int, per_member: int) -> int:
         free, _ = self.cp.cuda.Device().mem_info
@@ -606,6 +663,7 @@ class DeviceKernel:
         """Every row of ``Y0`` (parameters ``P``) on the GPU, in chunks that fit its memory: the
         arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`."""
         cp = self.cp
+        clock = {"host": time.perf_counter(), "upload": 0.0, "kernel": 0.0, "download": 0.0}
         a = _Arrays(Y0, P, times, rtol, atol, self.kernel.N_OBSERVED)
         m_all, n, k = a.members, a.n, a.t_out.size
         width_p = a.P.shape[1]
@@ -617,9 +675,11 @@ class DeviceKernel:
         code, n_rhs = np.empty(m_all, dtype=np.int64), np.empty(m_all, dtype=np.int64)
         samples = np.empty((m_all, k, n)) if times is not None else None
         t_out, atol_d = cp.asarray(a.t_out), cp.asarray(a.atol)
+        clock["host"] = time.perf_counter() - clock["host"]
         for lo in range(0, m_all, step):
             hi = min(m_all, lo + step)
             m = hi - lo
+            mark = time.perf_counter()
             y0 = cp.ascontiguousarray(cp.asarray(a.Y0[lo:hi]).T)
             p = cp.ascontiguousarray(cp.asarray(a.P[lo:hi]).T) if width_p else cp.zeros((0, m))
             out, last_d = cp.empty((k, n, m)), cp.empty((n, m))
@@ -630,15 +690,30 @@ class DeviceKernel:
                 np.float64(a.rtol), atol_d, np.float64(max_step), np.int64(max_steps), out, last_d, t_d,
                 obs_d, code_d, rhs_d,
             )  # fmt: skip
-            self._members((math.ceil(m / BLOCK),), (BLOCK,), args)
-            t_last[lo:hi] = t_d.get()
-            last[lo:hi] = cp.ascontiguousarray(last_d.T).get()
-            obs[lo:hi] = cp.ascontiguousarray(obs_d.T).get()
-            code[lo:hi], n_rhs[lo:hi] = code_d.get(), rhs_d.get()
+            mark = self._lap(clock, "upload", mark)
+            block = block_size(m, self.multiprocessors)
+            self._members((math.ceil(m / block),), (block,), args)
+            mark = self._lap(clock, "kernel", mark)
+            # straight into the results (rows lo:hi of a C-contiguous array are contiguous): no
+            # host copy of each download (10⁶ disks: 150 MB)
+            t_d.get(out=t_last[lo:hi])
+            cp.ascontiguousarray(last_d.T).get(out=last[lo:hi])
+            cp.ascontiguousarray(obs_d.T).get(out=obs[lo:hi])
+            code_d.get(out=code[lo:hi])
+            rhs_d.get(out=n_rhs[lo:hi])
             if samples is not None:
-                samples[lo:hi] = cp.ascontiguousarray(out.transpose(2, 0, 1)).get()
+                cp.ascontiguousarray(out.transpose(2, 0, 1)).get(out=samples[lo:hi])
             del out, last_d, t_d, obs_d, code_d, rhs_d, y0, p
+            self._lap(clock, "download", mark)
+        self.timings = clock
         return _result(t_last, last, obs, code, n_rhs, samples)
+
+    def _lap(self, clock: dict[str, float], phase: str, mark: float) -> float:
+        """Adds the seconds since ``mark`` to ``clock[phase]`` once the device is done; now."""
+        self.cp.cuda.Device().synchronize()
+        now = time.perf_counter()
+        clock[phase] += now - mark
+        return now
 
     def observe(self, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
         """``observe`` of every member at ``(t[m], Y[m], P[m])``, one row each, on the GPU."""
@@ -650,5 +725,6 @@ class DeviceKernel:
             y = cp.ascontiguousarray(cp.asarray(Y).T)
             p = cp.ascontiguousarray(cp.asarray(P).T) if P.shape[1] else cp.zeros((0, m))
             args = (np.int64(m), cp.asarray(np.asarray(t, dtype=float)), y, p, obs)
-            self._observe((math.ceil(m / BLOCK),), (BLOCK,), args)
+            block = block_size(m, self.multiprocessors)
+            self._observe((math.ceil(m / block),), (block,), args)
         return cp.ascontiguousarray(obs.T).get()

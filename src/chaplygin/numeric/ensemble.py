@@ -500,6 +500,15 @@ def _multipliers(
     return _evaluate_all(system, [exprs[m].xreplace(system._to_sym) for m in names], Q, QD, params, t0)
 
 
+def _row_max_abs(a: np.ndarray) -> np.ndarray:
+    """``np.max(np.abs(a), axis=1)`` of a few columns, a column at a time: NumPy reduces a
+    short row slowly (10⁶ rows of 2 columns: 60 ms; column by column 4 ms)."""
+    out = np.abs(a[:, 0])
+    for j in range(1, a.shape[1]):
+        np.maximum(out, np.abs(a[:, j]), out=out)
+    return out
+
+
 def _observe_all(compiled: CompiledModel, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
     if isinstance(compiled, _cuda.CudaModel):
         return compiled.device.observe(t, Y, P)
@@ -642,8 +651,8 @@ def simulate_ensemble(
     n_coords = len(layout.coordinates)
     obs0 = _observe_all(compiled, np.full(n, t0), Y0, P)
     if g:
-        resid0 = np.max(np.abs(obs0[:, 1 : 1 + g]), axis=1)
-        speed = np.maximum(1.0, np.max(np.abs(obs0[:, obs0.shape[1] - n_coords :]), axis=1))
+        resid0 = _row_max_abs(obs0[:, 1 : 1 + g])
+        speed = np.maximum(1.0, _row_max_abs(obs0[:, obs0.shape[1] - n_coords :]))
         bad = np.flatnonzero(resid0 > 1e-8 * speed)
         if bad.size:
             raise ChaplyginError(
@@ -728,7 +737,7 @@ def simulate_ensemble(
     obs = res["observed"]
     velocities = obs[:, obs.shape[1] - n_coords :]
     velocities0 = obs0[:, obs0.shape[1] - n_coords :]
-    residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g else np.zeros(n)
+    residual = _row_max_abs(obs[:, 1 : 1 + g]) if g else np.zeros(n)
     return Ensemble(
         model=layout.model,
         form=layout.form,
