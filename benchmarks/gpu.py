@@ -215,7 +215,7 @@ def check(cases: list[str], members: int) -> bool:
 
 #: the cuda variants a backend label may name after "cuda:", joined by "+" (e.g. cuda:r128+fmad)
 VARIANTS = {
-    "inline": {"inline": True},
+    "call": {"inline": False},  # one called copy of the right-hand side instead of inlined ones
     "libpow": {"library_pow": True},
     "fmad": {"fmad": True},
     "l1": {"carveout": 0},  # all of L1 as cache (the stages K live in local memory)
@@ -231,7 +231,7 @@ WARM_SHARE = 0.02
 
 
 def variant(label: str) -> dict[str, Any]:
-    """DeviceKernel options of a backend label: ``cuda`` {}, ``cuda:r128+inline`` {registers: 128, inline: True}."""
+    """DeviceKernel options of a backend label: ``cuda`` {}, ``cuda:r128+call`` {registers: 128, inline: False}."""
     options: dict[str, Any] = {}
     for token in label.partition(":")[2].split("+") if ":" in label else []:
         if token.startswith("r") and token[1:].isdigit():
