@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from sympy.physics.mechanics import dynamicsymbols
@@ -368,3 +370,36 @@ def test_a_pole_between_two_samples_stops_the_run(backend: str, t_end: float, sa
     pole = np.pi / 2 - 0.3
     assert between[0] < pole < between[1] and between[1] - between[0] < 1.0, tr.message  # (not over 2 poles)
     assert tr.t[-1] < pole
+
+
+def test_a_second_run_does_no_symbolic_work(monkeypatch) -> None:
+    """Issue 31: every simulate() substituted numbers into SymPy matrices (the initial state, the
+    mass-matrix check: 1.6–2.1 ms a call on the snakeboard); their functions are made once per
+    system now, so a second run of each model, with other numbers, never reaches SymPy's
+    substitution or evalf, and gives what a fresh system gives."""
+    import sympy as sp
+
+    from chaplygin import load
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "systems" / "snakeboard_spring.toml"
+    loaded = load(path)
+    other = {**loaded.initial, "phi": 0.1, "psi'": -0.5}
+    models = ("chetaev", "chaplygin", "voronets", "vakonomic", "lindelof", "vakonomic_family")
+    for model in models:  # the first run of each model makes the functions
+        simulate(loaded.system, model, 0.01, loaded.initial, loaded.parameters, samples=3)
+    fresh = load(path).system  # an equal system that has made nothing yet
+    expected = {m: simulate(fresh, m, 1.0, other, loaded.parameters, samples=11) for m in models}
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("symbolic work in a warm simulate()")
+
+    for cls, name in [(c, n) for c in (sp.Basic, sp.MatrixBase) for n in ("xreplace", "subs")] + [
+        (sp.core.evalf.EvalfMixin, "evalf"),
+        (sp.MatrixBase, "evalf"),
+    ]:
+        monkeypatch.setattr(cls, name, refuse)
+    for model in models:
+        tr = simulate(loaded.system, model, 1.0, other, loaded.parameters, samples=11)
+        assert tr.success, tr.message
+        for name in tr.columns:
+            np.testing.assert_array_equal(tr[name], expected[model][name], err_msg=f"{model}: {name}")

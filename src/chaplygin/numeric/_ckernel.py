@@ -146,11 +146,16 @@ def compiler() -> list[str]:
         return shlex.split(chosen)
     if os.environ.get("CC"):
         return shlex.split(os.environ["CC"])
-    for name in ("cc", "gcc", "clang"):
-        found = shutil.which(name)
-        if found:
-            return [found]
+    path = os.environ.get("PATH")
+    if path not in _FOUND:  # (a search of PATH stats a dozen files: once per PATH, not per run)
+        _FOUND[path] = next(filter(None, map(shutil.which, ("cc", "gcc", "clang"))), "")
+    if _FOUND[path]:
+        return [_FOUND[path]]
     raise Unavailable("no C compiler (cc, gcc or clang) on PATH; set CHAPLYGIN_CC")
+
+
+#: the compiler :func:`compiler` found on each ``PATH`` it searched ("": none)
+_FOUND: dict[str | None, str] = {}
 
 
 def kernel_dir() -> Path:
