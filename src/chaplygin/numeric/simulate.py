@@ -896,12 +896,22 @@ def _numeric(
 def _start_function(system: System, matrix: Any) -> tuple[Any, Any]:
     """``(function, matrix)`` for :func:`_numeric`: SymEngine's ``Lambdify`` of ``matrix`` over
     ``(t, q_1 … q_n, q̇_1 … q̇_n, parameters)`` (complex values), or None where SymEngine cannot
-    represent it (then SymPy substitutes at each call)."""
-    from chaplygin.core._fast import evaluator
+    represent it (then SymPy substitutes at each call).
+
+    The coordinates and velocities (SymPy ``Dummy`` symbols, numbered anew for each system) are
+    renamed by position first: SymEngine orders the terms of a sum by their hashes, which for a
+    ``Dummy`` depend on its number, so two equal systems would add the same terms in different
+    orders and differ in the last digits.
+    """
+    import sympy as sp
+
+    from chaplygin.core._fast import evaluator, to_sympy
     from chaplygin.core._symbols import TIME
 
     v = system._vars
-    return evaluator([TIME, *v.x, *v.xd, *system.parameters], list(matrix)), matrix
+    plain = {x: sp.Symbol(f"_chaplygin_state_{k}") for k, x in enumerate([*v.x, *v.xd])}
+    exprs = [to_sympy(e).xreplace(plain) for e in matrix]
+    return evaluator([TIME, *plain.values(), *system.parameters], exprs), matrix
 
 
 def _vakonomic_setup(
@@ -1382,11 +1392,11 @@ def _pole_between_samples(
     if wanted <= samples:
         return None
     per = -(-(wanted - 1) // (samples - 1))  # the samples stay among the points checked
-    dense = integrate(
-        compiled, t_span, y0, p, dict(params), samples=(samples - 1) * per + 1, g=system.g, **options
-    )
-    k, why = _pole(system, dense, params, len(dense.t))
-    return (float(dense.t[k]), why) if k < len(dense.t) else None
+    # (only the state is needed there: the points are not observed)
+    _, t, y, *_ = _samples(compiled, t_span, y0, p, samples=(samples - 1) * per + 1, **options)
+    n = system.n
+    k, why = _pole_at(system, t, y[:, :n], y[:, n : n + len(system._ind)], params)
+    return (float(t[k]), why) if k < len(t) else None
 
 
 def _watch(
@@ -1531,25 +1541,33 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
     names = [q.func.__name__ for q in system.coordinates]
     q = np.column_stack([tr.coordinates[c][:stop] for c in names])
     speeds = np.column_stack([tr.velocities[names[i] + "'"][:stop] for i in system._ind])
-    singular, sign = pole_marks(system, tr.t[:stop], q, params, speeds)
+    return _pole_at(system, tr.t[:stop], q, speeds, params)
+
+
+def _pole_at(
+    system: System, t: np.ndarray, q: np.ndarray, speeds: np.ndarray, params: Mapping[str, float]
+) -> tuple[int, str]:
+    """:func:`_pole` at the points ``t`` (``q``: K × n coordinates, ``speeds``: K × ε independent
+    velocities); ``(len(t), "")`` if none."""
+    names = [c.func.__name__ for c in system.coordinates]
+    singular, sign = pole_marks(system, t, q, params, speeds)
     k = first_pole(singular, sign)
-    if k == stop:
-        return stop, ""
+    if k == len(t):
+        return k, ""
     dep_names = ", ".join(names[i] + "'" for i in system._dep)
     if system.is_nonlinear:
         return k, (
             f"the singular set of the constraints {'at' if singular[k] else 'between'} t = "
-            + (f"{tr.t[k]:.6g}" if singular[k] else f"{tr.t[k - 1]:.6g} and {tr.t[k]:.6g}")
+            + (f"{t[k]:.6g}" if singular[k] else f"{t[k - 1]:.6g} and {t[k]:.6g}")
             + f", {singular_set_text(system)}"
         )
     if singular[k]:
         return k, (
-            f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
-            f"solved for {dep_names} there"
+            f"a pole of the solved constraints at t = {t[k]:.6g}: they cannot be solved for {dep_names} there"
         )
     return k, (
-        f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
-        f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
+        f"a pole of the solved constraints between t = {t[k - 1]:.6g} and "
+        f"{t[k]:.6g}: they cannot be solved for {dep_names} in between"
     )
 
 
@@ -1950,6 +1968,38 @@ def integrate(
     So a failed run keeps every sample before the failure, whatever steps the
     integrator chose (a first step that jumps past all the samples included).
     """
+    compiled, ts, ys, status, message, n_rhs = _samples(
+        compiled,
+        t_span,
+        y0,
+        p,
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        samples=samples,
+        max_step=max_step,
+        progress=progress,
+        time_limit=time_limit,
+    )
+    return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
+
+
+def _samples(
+    compiled: CompiledModel,
+    t_span: tuple[float, float],
+    y0: np.ndarray,
+    p: np.ndarray,
+    *,
+    rtol: float,
+    atol: float,
+    method: str,
+    samples: int,
+    max_step: float,
+    progress: Progress | None = None,
+    time_limit: float | None = None,
+) -> tuple[CompiledModel, np.ndarray, np.ndarray, str, str, int]:
+    """:func:`integrate` before anything is observed: ``(model, t, y, status, message, n_rhs)``,
+    the model being the one that integrated (the shared loop's, for numba)."""
     times = np.linspace(t_span[0], t_span[1], samples)
     if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
         from chaplygin.numeric.jaxbackend import solve
@@ -1957,7 +2007,7 @@ def integrate(
         res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
         if progress is not None and len(res.t):
             progress(float(res.t[-1]))
-        return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+        return compiled, res.t, res.y, res.status, res.message, res.n_rhs
     told = _budget(progress, t_span[1], time_limit)  # (the last call below: not checked)
     if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
         if compiled.backend == "numba":
@@ -1974,8 +2024,7 @@ def integrate(
     if progress is not None:
         progress(float(ts[-1]) if len(ts) else t_span[0])
     status = "failed" if message else "success"
-    message = message or f"reached t = {t_span[1]:g}"
-    return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
+    return compiled, ts, ys, status, message or f"reached t = {t_span[1]:g}", n_rhs
 
 
 def _pinned(
