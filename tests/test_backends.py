@@ -122,6 +122,51 @@ def test_c_loop_is_the_numba_loop(disk):
     assert _max_difference(*runs) < 1e-12
 
 
+def _not_real_after() -> System:
+    """ẍ = √(a − t) (ż = ẏ, ÿ = 0): the force is NaN from t = a on, inside a step."""
+    import sympy as sp
+    from sympy.physics.mechanics import dynamicsymbols
+
+    from chaplygin.core._symbols import TIME
+
+    x, y, z = dynamicsymbols("x y z")
+    a = sp.Symbol("a", positive=True)
+    T = sp.Rational(1, 2) * (x.diff(TIME) ** 2 + y.diff(TIME) ** 2)
+    return System([x, y, z], T, {z.diff(TIME): y.diff(TIME)}, forces={x: sp.sqrt(a - TIME)}, name="not real")
+
+
+@pytest.mark.skipif("c" not in LOOPS, reason="no C compiler")
+@pytest.mark.parametrize(
+    "which, params, code",
+    [
+        ("failing", {"a": 100.0, "k": 1.0}, 1),  # blows up: the step size underflows at t = 1
+        ("failing", {"a": 0.5, "k": 0.0}, 5),  # the mass of y is 0 from t = 0.5 on
+        ("not real", {"a": 0.55}, 2),  # NaN from t = 0.55 on
+    ],
+)
+def test_c_loop_fails_where_the_numba_loop_fails(failing, which, params, code):
+    """Issue 31: the C loop evaluates a step's stages without checking each value and checks the
+    step again only where its error norm is not finite or a solve failed; a run that fails inside
+    a step still ends where the numba loop, which checks every evaluation, ends: the same status,
+    count, samples, last step and failing state."""
+    system = failing if which == "failing" else _not_real_after()
+    q, qd = initial_state(system, FAILING_0, dict.fromkeys(params, 1.0), 0.0)
+    y0 = np.concatenate([q, qd[list(system._ind)]])
+    runs = []
+    for backend in ("numba", "c"):
+        model = compile_model(system, "chaplygin", "classic", backend)
+        p = np.array([params[name] for name in model.layout.parameters])
+        runs.append(integrate_dop853(model, (0.0, 2.0), y0, p, np.linspace(0.0, 2.0, 21)))
+    numba, c = runs
+    assert numba.code == c.code == code, (numba.message, c.message)
+    assert (numba.n_rhs, numba.n_steps, numba.message) == (c.n_rhs, c.n_steps, c.message)
+    np.testing.assert_array_equal(numba.t, c.t)
+    np.testing.assert_allclose(c.y, numba.y, rtol=1e-12, atol=1e-14)
+    assert c.t_last == pytest.approx(numba.t_last, rel=1e-12)
+    assert c.t_fail == pytest.approx(numba.t_fail, rel=1e-12)
+    np.testing.assert_allclose(c.y_last, numba.y_last, rtol=1e-12, atol=1e-14)
+
+
 @pytest.mark.skipif("c" not in LOOPS, reason="no C compiler")
 def test_c_observe_and_rhs_equal_generated_code():
     """The C kernel's rhs and observe (energy, residuals, reactions λ, velocities) are the generated module's."""

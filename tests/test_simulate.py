@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from sympy.physics.mechanics import dynamicsymbols
@@ -368,3 +370,58 @@ def test_a_pole_between_two_samples_stops_the_run(backend: str, t_end: float, sa
     pole = np.pi / 2 - 0.3
     assert between[0] < pole < between[1] and between[1] - between[0] < 1.0, tr.message  # (not over 2 poles)
     assert tr.t[-1] < pole
+
+
+def test_a_second_run_does_no_symbolic_work(monkeypatch) -> None:
+    """Issue 31: every simulate() substituted numbers into SymPy matrices (the initial state, the
+    mass-matrix check: 1.6–2.1 ms a call on the snakeboard); their functions are made once per
+    system now, so a second run of each model, with other numbers, never reaches SymPy's
+    substitution or evalf, and gives what a fresh system gives."""
+    import sympy as sp
+
+    from chaplygin import load
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "systems" / "snakeboard_spring.toml"
+    loaded = load(path)
+    other = {**loaded.initial, "phi": 0.1, "psi'": -0.5}
+    models = ("chetaev", "chaplygin", "voronets", "vakonomic", "lindelof", "vakonomic_family")
+    for model in models:  # the first run of each model makes the functions
+        simulate(loaded.system, model, 0.01, loaded.initial, loaded.parameters, samples=3)
+    fresh = load(path).system  # an equal system that has made nothing yet
+    expected = {m: simulate(fresh, m, 1.0, other, loaded.parameters, samples=11) for m in models}
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("symbolic work in a warm simulate()")
+
+    for cls, name in [(c, n) for c in (sp.Basic, sp.MatrixBase) for n in ("xreplace", "subs")] + [
+        (sp.core.evalf.EvalfMixin, "evalf"),
+        (sp.MatrixBase, "evalf"),
+    ]:
+        monkeypatch.setattr(cls, name, refuse)
+    for model in models:
+        tr = simulate(loaded.system, model, 1.0, other, loaded.parameters, samples=11)
+        assert tr.success, tr.message
+        for name in tr.columns:
+            np.testing.assert_array_equal(tr[name], expected[model][name], err_msg=f"{model}: {name}")
+
+
+def test_equal_systems_start_equally_to_the_last_digit() -> None:
+    """Issue 31: the start's matrices are evaluated by SymEngine functions made once per system,
+    their internal symbols renamed by position first: SymEngine orders a sum's terms by hash, and
+    the internal symbols of each system are numbered anew, so equal systems added the same terms
+    in other orders (10 of 12 fresh sleigh chains gave other last digits of q̇_dep, c or μ(0), and
+    `compare --constants` by name and in order other CSVs)."""
+    from chaplygin.numeric.simulate import _matching_constants, _multipliers_from_constants, initial_state
+
+    starts = set()
+    for _ in range(6):
+        chain = examples.sleigh_chain(3)
+        params = {p.name: 0.7 + 0.1 * k for k, p in enumerate(chain.parameters)}
+        names = [c.func.__name__ for c in chain.coordinates]
+        initial = {name: x for name, x in zip(names, np.random.default_rng(1).uniform(-1, 1, chain.n))}
+        initial |= {names[i] + "'": 0.3 - 0.2 * i for i in chain._ind}
+        q, qd = initial_state(chain, initial, params, 0.0)
+        c = _matching_constants(chain, q, qd, params, 0.0)
+        mu = _multipliers_from_constants(chain, np.linspace(0.1, -0.2, chain.g), q, qd, params, 0.0)
+        starts.add((*qd, *c, *mu))
+    assert len(starts) == 1

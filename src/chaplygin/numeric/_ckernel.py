@@ -16,7 +16,12 @@ SciPy's ``DOP853``): the same tableau, step-size control, error norm, dense
 output, Gaussian elimination with partial pivoting and failure codes
 (:data:`chaplygin.numeric._loop.STATUS`; a C ``fill`` raises nothing, so code 3 never
 occurs).  Built with IEEE semantics (no fast-math, no FMA contraction), its
-runs agree with the numba loop's to round-off, which the tests check.
+runs agree with the numba loop's to round-off, which the tests check.  One thing
+differs in how, not in what: the 12 stages of a step are evaluated without checking
+each value for a pole or a blow-up, and the step is evaluated again with the checks
+only where its error norm is not finite or a solve failed (then it fails where the
+numba loop fails, with its count); ``benchmarks/dop853_floor.py`` measures the loop
+against a hand-written DOP853 on the same ``fill``.
 
 The kernel cache
 ----------------
@@ -146,11 +151,16 @@ def compiler() -> list[str]:
         return shlex.split(chosen)
     if os.environ.get("CC"):
         return shlex.split(os.environ["CC"])
-    for name in ("cc", "gcc", "clang"):
-        found = shutil.which(name)
-        if found:
-            return [found]
+    path = os.environ.get("PATH")
+    if path not in _FOUND:  # (a search of PATH stats a dozen files: once per PATH, not per run)
+        _FOUND[path] = next(filter(None, map(shutil.which, ("cc", "gcc", "clang"))), "")
+    if _FOUND[path]:
+        return [_FOUND[path]]
     raise Unavailable("no C compiler (cc, gcc or clang) on PATH; set CHAPLYGIN_CC")
+
+
+#: the compiler :func:`compiler` found on each ``PATH`` it searched ("": none)
+_FOUND: dict[str | None, str] = {}
 
 
 def kernel_dir() -> Path:
@@ -331,19 +341,21 @@ static int k_solve(int n, double *M, double *b)
     return 0;
 }
 
-static int k_eval(work_t *w, double t, const double *y, const double *p, double *f, int n)
+/* f <- [V, M^-1 F]; checked: 9 where V is not finite (a pole of the constraints), 2 where f is
+   not; unchecked, a value that is not finite is left in f (see the step of chaplygin_dop853) */
+static int k_eval(work_t *w, double t, const double *y, const double *p, double *f, int n, int checked)
 {
     k_fill(w, t, y, p);
-    for (int i = 0; i < w->nv; ++i) if (!isfinite(w->V[i])) return 9;  /* a pole of the constraints */
+    if (checked) for (int i = 0; i < w->nv; ++i) if (!isfinite(w->V[i])) return 9;
     if (k_solve(w->dim, w->M, w->b) != 0) return 5;
     for (int i = 0; i < w->nv; ++i) f[i] = w->V[i];
     for (int i = 0; i < n - w->nv; ++i) f[w->nv + i] = w->b[i];
-    for (int i = 0; i < n; ++i) if (!isfinite(f[i])) return 2;
+    if (checked) for (int i = 0; i < n; ++i) if (!isfinite(f[i])) return 2;
     return 0;
 }
 
 static int k_stages(work_t *w, int first, int last, double t, double h, const double *y, const double *p,
-                    double *K, double *y_stage, int n, int *s_out)
+                    double *K, double *y_stage, int n, int *s_out, int checked)
 {
     for (int s = first; s < last; ++s) {
         for (int i = 0; i < n; ++i) {
@@ -351,7 +363,7 @@ static int k_stages(work_t *w, int first, int last, double t, double h, const do
             for (int j = 0; j < s; ++j) acc += K[j * n + i] * DOP_A[s * 16 + j];
             y_stage[i] = y[i] + acc * h;
         }
-        int code = k_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * n, n);
+        int code = k_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * n, n, checked);
         if (code != 0) { *s_out = s; return code; }
     }
     *s_out = last - 1;
@@ -409,7 +421,7 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
         memcpy(out + filled * n, y0, sizeof(double) * n);
         filled += 1;
     }
-    code = k_eval(&w, t, y, p, K, n);
+    code = k_eval(&w, t, y, p, K, n, 1);
     n_rhs += 1;
     if (code != 0) { status = code; goto done; }
 
@@ -426,7 +438,7 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
         double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
         h0 = dmin(h0, interval);
         for (int i = 0; i < n; ++i) y_stage[i] = y[i] + h0 * direction * K[i];
-        code = k_eval(&w, t + h0 * direction, y_stage, p, f_new, n);
+        code = k_eval(&w, t + h0 * direction, y_stage, p, f_new, n, 1);
         n_rhs += 1;
         if (code != 0) { status = code; t_fail = t + h0 * direction; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
         for (int i = 0; i < n; ++i) e5[i] = (f_new[i] - K[i]) / scale[i];
@@ -450,28 +462,46 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
             if (direction * (t_new - t1) > 0.0) t_new = t1;
             h = t_new - t;
             h_abs = fabs(h);
-            code = k_stages(&w, 1, 12, t, h, y, p, K, y_stage, n, &s);
-            n_rhs += s;
-            if (code != 0) { status = code; t_fail = t + DOP_C[s] * h; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
-            for (int i = 0; i < n; ++i) {
-                double acc = 0.0;
-                for (int j = 0; j < 12; ++j) acc += K[j * n + i] * DOP_B[j];
-                y_new[i] = y[i] + h * acc;
+            /* the stages unchecked: a value that is not finite in any of K's 13 rows makes the
+               error norm not finite (0 * inf is NaN), and only then is the same step evaluated
+               again with the checks, which fail where the checked loop always failed (the
+               same values up to there) and count what it counted */
+            double error = 0.0;
+            int at_end = 0;
+            for (int checked = 0;; checked = 1) {
+                code = k_stages(&w, 1, 12, t, h, y, p, K, y_stage, n, &s, checked);
+                at_end = 0;
+                if (code == 0) {
+                    for (int i = 0; i < n; ++i) {
+                        double acc = 0.0;
+                        for (int j = 0; j < 12; ++j) acc += K[j * n + i] * DOP_B[j];
+                        y_new[i] = y[i] + h * acc;
+                    }
+                    code = k_eval(&w, t + h, y_new, p, K + 12 * n, n, checked);
+                    at_end = 1;
+                }
+                if (code == 0) {
+                    for (int i = 0; i < n; ++i) {
+                        scale[i] = atol[i] + dmax(fabs(y[i]), fabs(y_new[i])) * rtol;
+                        double a5 = 0.0, a3 = 0.0;
+                        for (int j = 0; j < 13; ++j) { a5 += K[j * n + i] * DOP_E5[j]; a3 += K[j * n + i] * DOP_E3[j]; }
+                        e5[i] = a5 / scale[i];
+                        e3[i] = a3 / scale[i];
+                    }
+                    double n5 = 0.0, n3 = 0.0;
+                    for (int i = 0; i < n; ++i) { n5 += e5[i] * e5[i]; n3 += e3[i] * e3[i]; }
+                    if (n5 == 0.0 && n3 == 0.0) error = 0.0;
+                    else error = h_abs * n5 / sqrt((n5 + 0.01 * n3) * n);
+                }
+                if (checked || (code == 0 && isfinite(error))) break;
             }
-            code = k_eval(&w, t + h, y_new, p, K + 12 * n, n);
-            n_rhs += 1;
-            if (code != 0) { status = code; t_fail = t + h; memcpy(y_fail, y_new, sizeof(double) * n); goto done; }
-            for (int i = 0; i < n; ++i) {
-                scale[i] = atol[i] + dmax(fabs(y[i]), fabs(y_new[i])) * rtol;
-                double a5 = 0.0, a3 = 0.0;
-                for (int j = 0; j < 13; ++j) { a5 += K[j * n + i] * DOP_E5[j]; a3 += K[j * n + i] * DOP_E3[j]; }
-                e5[i] = a5 / scale[i];
-                e3[i] = a3 / scale[i];
+            n_rhs += s + at_end;
+            if (code != 0) {
+                status = code;
+                t_fail = at_end ? t + h : t + DOP_C[s] * h;
+                memcpy(y_fail, at_end ? y_new : y_stage, sizeof(double) * n);
+                goto done;
             }
-            double n5 = 0.0, n3 = 0.0, error;
-            for (int i = 0; i < n; ++i) { n5 += e5[i] * e5[i]; n3 += e3[i] * e3[i]; }
-            if (n5 == 0.0 && n3 == 0.0) error = 0.0;
-            else error = h_abs * n5 / sqrt((n5 + 0.01 * n3) * n);
             if (error < 1.0) {
                 double factor = error == 0.0 ? 10.0 : dmin(10.0, 0.9 * pow(error, -1.0 / 8.0));
                 if (rejected) factor = dmin(1.0, factor);
@@ -485,7 +515,7 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
         if (status != 0) break;
         n_steps += 1;
         if (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
-            code = k_stages(&w, 13, 16, t, h, y, p, K, y_stage, n, &s);
+            code = k_stages(&w, 13, 16, t, h, y, p, K, y_stage, n, &s, 1);
             n_rhs += s - 12;
             if (code != 0) { status = code; t_fail = t + DOP_C[s] * h; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
             for (int i = 0; i < n; ++i) {
@@ -573,7 +603,7 @@ int chaplygin_rhs_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, doubl
 {
     work_t w;
     if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
-    int code = k_eval(&w, t, y, p, f, n);
+    int code = k_eval(&w, t, y, p, f, n, 1);
     free(w.M);
     return code;
 }

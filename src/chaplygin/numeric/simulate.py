@@ -35,6 +35,7 @@ import time
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -495,14 +496,17 @@ def initial_state(
     # below is a Newton step from it
     if system.is_nonlinear:
         qd[dep] = _nonlinear_velocities(system, q, qd, params, t0, at)
-    a = _evaluate(system, system._A.row_join(system._A0), q, qd, params, t0)
-    if not _solvable(a[:, :-1], dep) and system.is_nonlinear:
+    a = _numeric(system, "[A | A_0]", lambda: system._A.row_join(system._A0), q, qd, params, t0)
+    if np.isnan(a).any():  # not real, or 0/0: a denominator vanishes there
+        raise _not_finite(system, params, t0)
+    solvable = _solvable(a[:, :-1], dep)
+    if not solvable and system.is_nonlinear:
         speeds = ", ".join(f"{names[i]}' = {qd[i]:.6g}" for i in ind)
         raise InputError(
             f"initial: the start ({at}, {speeds}) lies on the singular set of the constraints, "
             f"{singular_set_text(system)}; start away from it."
         )
-    if not _solvable(a[:, :-1], dep):
+    if not solvable:
         raise InputError(
             f"initial: the constraints cannot be solved for the dependent velocities ({dep_names}) "
             f"at {at}: this configuration is a pole of the solved constraints (their block of A "
@@ -534,19 +538,23 @@ def _nonlinear_velocities(
 ) -> np.ndarray:
     """The dependent velocities from the solved form ``q̇_dep = φ(q, q̇_σ, t)`` of constraints
     nonlinear in the velocities; refused where φ is not real (outside the constraints' domain)."""
-    import sympy as sp
 
-    phi = sp.Matrix([system._velocity_substitution[system._vars.xd[i]] for i in system._dep])
-    try:  # (φ holds no dependent velocity: those still NaN in qd are left out)
-        return _evaluate(system, phi, q, qd, params, t0).ravel()
-    except InputError:  # a root of a negative number, or a pole: no real dependent velocity here
+    def phi() -> Any:
+        import sympy as sp
+
+        return sp.Matrix([system._velocity_substitution[system._vars.xd[i]] for i in system._dep])
+
+    # (φ holds no dependent velocity: those still NaN in qd do not enter)
+    values = _numeric(system, "φ", phi, q, qd, params, t0).ravel()
+    if np.isnan(values).any():  # a root of a negative number, or a pole: no real dependent velocity here
         names = ", ".join(system.coordinates[i].func.__name__ + "'" for i in system._dep)
         shown = ", ".join(f"{system.coordinates[i].func.__name__}' = {qd[i]:.6g}" for i in system._ind)
         raise InputError(
             f"initial: the constraints give no real {names} at {at}, {shown} (the solved form "
             f"{list(system.constraints.values())} is not real or not finite there); start where "
             "the constraints can hold."
-        ) from None
+        )
+    return values
 
 
 #: |f| below which a holonomic constraint holds at the start (the given value is then kept)
@@ -750,13 +758,10 @@ def _check_mass(
     """Refuse a start where the reduced mass matrix ``Cᵀ M C`` is not positive definite or is
     ill-conditioned (condition number above :data:`MAX_CONDITION`), naming the velocity along
     which the kinetic energy fails and the parameters of T that are not positive."""
-    from symengine import DenseMatrix
-
-    mass = system._M if system._native is None else DenseMatrix(system._native.H)
-    m = _numeric(system, mass, q, qd, params, t0)
+    m = _numeric(system, "mass", lambda: _mass_matrix(system), q, qd, params, t0)
     c: np.ndarray | None = np.eye(system.n)[:, list(system._ind)]
     if system.g:
-        a = _numeric(system, system._constraint_matrix(), q, qd, params, t0)
+        a = _numeric(system, "constraints", system._constraint_matrix, q, qd, params, t0)
         c = system._numeric_C(a)
     ind = [system.coordinates[i].func.__name__ + "'" for i in system._ind]
     if c is None or not np.all(np.isfinite(m)):
@@ -765,14 +770,8 @@ def _check_mass(
     w, v = np.linalg.eigh((reduced + reduced.T) / 2)
     biggest = float(np.max(np.abs(w), initial=0.0))
     along = ind[int(np.argmax(np.abs(v[:, 0])))] if len(w) else ""
-    symbols = {str(x) for x in system.kinetic_energy.free_symbols}
-    bad = [f"{k} = {val:g}" for k, val in params.items() if k in symbols and val <= 0]
-    hint = (
-        f" Check the parameters of T that are not positive: {', '.join(bad)}."
-        if bad
-        else (" Check the parameters and the kinetic energy.")
-    )
     if biggest == 0 or w[0] < -1e-12 * biggest:
+        hint = _mass_hint(system, params)
         raise InputError(
             f"the kinetic energy is not positive definite at the initial state: it is "
             f"{'zero' if biggest == 0 else 'negative'} along {along} (eigenvalue {w[0]:.3g} of the "
@@ -780,11 +779,30 @@ def _check_mass(
             f"admissible velocity.{hint}"
         )
     if w[0] <= biggest / MAX_CONDITION:
+        hint = _mass_hint(system, params)
         raise InputError(
             f"the reduced mass matrix (in {', '.join(ind)}) is singular or nearly so at the initial "
             f"state: its condition number {biggest / w[0] if w[0] > 0 else math.inf:.3g} exceeds "
             f"{MAX_CONDITION:g}, so the accelerations are not determined along {along}.{hint}"
         )
+
+
+def _mass_matrix(system: System) -> Any:
+    """The mass matrix ``∂²T/∂q̇²``: SymPy's, or SymEngine's where the system was derived natively."""
+    if system._native is None:
+        return system._M
+    from symengine import DenseMatrix
+
+    return DenseMatrix(system._native.H)
+
+
+def _mass_hint(system: System, params: Mapping[str, float]) -> str:
+    """The end of :func:`_check_mass`'s messages: the parameters of T that are not positive."""
+    symbols = {str(x) for x in system.kinetic_energy.free_symbols}
+    bad = [f"{k} = {val:g}" for k, val in params.items() if k in symbols and val <= 0]
+    if bad:
+        return f" Check the parameters of T that are not positive: {', '.join(bad)}."
+    return " Check the parameters and the kinetic energy."
 
 
 def _check_vakonomic_start(
@@ -804,15 +822,16 @@ def _check_vakonomic_start(
     import sympy as sp
 
     xd = list(system._vars.xd)
-    mass = _numeric(system, system._M, q, qd, params, t0)
-    a = _numeric(system, system._A, q, qd, params, t0)
+    mass = _numeric(system, "M", lambda: system._M, q, qd, params, t0)
+    a = _numeric(system, "A", lambda: system._A, q, qd, params, t0)
     c = system._numeric_C(a)
     if c is None:  # (the initial state refuses this already)
         return
-    hv = mass + sum(
-        (m * _numeric(system, sp.hessian(f, xd), q, qd, params, t0) for m, f in zip(mu, system._f)),
-        np.zeros_like(mass),
-    )
+    hessians = [
+        _numeric(system, f"hessian {b}", partial(sp.hessian, f, xd), q, qd, params, t0)
+        for b, f in enumerate(system._f)
+    ]
+    hv = mass + sum((m * h for m, h in zip(mu, hessians)), np.zeros_like(mass))
     reduced, plain = c.T @ hv @ c, c.T @ mass @ c
     w = np.linalg.eigvalsh((reduced + reduced.T) / 2)
     scale = float(np.max(np.abs(np.linalg.eigvalsh((plain + plain.T) / 2)), initial=0.0))
@@ -837,32 +856,63 @@ def _check_vakonomic_start(
 
 
 def _numeric(
-    system: System, matrix: Any, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
+    system: System,
+    name: str,
+    make: Callable[[], Any],
+    q: np.ndarray,
+    qd: np.ndarray,
+    params: Mapping[str, float],
+    t0: float,
 ) -> np.ndarray:
-    """A SymPy or SymEngine matrix of internal symbols at ``(t0, q, q̇)`` and the parameters."""
+    """The SymPy or SymEngine matrix ``make()`` (internal symbols) at ``(t0, q, q̇)`` and the
+    parameters; values that are not real are NaN.
+
+    Its function of ``(t, q, q̇, parameters)`` (SymEngine's ``Lambdify``) is made once per system
+    and ``name`` (:func:`_functions`), so a call costs microseconds, not a SymPy substitution.
+    """
+    fast, matrix = _functions(system, "at " + name, lambda: _start_function(system, make()))
+    if fast is not None:
+        numbers = [t0, *q, *qd, *(params[s.name] for s in system.parameters)]
+        with np.errstate(all="ignore"):
+            out = np.asarray(fast(numbers), dtype=complex).reshape(matrix.rows, matrix.cols)
+        # (complex arithmetic leaves round-off in the imaginary parts of real values)
+        return np.where(np.abs(out.imag) <= 1e-12 * np.maximum(1.0, np.abs(out.real)), out.real, np.nan)
+    import sympy as sp
+
+    from chaplygin.core._fast import to_sympy
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
+    args = sorted({to_sympy(x) for x in matrix.free_symbols}, key=str)
+    # SymEngine's symbols come back without assumptions: a parameter is known by its name
+    numbers = [values[x] if x in values else params[x.name] for x in args]
+    plain = sp.Matrix(matrix.tolist()).xreplace({x: sp.Float(val) for x, val in zip(args, numbers)})
+    try:
+        return np.array(plain.evalf().tolist(), dtype=float)
+    except TypeError:  # zoo or nan: a singular point
+        return np.full((matrix.rows, matrix.cols), np.nan)
+
+
+def _start_function(system: System, matrix: Any) -> tuple[Any, Any]:
+    """``(function, matrix)`` for :func:`_numeric`: SymEngine's ``Lambdify`` of ``matrix`` over
+    ``(t, q_1 … q_n, q̇_1 … q̇_n, parameters)`` (complex values), or None where SymEngine cannot
+    represent it (then SymPy substitutes at each call).
+
+    The coordinates and velocities (SymPy ``Dummy`` symbols, numbered anew for each system) are
+    renamed by position first: SymEngine orders the terms of a sum by their hashes, which for a
+    ``Dummy`` depend on its number, so two equal systems would add the same terms in different
+    orders and differ in the last digits.
+    """
     import sympy as sp
 
     from chaplygin.core._fast import evaluator, to_sympy
     from chaplygin.core._symbols import TIME
 
     v = system._vars
-    values = {TIME: t0, **dict(zip(v.x, q)), **dict(zip(v.xd, qd))}
-    by_name = dict(params)
-    # SymEngine's symbols come back without assumptions: a parameter is known by its name
-    args = sorted({to_sympy(x) for x in matrix.free_symbols}, key=str)
-    numbers = [values[x] if x in values else by_name[x.name] for x in args]
-    fast = evaluator(args, list(matrix))
-    shape = (matrix.rows, matrix.cols)
-    if fast is not None:
-        with np.errstate(all="ignore"):
-            out = np.asarray(fast(numbers), dtype=complex).reshape(shape)
-        # (complex arithmetic leaves round-off in the imaginary parts of real values)
-        return np.where(np.abs(out.imag) <= 1e-12 * np.maximum(1.0, np.abs(out.real)), out.real, np.nan)
-    plain = sp.Matrix(matrix.tolist()).xreplace({x: sp.Float(val) for x, val in zip(args, numbers)})
-    try:
-        return np.array(plain.evalf().tolist(), dtype=float)
-    except TypeError:  # zoo or nan: a singular point
-        return np.full(shape, np.nan)
+    plain = {x: sp.Symbol(f"_chaplygin_state_{k}") for k, x in enumerate([*v.x, *v.xd])}
+    exprs = [to_sympy(e).xreplace(plain) for e in matrix]
+    return evaluator([TIME, *plain.values(), *system.parameters], exprs), matrix
 
 
 def _vakonomic_setup(
@@ -1372,11 +1422,11 @@ def _pole_between_samples(
     if wanted <= samples:
         return None
     per = -(-(wanted - 1) // (samples - 1))  # the samples stay among the points checked
-    dense = integrate(
-        compiled, t_span, y0, p, dict(params), samples=(samples - 1) * per + 1, g=system.g, **options
-    )
-    k, why = _pole(system, dense, params, len(dense.t))
-    return (float(dense.t[k]), why) if k < len(dense.t) else None
+    # (only the state is needed there: the points are not observed)
+    _, t, y, *_ = _samples(compiled, t_span, y0, p, samples=(samples - 1) * per + 1, **options)
+    n = system.n
+    k, why = _pole_at(system, t, y[:, :n], y[:, n : n + len(system._ind)], params)
+    return (float(t[k]), why) if k < len(t) else None
 
 
 def _watch(
@@ -1398,7 +1448,7 @@ def _watch(
     its determinant between two (a pole of ``q̇_dep = B q̇_σ + B_0`` crossed); where the
     generated ``M`` is the reduced mass matrix, it stays positive definite.
     """
-    watched = monitor(system)  # (how the energy column reads)
+    watched = _functions(system, "monitor", lambda: monitor(system))  # (how the energy column reads)
     tr.energy_conserved, tr.energy_column = watched.conserved, watched.column
     tr.holonomic_residual = holonomic_residual(
         system, tr.t, [tr.coordinates[c.func.__name__] for c in system.coordinates], params
@@ -1521,25 +1571,33 @@ def _pole(system: System, tr: Trajectory, params: Mapping[str, float], stop: int
     names = [q.func.__name__ for q in system.coordinates]
     q = np.column_stack([tr.coordinates[c][:stop] for c in names])
     speeds = np.column_stack([tr.velocities[names[i] + "'"][:stop] for i in system._ind])
-    singular, sign = pole_marks(system, tr.t[:stop], q, params, speeds)
+    return _pole_at(system, tr.t[:stop], q, speeds, params)
+
+
+def _pole_at(
+    system: System, t: np.ndarray, q: np.ndarray, speeds: np.ndarray, params: Mapping[str, float]
+) -> tuple[int, str]:
+    """:func:`_pole` at the points ``t`` (``q``: K × n coordinates, ``speeds``: K × ε independent
+    velocities); ``(len(t), "")`` if none."""
+    names = [c.func.__name__ for c in system.coordinates]
+    singular, sign = pole_marks(system, t, q, params, speeds)
     k = first_pole(singular, sign)
-    if k == stop:
-        return stop, ""
+    if k == len(t):
+        return k, ""
     dep_names = ", ".join(names[i] + "'" for i in system._dep)
     if system.is_nonlinear:
         return k, (
             f"the singular set of the constraints {'at' if singular[k] else 'between'} t = "
-            + (f"{tr.t[k]:.6g}" if singular[k] else f"{tr.t[k - 1]:.6g} and {tr.t[k]:.6g}")
+            + (f"{t[k]:.6g}" if singular[k] else f"{t[k - 1]:.6g} and {t[k]:.6g}")
             + f", {singular_set_text(system)}"
         )
     if singular[k]:
         return k, (
-            f"a pole of the solved constraints at t = {tr.t[k]:.6g}: they cannot be "
-            f"solved for {dep_names} there"
+            f"a pole of the solved constraints at t = {t[k]:.6g}: they cannot be solved for {dep_names} there"
         )
     return k, (
-        f"a pole of the solved constraints between t = {tr.t[k - 1]:.6g} and "
-        f"{tr.t[k]:.6g}: they cannot be solved for {dep_names} in between"
+        f"a pole of the solved constraints between t = {t[k - 1]:.6g} and "
+        f"{t[k]:.6g}: they cannot be solved for {dep_names} in between"
     )
 
 
@@ -1588,24 +1646,24 @@ def pole_marks(
         *(np.asarray(speeds, dtype=float).T if system.is_nonlinear else ()),
         *(np.broadcast_to(np.asarray(params[par.name], dtype=float), (count,)) for par in system.parameters),
     ]
-    with np.errstate(all="ignore"):
-        values = [np.asarray(x) for x in evaluate(*columns)]
-    values = [
-        np.broadcast_to(
-            np.where(x.imag == 0, x.real, np.nan) if np.iscomplexobj(x) else x.astype(float), (count,)
-        )
-        for x in values
-    ]
     g, n, dep = system.g, system.n, list(system._dep)
-    a = np.stack(values[: g * n], axis=1).reshape(count, g, n)
-    factors = np.stack(values[g * n :], axis=1) if n_factors else np.ones((count, 1))
-    finite = np.all(np.isfinite(a), axis=(1, 2)) & np.all(np.isfinite(factors), axis=1)
-    a = np.where(np.isfinite(a), a, 0.0)
-    scale = np.max(np.abs(a), axis=2, keepdims=True)
-    usable = finite & np.all(scale[:, :, 0] > 0, axis=1)
-    block = a[:, :, dep] / np.where(scale > 0, scale, 1.0)
+    # one column per value (a constant entry fills its column): A's entries, then the factors
+    values = np.empty((g * n + max(n_factors, 1), count))
+    values[g * n :] = 1.0
     with np.errstate(all="ignore"):
-        sign = np.sign(_dets(a[:, :, dep]) * np.prod(factors, axis=1))
+        for row, x in zip(values, evaluate(*columns)):
+            row[:] = np.where(np.imag(x) == 0, np.real(x), np.nan) if np.iscomplexobj(x) else x
+    a = values[: g * n].T.reshape(count, g, n)
+    factors = values[g * n :].T
+    finite = np.isfinite(values).all(axis=0)
+    if not finite.all():
+        a = np.where(np.isfinite(a), a, 0.0)
+    scale = np.abs(a).max(axis=2, keepdims=True)
+    usable = finite & (scale[:, :, 0] > 0).all(axis=1)
+    a_dep = a[:, :, dep]
+    block = a_dep / np.where(scale > 0, scale, 1.0)
+    with np.errstate(all="ignore"):
+        sign = np.sign(_dets(a_dep) * np.prod(factors, axis=1))
         # the smallest singular value of the scaled block (entries ≤ 1, so its largest is ≤ g)
         # is at least |det| / g^(g−1): the SVD only where that bound does not settle it
         unsure = ~(np.abs(_dets(block)) > 1e-10 * g ** (g - 1))
@@ -1791,44 +1849,29 @@ def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, s
     return stop, ""
 
 
-def _evaluate(
-    system: System,
-    expr: Any,
-    q: np.ndarray,
-    qd: np.ndarray,
-    params: Mapping[str, float],
-    t0: float,
-) -> Any:
-    """``expr`` (internal symbols; a matrix gives an array) at time ``t0``, state ``(q, q̇)``
-    and the parameter values (velocities that are NaN are left out)."""
-    import sympy as sp
-
-    from chaplygin.core._symbols import TIME
-
-    v = system._vars
-    values = {TIME: t0, **dict(zip(v.x, q)), **{x: val for x, val in zip(v.xd, qd) if not np.isnan(val)}}
-    values.update({system.parameter(k): val for k, val in params.items()})
-    out = expr.xreplace({k: sp.Float(x) for k, x in values.items()}).evalf()
-    try:
-        if isinstance(out, sp.MatrixBase):
-            return np.array(out.tolist(), dtype=float)
-        return float(out)
-    except TypeError:  # zoo or a complex number: a denominator vanishes, or a root of a negative
-        given = ", ".join(f"{k} = {val:g}" for k, val in params.items())
-        raise InputError(
-            f"{system.name}: the equations are not finite at the initial state (t = {t0:g}; {given}): "
-            "a denominator vanishes there (a parameter of 0?); change the parameters or the initial values."
-        ) from None
+def _not_finite(system: System, params: Mapping[str, float], t0: float) -> InputError:
+    """The error of a start where the equations have no finite real value."""
+    given = ", ".join(f"{k} = {val:g}" for k, val in params.items())
+    return InputError(
+        f"{system.name}: the equations are not finite at the initial state (t = {t0:g}; {given}): "
+        "a denominator vanishes there (a parameter of 0?); change the parameters or the initial values."
+    )
 
 
 def _matching_constants(
     system: System, q: np.ndarray, qd: np.ndarray, params: Mapping[str, float], t0: float
 ) -> list[float]:
     """The c with μ(0) = 0 — vakonomic momenta equal to the true ones: ``c_β = ∂T/∂q̇_{ε+β}`` at t0."""
-    import sympy as sp
 
-    v = system._vars
-    return [_evaluate(system, sp.diff(system._T, v.xd[i]), q, qd, params, t0) for i in system._dep]
+    def momenta() -> Any:
+        import sympy as sp
+
+        return sp.Matrix([sp.diff(system._T, system._vars.xd[i]) for i in system._dep])
+
+    values = _numeric(system, "∂T/∂q̇_dep", momenta, q, qd, params, t0).ravel()
+    if np.isnan(values).any():
+        raise _not_finite(system, params, t0)
+    return [float(x) for x in values]
 
 
 def _initial_multipliers(
@@ -1866,7 +1909,7 @@ def _momenta(
     at a state: the vakonomic momenta of the dependent coordinates are
     ``∂L_v/∂q̇_dep = ∂T/∂q̇_dep + A_depᵀ μ``."""
     p = np.array(_matching_constants(system, q, qd, params, t0), dtype=float)
-    a = _numeric(system, system._constraint_matrix(), q, qd, params, t0)
+    a = _numeric(system, "constraints", system._constraint_matrix, q, qd, params, t0)
     return p, a[:, list(system._dep)]
 
 
@@ -1955,6 +1998,38 @@ def integrate(
     So a failed run keeps every sample before the failure, whatever steps the
     integrator chose (a first step that jumps past all the samples included).
     """
+    compiled, ts, ys, status, message, n_rhs = _samples(
+        compiled,
+        t_span,
+        y0,
+        p,
+        rtol=rtol,
+        atol=atol,
+        method=method,
+        samples=samples,
+        max_step=max_step,
+        progress=progress,
+        time_limit=time_limit,
+    )
+    return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
+
+
+def _samples(
+    compiled: CompiledModel,
+    t_span: tuple[float, float],
+    y0: np.ndarray,
+    p: np.ndarray,
+    *,
+    rtol: float,
+    atol: float,
+    method: str,
+    samples: int,
+    max_step: float,
+    progress: Progress | None = None,
+    time_limit: float | None = None,
+) -> tuple[CompiledModel, np.ndarray, np.ndarray, str, str, int]:
+    """:func:`integrate` before anything is observed: ``(model, t, y, status, message, n_rhs)``,
+    the model being the one that integrated (the shared loop's, for numba)."""
     times = np.linspace(t_span[0], t_span[1], samples)
     if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
         from chaplygin.numeric.jaxbackend import solve
@@ -1962,7 +2037,7 @@ def integrate(
         res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
         if progress is not None and len(res.t):
             progress(float(res.t[-1]))
-        return _trajectory(compiled, res.t, res.y, p, params, res.status, res.message, res.n_rhs, g)
+        return compiled, res.t, res.y, res.status, res.message, res.n_rhs
     told = _budget(progress, t_span[1], time_limit)  # (the last call below: not checked)
     if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
         if compiled.backend == "numba":
@@ -1979,8 +2054,7 @@ def integrate(
     if progress is not None:
         progress(float(ts[-1]) if len(ts) else t_span[0])
     status = "failed" if message else "success"
-    message = message or f"reached t = {t_span[1]:g}"
-    return _trajectory(compiled, ts, ys, p, params, status, message, n_rhs, g)
+    return compiled, ts, ys, status, message or f"reached t = {t_span[1]:g}", n_rhs
 
 
 def _pinned(
