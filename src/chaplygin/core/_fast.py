@@ -4,10 +4,8 @@ Everything the user sees stays SymPy; only derivatives and the common
 subexpressions of generated code are computed in SymEngine (about 30× faster
 than SymPy, whose assumption queries dominate). Each call
 converts its input once and its results once.  Symbols with assumptions (a
-``positive=True`` mass, say) enter SymEngine as :class:`_Kept` symbols, which convert back
-to the SymPy symbol they came from, so results come back as they are built (substituting
-them by name afterwards rebuilt every SymPy node above them, most of a derivation's time).
-Anything SymEngine cannot represent falls back to SymPy.
+``positive=True`` mass, say) come back from SymEngine without them, so they
+are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
 """
 
 from __future__ import annotations
@@ -50,78 +48,21 @@ def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
     return out
 
 
-if HAVE_SYMENGINE:
-
-    class _Kept(_se_symbol):
-        """A SymEngine symbol (equal to the plain symbol of its name) that converts back to
-        ``original``, the SymPy symbol with assumptions it stands for."""
-
-        def __init__(self, original: sp.Symbol) -> None:
-            self.original = original  # before SymEngine's init, which stores __reduce__'s value
-            super().__init__(original.name, store_pickle=True)
-
-        def __reduce__(self) -> tuple[Any, ...]:
-            return (_Kept, (self.original,))
-
-        def _sympy_(self) -> sp.Symbol:
-            return self.original
-
-
-_KEPT: dict[sp.Symbol, Any] = {}
-
-
-def _kept(symbols: dict[sp.Symbol, sp.Symbol]) -> dict[Any, Any]:
-    """``{plain SymEngine symbol: its _Kept}`` for the assumed symbols of :func:`_restore_map`."""
-    out = {}
-    for plain, original in symbols.items():
-        if original not in _KEPT:
-            _KEPT[original] = _Kept(original)
-        out[_se_symbol(plain.name)] = _KEPT[original]
-    return out
-
-
 _UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of their derivatives
 
 
-#: SymPy expression -> its SymEngine conversion (None: SymEngine cannot take it). A derivation
-#: converts the same pieces many times (each entry of B once per independent coordinate in
-#: Voronets' D_σ, T̃ once per σ); the bound keeps a long session's memory in check
-_CONVERTED: dict[sp.Basic, Any] = {}
-_CONVERTED_MAX = 4096
-
-
-def _convert_one(e: sp.Basic) -> Any:
-    if e.has(*_UNSAFE):
+def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
+    if not HAVE_SYMENGINE or any(e.has(*_UNSAFE) for e in exprs):
         return None
     try:
-        out = _to_symengine(e)
+        return [_to_symengine(e) for e in exprs]
     except (RuntimeError, NotImplementedError, TypeError, AttributeError):
         return None
-    kept = _kept(_restore_map([e]))
-    return out.xreplace(kept) if kept else out
 
 
-def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
-    """``exprs`` in SymEngine, each converted once per session (:data:`_CONVERTED`); None
-    where SymEngine cannot represent one of them."""
-    if not HAVE_SYMENGINE:
-        return None
-    out = []
-    for e in exprs:
-        found = _CONVERTED.get(e, _CONVERTED)
-        if found is _CONVERTED:
-            if len(_CONVERTED) >= _CONVERTED_MAX:
-                _CONVERTED.clear()
-            found = _CONVERTED[e] = _convert_one(e)
-        if found is None:
-            return None
-        out.append(found)
-    return out
-
-
-def _back(values: Sequence[Any]) -> list[sp.Expr]:
-    """SymEngine's ``values`` as SymPy expressions (assumed symbols are :class:`_Kept`: as given)."""
-    return [v._sympy_() for v in values]
+def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp.Expr]:
+    out = [v._sympy_() for v in values]
+    return [e.xreplace(restore) for e in out] if restore else out
 
 
 def _real(exprs: Sequence[sp.Expr]) -> tuple[dict[sp.Symbol, sp.Symbol], dict[sp.Symbol, sp.Symbol]]:
@@ -148,7 +89,7 @@ def jacobian(exprs: Sequence[sp.Expr], variables: Sequence[sp.Symbol]) -> sp.Mat
     if fast is None:
         return _sympy_jacobian(exprs, variables)
     fe, fv = fast[: len(exprs)], fast[len(exprs) :]
-    flat = _back([e.diff(x) for e in fe for x in fv])
+    flat = _back([e.diff(x) for e in fe for x in fv], _restore_map(exprs))
     return sp.Matrix(len(exprs), len(variables), flat)
 
 
@@ -177,7 +118,8 @@ def total_derivative(expr: sp.Expr, pairs: Sequence[tuple[sp.Symbol, sp.Expr]], 
     result = f.diff(ft)
     for x, xd in zip(fx, fxd):
         result += f.diff(x) * xd
-    return _back([result])[0]
+    restore = _restore_map([expr, *(xd for _, xd in pairs)])
+    return _back([result], restore)[0]
 
 
 def to_sympy(value: Any) -> sp.Basic:

@@ -23,6 +23,7 @@ from sympy.core.function import AppliedUndef
 
 from chaplygin.core._fast import (
     _back,
+    _restore_map,
     evaluator,
     gradient,
     jacobian,
@@ -415,6 +416,7 @@ class System:
             self._A0 = sp.Matrix(g, 1, consts)
         else:
             self._native_A = (rows, consts)
+            self._restore = _restore_map(exprs)
         if g:
             self._check_dependent_block()  # B and B_0 are solved for when first needed
         else:
@@ -515,7 +517,7 @@ class System:
 
     def _split_native_A(self) -> None:
         rows, consts = self._native_A
-        flat = [sp.factor_terms(e) for e in _back([*(c for r in rows for c in r), *consts])]
+        flat = [sp.factor_terms(e) for e in _back([*(c for r in rows for c in r), *consts], self._restore)]
         self.__dict__["_A"] = sp.Matrix(self.g, self.n, flat[: self.g * self.n])
         self.__dict__["_A0"] = sp.Matrix(self.g, 1, flat[self.g * self.n :])
 
@@ -713,7 +715,8 @@ class System:
         if pending is None:
             return [self._A, self._A0]
         rows, consts = pending
-        return list({to_sympy(x) for e in [*(c for r in rows for c in r), *consts] for x in e.free_symbols})
+        found = {to_sympy(x) for e in [*(c for r in rows for c in r), *consts] for x in e.free_symbols}
+        return [self._restore.get(x, x) for x in found]
 
     @cached_property
     def _native(self) -> Native | None:
