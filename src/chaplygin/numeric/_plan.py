@@ -22,8 +22,13 @@ monitored: the full path), overrides naming known parameters, coordinates or
 velocities.  A reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose
 state is the coordinates and the independent velocities, taken as given) answers
 other velocities, and checks a given dependent velocity against the constraints
-(the kernel's velocities).  A multiplier model (``chetaev``, constraints linear
-in the velocities) keeps the start of the run that made it, the dependent
+(the kernel's velocities); its run is judged along the way by the full path's own
+watch (:func:`chaplygin.numeric.simulate._watch`: poles of the solved constraints at
+and between the samples, the reduced mass matrix's definiteness, velocities gone
+non-finite), run on :class:`Watched`, what the watch reads of the system, kept in the
+plan with the generated NumPy module of the pole functions.  Constraints nonlinear
+in the velocities make no plan (their start and watch need SymPy).  A multiplier
+model (``chetaev``, constraints linear in the velocities) keeps the start of the run that made it, the dependent
 velocities solved from the constraints, and answers that start only.  Anything
 else, a disagreement included, returns ``None`` and the full path runs (and
 reports the error).
@@ -58,7 +63,7 @@ PLANNED = ("c", "numpy", "numba")
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's (or the file summary's) shape changes
-FORMAT = 6
+FORMAT = 7
 #: what a plan keeps of the file it was made from (:func:`summary_key`): every field of a
 #: :class:`~chaplygin.io.files.SystemFile` but the SymPy ones
 SUMMARY = ("parameters", "initial", "name", "defaulted", "body")
@@ -119,8 +124,8 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         return
     system = loaded.system
     reduced = tr.model in REDUCED
-    if not reduced and (tr.model not in MULTIPLIER or system.is_nonlinear):
-        return  # (nonlinear constraints: a multiplier run is watched for their singular set)
+    if system.is_nonlinear or (not reduced and tr.model not in MULTIPLIER):
+        return  # (nonlinear constraints: the start and the watch need SymPy)
     if getattr(system, "holonomic", None):  # its start is solved and its residual monitored
         return
     defaults = {k: float(v) for k, v in (loaded.initial or {}).items()}
@@ -143,7 +148,11 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         code |= {"n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react}
     else:
         code = {"module": Path(kernel.__file__).read_text(encoding="utf-8")}
+    watch = _watch_of(system) if reduced else None
+    if reduced and watch is None:
+        return  # pole functions not printable as a module: the watch needs SymPy
     value = {
+        "watch": watch,
         "layout": {
             f: list(getattr(layout, f))
             for f in ("coordinates", "velocities", "multipliers", "parameters", "reactions")
@@ -165,6 +174,65 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
             cache.store(summary_key(definition, Path(loaded.source).stem), summary)
         except (TypeError, ValueError):  # a [body] value that JSON does not hold: no summary
             pass
+
+
+def _watch_of(system: Any) -> dict[str, Any] | None:
+    """What :class:`Watched` needs of ``system`` (JSON), or None where the pole functions are
+    not a module (lambdified: the watch needs SymPy)."""
+    from chaplygin.numeric import _modelcache
+    from chaplygin.numeric.simulate import POLE_FORMAT, _pole_source, monitor
+
+    if system.g:
+        found = _modelcache.load_source(_modelcache.source_key(system, "pole-functions", POLE_FORMAT))
+        made = (
+            (found["source"], found["factors"], found["free"]) if found is not None else _pole_source(system)
+        )
+        if made is None:
+            return None
+    else:
+        made = ("def poles():\n    return []\n", 0, True)
+    watched = monitor(system)
+    return {
+        "poles": made[0],
+        "factors": int(made[1]),
+        "free": bool(made[2]),
+        "coordinates": [c.func.__name__ for c in system.coordinates],
+        "parameters": [par.name for par in system.parameters],
+        "dep": list(system._dep),
+        "ind": list(system._ind),
+        "conserves_energy": bool(watched.conserved),
+        "quadratic": watched.column == "energy",
+    }
+
+
+class _Name:
+    """A coordinate or parameter as the watch reads it: ``.name``, ``.func.__name__``."""
+
+    def __init__(self, name: str) -> None:
+        self.name = self.__name__ = name
+        self.func = self
+
+
+class Watched:
+    """What the full path's watch of a run (:func:`chaplygin.numeric.simulate._watch`,
+    :func:`~chaplygin.numeric.simulate._pole_between_samples`) reads of a
+    :class:`~chaplygin.System` without nonlinear or holonomic constraints, from a plan's
+    ``watch`` (:func:`_watch_of`): its sizes, coordinates, parameters, which velocities are
+    dependent, how its energy column reads, and the pole functions' generated module."""
+
+    is_nonlinear = False
+    _holonomic = ()
+
+    def __init__(self, watch: Mapping[str, Any]) -> None:
+        self.coordinates = tuple(_Name(str(c)) for c in watch["coordinates"])
+        self.parameters = tuple(_Name(str(p)) for p in watch["parameters"])
+        self._dep = tuple(int(i) for i in watch["dep"])
+        self._ind = tuple(int(i) for i in watch["ind"])
+        self.n, self.g = len(self.coordinates), len(self._dep)
+        self.conserves_energy = bool(watch["conserves_energy"])
+        self.__dict__["_quadratic_T"] = bool(watch["quadratic"])
+        poles = cache.import_source(str(watch["poles"]), "poles").poles
+        self.__dict__["_pole_functions"] = (poles, int(watch["factors"]), bool(watch["free"]))
 
 
 def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
@@ -235,7 +303,7 @@ def run(
         return None
     try:
         return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress, time_limit, warn)
-    except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
+    except (AttributeError, KeyError, TypeError, ValueError):  # a plan of another shape: the full path
         return None
 
 
@@ -253,7 +321,7 @@ def _run(
     warn: bool = True,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import Layout
-    from chaplygin.numeric.simulate import integrate
+    from chaplygin.numeric.simulate import _pole_between_samples, _watch, integrate
 
     lay = found["layout"]
     layout = Layout(
@@ -292,23 +360,34 @@ def _run(
             given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))
         ):
             return None  # a dependent velocity that violates the constraints: the full path's error
+    # a reduced model's run is watched as the full path watches it (System's stand-in)
+    system: Any = Watched(found["watch"]) if start is None else None
+    if system is not None and (system.n, system.g) != (len(layout.coordinates), int(found["g"])):
+        return None
     if warn:  # as the command line's full path does (chaplygin.apps.cli._numbers)
         warn_defaulted(found["defaulted"], initial)
+    options: dict[str, Any] = {"rtol": rtol, "atol": atol, "method": "DOP853", "max_step": np.inf}
+    span = (0.0, float(t_end))
     tr = integrate(
         compiled,
-        (0.0, float(t_end)),
+        span,
         y0,
         p,
         dict(values),
-        rtol=rtol,
-        atol=atol,
-        method="DOP853",
         samples=samples,
-        max_step=np.inf,
         g=int(found["g"]),
         progress=progress,
         time_limit=time_limit,
+        **options,
     )
+    if system is not None:  # a reduced model: judged as the full path judges it
+        pole = None
+        if system.g and not system.__dict__["_pole_functions"][2]:
+            pole = _pole_between_samples(system, compiled, tr, span, samples, y0, p, dict(values), **options)
+        notes = tr.notes
+        tr = _watch(system, tr, dict(values), reduced=True, compiled=compiled, p=p, pole=pole)
+        tr.notes = notes
+        return tr
     if start is not None and not (tr.success and all(np.all(np.isfinite(v)) for v in tr.velocities.values())):
         return (
             None  # the full path says why a multiplier run failed, and cuts it where a velocity is not finite
