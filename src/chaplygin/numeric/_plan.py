@@ -14,24 +14,28 @@ and initial state.  The next run of the same system, model and backend loads
 the compiled code (or builds it from the stored source) and integrates
 without importing SymPy (nor SciPy or numba, with the ``c`` backend).
 
-A plan answers only what it can answer exactly as the full path would, and is
-made only by a run from the file's own parameters and coordinates (the run that
-passed the checks of the start there): DOP853, no constants, no holonomic
-constraints (their coordinates are solved at the start and their residual
-monitored: the full path), overrides naming known parameters, coordinates or
-velocities.  A reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose
-state is the coordinates and the independent velocities, taken as given) answers
-other velocities, and checks a given dependent velocity against the constraints
-(the kernel's velocities); its run is judged along the way by the full path's own
-watch (:func:`chaplygin.numeric.simulate._watch`: poles of the solved constraints at
+A plan answers only what it can answer exactly as the full path would: DOP853,
+no constants, no holonomic constraints (their coordinates are solved at the start
+and their residual monitored: the full path), no constraints nonlinear in the
+velocities (their start and watch need SymPy), overrides naming known
+parameters, coordinates or velocities.  A multiplier model (``chetaev``,
+constraints linear in the velocities) is planned only by a run from the file's
+own parameters and coordinates, keeps that start (the dependent velocities
+solved from the constraints) and answers it only.  A reduced model
+(``chaplygin``, ``voronets``, ``lindelof``, whose state is the coordinates and
+the independent velocities, taken as given) is planned by any run that
+succeeded, and answers other velocities (a given dependent one checked against
+the constraints: the kernel's velocities) and, where the full path's start
+checks (the constraints solvable for the dependent velocities, a positive
+definite, well-conditioned reduced mass matrix) pass by a wide margin
+(:func:`_clearly_admissible`), other coordinates and parameters; its run is
+judged along the way by the full path's own watch
+(:func:`chaplygin.numeric.simulate._watch`: poles of the solved constraints at
 and between the samples, the reduced mass matrix's definiteness, velocities gone
-non-finite), run on :class:`Watched`, what the watch reads of the system, kept in the
-plan with the generated NumPy module of the pole functions.  Constraints nonlinear
-in the velocities make no plan (their start and watch need SymPy).  A multiplier
-model (``chetaev``, constraints linear in the velocities) keeps the start of the run that made it, the dependent
-velocities solved from the constraints, and answers that start only.  Anything
-else, a disagreement included, returns ``None`` and the full path runs (and
-reports the error).
+non-finite), run on :class:`Watched`, what the watch reads of the system, kept
+in the plan with generated NumPy modules of the pole functions and the mass
+matrix.  Anything else, a disagreement included, returns ``None`` and the full
+path runs (and reports the error).
 """
 
 from __future__ import annotations
@@ -117,8 +121,8 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     """Store the plan of a finished run (a no-op for anything a plan cannot answer).
 
     ``asked`` is the model as the command line asked for it (:data:`TRUE_MOTION` for none);
-    only a run that succeeded from the file's own parameters and coordinates makes a plan, so
-    the checks of its start passed there.
+    only a run that succeeded makes a plan, and of a multiplier model only one from the file's
+    own parameters and coordinates, so the checks of its start passed there.
     """
     if definition is None or tr.backend not in PLANNED or not tr.success or not len(tr.t):
         return
@@ -132,8 +136,9 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     started = {c: float(tr.coordinates[c][0]) for c in tr.coordinates}
     if not reduced:  # the start kept: every velocity, the dependent ones solved from the constraints
         started |= {v: float(tr.velocities[v][0]) for v in tr.velocities}
-    if tr.parameters != loaded.parameters or any(
-        started[k] != v for k, v in defaults.items() if k in started
+    if not reduced and (
+        tr.parameters != loaded.parameters
+        or any(started[k] != v for k, v in defaults.items() if k in started)
     ):
         return  # a run from other numbers: its checks say nothing of the file's
     from pathlib import Path
@@ -166,6 +171,11 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         "initial": defaults,
         "defaulted": list(getattr(loaded, "defaulted", ())),
         "start": None if reduced else [started[c] for c in layout.coordinates + layout.velocities],
+        # the parameters and coordinates whose start the full path checked
+        "checked": {
+            "parameters": {k: float(v) for k, v in tr.parameters.items()},
+            "coordinates": {c: started[c] for c in layout.coordinates},
+        },
     }
     cache.store(key(definition, asked, form, tr.backend), value)
     if getattr(loaded, "definition", None) == definition:  # a file read by chaplygin.load
@@ -202,7 +212,41 @@ def _watch_of(system: Any) -> dict[str, Any] | None:
         "ind": list(system._ind),
         "conserves_energy": bool(watched.conserved),
         "quadratic": watched.column == "energy",
+        "mass": _mass_source(system),
     }
+
+
+def _mass_source(system: Any) -> str | None:
+    """A module whose ``mass(t, q…, parameters…)`` is the mass matrix ``∂²T/∂q̇²`` (rows), or None
+    where it depends on the velocities or is not printable as NumPy code."""
+    import sympy as sp
+    from sympy.printing.numpy import NumPyPrinter
+
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    args = [TIME, *v.x, *system.parameters]
+    names = sp.symbols(f"a0:{len(args)}")
+    rename = dict(zip(args, names))
+    entries = [sp.sympify(e).xreplace(rename) for e in system._M]
+    if any(not e.free_symbols <= set(names) for e in entries):
+        return None
+    printer = NumPyPrinter(
+        {"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False}
+    )
+    try:
+        body = [printer.doprint(e) for e in entries]
+    except NotImplementedError:
+        return None
+    if any("\n" in line for line in body):
+        return None
+    n = system.n
+    rows = ["[" + ", ".join(body[i * n : (i + 1) * n]) + "]" for i in range(n)]
+    return (
+        '"""Generated by chaplygin (a run plan\'s mass matrix)."""\n\nimport numpy\n\n\n'
+        f"def mass({', '.join(map(str, names))}):\n"
+        "    return [\n" + "".join(f"        {row},\n" for row in rows) + "    ]\n"
+    )
 
 
 class _Name:
@@ -233,6 +277,45 @@ class Watched:
         self.__dict__["_quadratic_T"] = bool(watch["quadratic"])
         poles = cache.import_source(str(watch["poles"]), "poles").poles
         self.__dict__["_pole_functions"] = (poles, int(watch["factors"]), bool(watch["free"]))
+        self.mass = cache.import_source(str(watch["mass"]), "mass").mass if watch["mass"] else None
+
+
+#: how far inside the full path's limits (:func:`chaplygin.numeric.simulate._check_mass`'s condition
+#: number, :func:`~chaplygin.numeric.simulate._solvable`'s smallest singular value) a start must lie
+#: for a plan to answer it: NumPy's numbers and the full path's differ in the last digits
+MARGIN = 100.0
+
+
+def _clearly_admissible(system: Watched, q: list[float], values: Mapping[str, float]) -> bool:
+    """Whether the full path's start checks (:func:`chaplygin.numeric.simulate.initial_state`: the
+    constraints solvable for the dependent velocities; ``_check_mass``: a positive definite,
+    well-conditioned reduced mass matrix) pass at coordinates ``q`` and parameters ``values`` by
+    a wide :data:`MARGIN` (else the full path decides, and says why)."""
+    from chaplygin.numeric.simulate import MAX_CONDITION
+
+    if system.mass is None:
+        return False
+    numbers = [values[par.name] for par in system.parameters]
+    with np.errstate(all="ignore"):
+        m = np.array(system.mass(0.0, *q, *numbers), dtype=float)
+        c = np.eye(system.n)[:, list(system._ind)]
+        if system.g:
+            poles = system.__dict__["_pole_functions"][0]
+            values_ = [np.asarray(v, dtype=float) for v in poles(0.0, *q, *numbers)]
+            a = np.array(values_[: system.g * system.n], dtype=float).reshape(system.g, system.n)
+            factors = np.array(values_[system.g * system.n :], dtype=float)
+            scale = np.max(np.abs(a), axis=1, keepdims=True)
+            if not (np.all(np.isfinite(a)) and np.all(np.abs(factors) > 1e-12) and np.all(scale > 0)):
+                return False  # (a factor of a denominator of [A | A_0] near 0: a pole near)
+            dep, ind = list(system._dep), list(system._ind)
+            if not np.linalg.svd(a[:, dep] / scale, compute_uv=False)[-1] > MARGIN * 1e-10:
+                return False
+            c[dep] = -np.linalg.solve(a[:, dep], a[:, ind])
+        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(c))):
+            return False
+        reduced = c.T @ m @ c
+        w = np.linalg.eigvalsh((reduced + reduced.T) / 2)
+    return bool(len(w) and w[0] > MARGIN * np.max(np.abs(w)) / MAX_CONDITION)
 
 
 def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
@@ -284,9 +367,10 @@ def run(
     ``params`` and ``initial`` are the command line's overrides (by name).  The
     full path checks the start (a positive definite, well-conditioned mass
     matrix; no pole of the solved constraints); the plan was made by a run that
-    passed those checks, so it answers only runs whose mass matrix and
-    constraints are the same: the same parameters and coordinates (velocities
-    may differ), every number finite, ``samples`` within the full path's limits.
+    passed those checks, so it answers runs from that start's parameters and
+    coordinates (a reduced model's velocities may differ), and a reduced model's
+    runs from others where the checks pass by a wide margin; every number
+    finite, ``samples`` within the full path's limits.
     """
     from chaplygin.numeric.simulate import MAX_SAMPLES, choose_backend
 
@@ -331,14 +415,26 @@ def _run(
     )
     values = {**found["parameters"], **params}
     state = {**found["initial"], **initial}
-    if set(values) != set(layout.parameters) or values != found["parameters"]:
-        return None  # another parameter value (or an unknown name): the full path checks it
-    if any(name in initial and initial[name] != found["initial"].get(name) for name in layout.coordinates):
-        return None  # another configuration: the full path checks the mass matrix there
+    if set(values) != set(layout.parameters) or not all(np.isfinite(v) for v in values.values()):
+        return None  # an unknown name, or a number the full path refuses
     if not all(np.isfinite(v) for v in state.values()):
         return None
     every = set(layout.coordinates) | {c + "'" for c in layout.coordinates}
     start = found["start"]
+    # a reduced model's run is watched as the full path watches it (System's stand-in)
+    system: Any = Watched(found["watch"]) if start is None else None
+    if system is not None and (system.n, system.g) != (len(layout.coordinates), int(found["g"])):
+        return None
+    checked = found["checked"]
+    moved = values != checked["parameters"] or any(
+        state.get(name) != checked["coordinates"][name] for name in layout.coordinates
+    )
+    if moved and (
+        system is None
+        or not set(layout.coordinates) <= set(state)
+        or not _clearly_admissible(system, [state[c] for c in layout.coordinates], values)
+    ):
+        return None  # another configuration or parameter: the full path's start checks decide
     if start is not None and state != found["initial"]:
         return None  # a multiplier model's plan answers the start it kept, and no other
     if not set(state) <= every or (
@@ -360,10 +456,6 @@ def _run(
             given is not None and abs(given - implied) > 1e-9 * max(1.0, abs(implied))
         ):
             return None  # a dependent velocity that violates the constraints: the full path's error
-    # a reduced model's run is watched as the full path watches it (System's stand-in)
-    system: Any = Watched(found["watch"]) if start is None else None
-    if system is not None and (system.n, system.g) != (len(layout.coordinates), int(found["g"])):
-        return None
     if warn:  # as the command line's full path does (chaplygin.apps.cli._numbers)
         warn_defaulted(found["defaulted"], initial)
     options: dict[str, Any] = {"rtol": rtol, "atol": atol, "method": "DOP853", "max_step": np.inf}
