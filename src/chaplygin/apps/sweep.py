@@ -711,6 +711,22 @@ def _parts(directory: Path) -> list[tuple[int, Path]]:
     return sorted(found)
 
 
+def _column(values: list[Any], kind: pa.DataType) -> pa.Array:
+    """``values`` (numbers, or strings for a string column) as an Arrow array of type ``kind``,
+    built from its buffers: ``pyarrow.array`` imports pandas (0.2 s) to ask whether they are
+    pandas objects."""
+    import pyarrow as pa
+
+    if kind == pa.string():
+        data = [str(v).encode("utf-8") for v in values]
+        offsets = np.zeros(len(data) + 1, dtype=np.int64)
+        np.cumsum([len(d) for d in data], out=offsets[1:])
+        buffers = [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))]
+        return pa.Array.from_buffers(pa.large_string(), len(data), buffers).cast(pa.string())
+    array = np.ascontiguousarray(values, dtype=np.int64 if kind == pa.int64() else np.float64)
+    return pa.Array.from_buffers(kind, len(array), [None, pa.py_buffer(array)])
+
+
 def _read_part(path: Path, columns: list[str] | None = None) -> pa.Table:
     pq = _require("pyarrow.parquet")
     try:
@@ -842,7 +858,8 @@ class _Writer:
 
         pq = _require("pyarrow.parquet")
         rows = sorted(self.rows, key=lambda r: r["run_id"])
-        table = pa.Table.from_pydict({c: [r[c] for r in rows] for c in self.schema.names}, schema=self.schema)
+        columns = [_column([r[f.name] for r in rows], f.type) for f in self.schema]
+        table = pa.Table.from_arrays(columns, schema=self.schema)
         path = self.directory / f"part-{self.next_part:06d}.parquet"
         _atomic_bytes(path, lambda fh: pq.write_table(table, fh))
         self.next_part += 1
