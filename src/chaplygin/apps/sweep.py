@@ -721,8 +721,11 @@ def _column(values: list[Any], kind: pa.DataType) -> pa.Array:
         data = [str(v).encode("utf-8") for v in values]
         offsets = np.zeros(len(data) + 1, dtype=np.int64)
         np.cumsum([len(d) for d in data], out=offsets[1:])
-        buffers = [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))]
-        return pa.Array.from_buffers(pa.large_string(), len(data), buffers).cast(pa.string())
+        if offsets[-1] >= 2**31:  # (beyond a string column's 32-bit offsets: pyarrow.compute casts)
+            buffers = [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))]
+            return pa.Array.from_buffers(pa.large_string(), len(data), buffers).cast(pa.string())
+        buffers = [None, pa.py_buffer(offsets.astype(np.int32)), pa.py_buffer(b"".join(data))]
+        return pa.Array.from_buffers(pa.string(), len(data), buffers)
     array = np.ascontiguousarray(values, dtype=np.int64 if kind == pa.int64() else np.float64)
     return pa.Array.from_buffers(kind, len(array), [None, pa.py_buffer(array)])
 
