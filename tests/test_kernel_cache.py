@@ -85,15 +85,25 @@ def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
     assert warm["stdout"].replace(out[1], out[0]) == cold["stdout"]
     a, b = np.load(out[0]), np.load(out[1])
     assert a.files == b.files and all(np.array_equal(a[k], b[k]) for k in a.files)
-    # another independent velocity is applied from the plan; another configuration or
-    # parameter takes the full path, which checks the mass matrix there; a dependent velocity
-    # that violates the constraints takes the full path, which reports it
+    # another independent velocity is applied from the plan, and so are another configuration
+    # or parameter where the plan's start checks pass by a wide margin; a start the full path
+    # refuses (here a kinetic energy not positive definite) and a dependent velocity that
+    # violates the constraints take the full path, which reports them
     faster = run_json(CLI, [*RUN, "-o", out[2], "-i", "phi'=7"], tmp_path / "cache")
     assert faster["code"] == 0 and not faster["sympy"]
     assert abs(float(np.load(out[2])["phi'"][0]) - 7) < 1e-15
     for override in (["-i", "theta=0.2"], ["-p", "m=2"]):
         moved = run_json(CLI, [*RUN, "-o", out[2], "--force", *override], tmp_path / "cache")
-        assert moved["code"] == 0 and moved["sympy"], override
+        assert moved["code"] == 0 and not moved["sympy"], override
+    refused = subprocess.run(
+        [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "e.npz"), "-p", "m=-1"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+        env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC},
+    )
+    assert refused.returncode == 1 and "not positive definite at the initial state" in refused.stderr
     bad = subprocess.run(
         [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "d.npz"), "-i", "x'=5"],
         capture_output=True,

@@ -153,12 +153,22 @@ def test_the_plan_answers_what_the_full_path_would(snakeboard):
     assert built and same(
         other, chaplygin.simulate(system, "chetaev", 2.0, initial, {**parameters, "m": 2.0}, **RUN)
     )
-    # a reduced model's plan takes other velocities (its state), not another configuration
+    # a reduced model's plan takes other velocities (its state), and another configuration or
+    # parameter where its start checks pass by a wide margin; near a pole (det = -sin 2 phi) the
+    # full path decides
     chaplygin.simulate(chaplygin.load(snakeboard), "chaplygin", 2.0, **RUN)
-    for override, planned in (({"psi'": 2.0}, True), ({"phi": 0.2}, False)):
-        other, built = warm("chaplygin", override)
+    for override, numbers, planned in (
+        ({"psi'": 2.0}, {}, True),
+        ({"phi": 0.2}, {}, True),
+        ({}, {"m": 2.0}, True),
+        ({"phi": 1e-5, "theta'": 0.0}, {}, False),  # (condition number 5e10: within 100x of the limit)
+    ):
+        other, built = warm("chaplygin", override, numbers)
         assert built is not planned and same(
-            other, chaplygin.simulate(system, "chaplygin", 2.0, {**initial, **override}, parameters, **RUN)
+            other,
+            chaplygin.simulate(
+                system, "chaplygin", 2.0, {**initial, **override}, {**parameters, **numbers}, **RUN
+            ),
         ), override
 
 
@@ -227,3 +237,86 @@ def test_a_system_needs_an_initial_state(snakeboard):
     f = chaplygin.load(snakeboard)
     with pytest.raises(ChaplyginError, match="initial: no initial state"):
         chaplygin.simulate(f.system, "chetaev", 1.0)
+
+
+# a reduced mass matrix that runs out: with z' = x' it is diag(3 - y, 1) in (x', y'), and a start
+# with x' = 0 keeps x' = 0 (d/dt((3 - y) x') = 0) while y = y'·t passes 3 at t = 3/y'
+RUNNING_OUT = """\
+name = "A mass that runs out"
+coordinates = ["x", "y", "z"]
+[energy]
+T = "((2 - y)*x'^2 + y'^2 + z'^2)/2"
+[constraints]
+"z'" = "x'"
+[initial]
+x = 0.0
+y = 0.0
+z = 0.0
+"x'" = 0.0
+"y'" = 0.0
+"""
+# a process that runs a file from the Python API and the command line, with overrides
+OVERRIDDEN = """
+import json, sys
+from pathlib import Path
+import chaplygin
+from chaplygin.apps.cli import main
+path, model, backend, out = sys.argv[1:5]
+given = json.loads(sys.argv[5])
+f = chaplygin.load(path)
+tr = chaplygin.simulate(f, model, 4.0, given, samples=11, backend=backend)
+flags = [a for k, v in given.items() for a in ("--initial", f"{k}={v}")]
+code = main(["simulate", path, "-m", model, "-t", "4", "-n", "11", "-b", backend, "-o", out, *flags])
+print(json.dumps({
+    "lazy": "system" not in vars(f),
+    "sympy": "sympy" in sys.modules,
+    "columns": {k: tr[k].tolist() for k in tr.columns},
+    "labels": [tr.status, tr.failure, tr.message],
+    "code": code,
+    "csv": Path(out).read_text(encoding="utf-8"),
+}))
+"""
+
+
+@pytest.mark.parametrize(
+    ("text", "model", "backend", "given", "failure", "cut"),
+    [  # the snakeboard's solved constraints have a pole where sin(2 phi) = 0: phi' = -10 swings phi past 0
+        (SNAKEBOARD, "chaplygin", "c", {"phi'": -10.0}, "pole", 1),
+        (RUNNING_OUT, "voronets", "numpy", {"y'": 1.0}, "mass", 8),
+    ],
+)
+def test_a_warm_reduced_run_is_judged_as_the_full_path(
+    tmp_path, monkeypatch, text, model, backend, given, failure, cut
+):
+    """A reduced model's plan answers other velocities: a warm run (no SymPy) that meets a pole of
+    the solved constraints or a mass matrix losing definiteness stops where the full path stops,
+    with its columns, status, failure and message, from the Python API and the command line
+    (before, both integrated through and reported success)."""
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "system.toml"
+    path.write_text(text, encoding="utf-8")
+    f = chaplygin.load(path)
+    chaplygin.simulate(f, model, 4.0, samples=11, backend=backend)  # the plan, from the file's numbers
+    expected = chaplygin.simulate(
+        f.system, model, 4.0, {**f.initial, **given}, f.parameters, samples=11, backend=backend
+    )
+    assert (expected.status, expected.failure, len(expected.t)) == ("failed", failure, cut)
+    out = tmp_path / "out.csv"
+    warm = run_json(OVERRIDDEN, [str(path), model, backend, str(out), json.dumps(given)], tmp_path / "cache")
+    assert warm["lazy"] and not warm["sympy"]
+    assert warm["columns"] == json.loads(json.dumps({k: expected[k].tolist() for k in expected.columns}))
+    assert warm["labels"] == [expected.status, expected.failure, expected.message]
+    expected.to_csv(tmp_path / "expected.csv")
+    assert warm["code"] == 3 and warm["csv"] == (tmp_path / "expected.csv").read_text(encoding="utf-8")
+
+
+def test_a_start_on_a_pole_is_refused_warm_as_cold(snakeboard):
+    """phi = 0 is a pole of the snakeboard's solved constraints: the plan does not answer another
+    configuration, and the full path refuses it with its message."""
+    f = chaplygin.load(snakeboard)
+    chaplygin.simulate(f, "chaplygin", 2.0, **RUN)  # the plan
+    with pytest.raises(ChaplyginError) as cold:
+        chaplygin.simulate(f.system, "chaplygin", 2.0, {**f.initial, "phi": 0.0}, f.parameters, **RUN)
+    with pytest.raises(ChaplyginError) as warm:
+        chaplygin.simulate(chaplygin.load(snakeboard), "chaplygin", 2.0, {"phi": 0.0}, **RUN)
+    assert str(warm.value) == str(cold.value) and "pole of the solved constraints" in str(cold.value)

@@ -304,8 +304,9 @@ def _fingerprint(system: System) -> str:
 def _resolve(
     spec: System | SystemFile | str | os.PathLike[str],
     local: bool,
-) -> tuple[System, _Recipe, dict[str, float], dict[str, float], str]:
-    """``(system, recipe, default parameters, default initial state, label)`` of what was given.
+) -> tuple[System, _Recipe, dict[str, float], dict[str, float], str, SystemFile | None]:
+    """``(system, recipe, default parameters, default initial state, label, the file read)`` of
+    what was given (the file read: of a system file's path, else None).
 
     A ``System`` object travels to Dask workers as a pickle (without its derived equations); in
     a sweep that starts in this process (``local``) it is used as it is.
@@ -315,9 +316,9 @@ def _resolve(
 
     if isinstance(spec, SystemFile):
         recipe = _object_recipe(spec.system, spec.source, local)
-        return spec.system, recipe, dict(spec.parameters), dict(spec.initial), spec.source
+        return spec.system, recipe, dict(spec.parameters), dict(spec.initial), spec.source, None
     if isinstance(spec, System):
-        return spec, _object_recipe(spec, spec.name, local), {}, {}, spec.name
+        return spec, _object_recipe(spec, spec.name, local), {}, {}, spec.name, None
     if isinstance(spec, str) and spec.startswith("example:"):
         from chaplygin import examples
 
@@ -325,7 +326,7 @@ def _resolve(
         entry = examples.get(name)
         recipe = _Recipe("example", name, spec, None, hashlib.sha256(spec.encode()).hexdigest())
         system = _system_for(recipe)
-        return system, recipe, dict(entry.parameters), dict(entry.initial), spec
+        return system, recipe, dict(entry.parameters), dict(entry.initial), spec, None
     if isinstance(spec, (str, os.PathLike)):
         from chaplygin.io.files import MAX_FILE_SIZE, SystemFileError
 
@@ -345,7 +346,7 @@ def _resolve(
             known = _SYSTEMS.get(digest)  # the same file again: keep its derived equations
         system = known if known is not None else loaded.system
         _remember(recipe, system)
-        return system, recipe, dict(loaded.parameters), dict(loaded.initial), source
+        return system, recipe, dict(loaded.parameters), dict(loaded.initial), source, loaded
     raise ChaplyginError(
         f"sweep: expected a System, a SystemFile, a system file's path or 'example:NAME', "
         f"not {type(spec).__name__}."
@@ -449,8 +450,13 @@ def _no_outcome(plan: _Plan) -> dict[str, Any]:
     return outcome
 
 
-def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
-    """One row: the run's inputs and its outcome; a run that raises is a failed row, never an error."""
+def _run_one(system: System | None, plan: _Plan, run_id: int) -> dict[str, Any]:
+    """One row: the run's inputs and its outcome; a run that raises is a failed row, never an error.
+
+    A system file's run is answered by its run plan where one answers it exactly as the full
+    path would (:mod:`chaplygin.numeric._plan`), else by the full path on ``system`` (None:
+    built from the recipe when first needed).
+    """
     from chaplygin.numeric.simulate import simulate
 
     row, params, initial = _inputs(plan, run_id)
@@ -467,7 +473,12 @@ def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
         if plan.constants is not None:
             options["constants"] = plan.constants
         options["time_limit"] = plan.time_limit
-        tr = simulate(system, plan.model, plan.t_end, initial, params, **options)
+        tr = _planned(plan, params, initial)
+        if tr is None:
+            system = system if system is not None else _system_for(plan.recipe)
+            tr = simulate(system, plan.model, plan.t_end, initial, params, **options)
+            if tr.success and plan.recipe.kind == "toml":
+                _MADE.setdefault(plan.recipe.digest, tr)  # what a run plan is made from
     except Exception as exc:
         outcome["message"] = f"{type(exc).__name__}: {exc}"[:MAX_MESSAGE]
     else:
@@ -491,9 +502,151 @@ def _run_one(system: System, plan: _Plan, run_id: int) -> dict[str, Any]:
 
 
 def _run_chunk(plan: _Plan, run_ids: Sequence[int]) -> list[dict[str, Any]]:
-    """The rows of ``run_ids`` (the task each worker runs); the system is built once per process."""
-    system = _system_for(plan.recipe)
+    """The rows of ``run_ids`` (the task each worker runs); the system is built once per process
+    (a system file's only when a run plan does not answer a run)."""
+    with _SYSTEMS_LOCK:
+        system = _SYSTEMS.get(plan.recipe.digest)
+    if system is None and plan.recipe.kind != "toml":
+        system = _system_for(plan.recipe)
     return [_run_one(system, plan, int(r)) for r in run_ids]
+
+
+#: a successful full-path run of each system file swept in this process (by recipe digest): the
+#: run plan is made from it at the end of the sweep (:func:`_keep_warm`)
+_MADE: dict[str, Any] = {}
+
+
+def _planned(plan: _Plan, params: dict[str, float], initial: dict[str, float]) -> Any:
+    """The run of a system file from its run plan, or None (the full path runs)."""
+    if plan.recipe.kind != "toml" or plan.constants is not None:
+        return None
+    from chaplygin.numeric import _plan
+
+    return _plan.run(
+        plan.recipe.payload.encode("utf-8"),
+        plan.model,
+        plan.form,
+        plan.t_end,
+        plan.samples,
+        plan.backend,
+        "DOP853",
+        None,
+        None,
+        params,
+        initial,
+        plan.rtol,
+        plan.atol,
+        time_limit=plan.time_limit,
+        warn=False,
+    )
+
+
+# ====================================================================== a warm sweep of a system file
+#: bumped whenever the summary a sweep keeps of a system file (:func:`_keep_warm`) changes shape
+SUMMARY_FORMAT = 1
+
+
+def _summary_key(raw: bytes, stem: str) -> str:
+    from chaplygin.numeric import cache
+
+    return cache.key("sweep-summary", str(SUMMARY_FORMAT), raw, stem)
+
+
+class _Names:
+    """What a sweep reads of a system file's System before its runs (its name and the names of
+    its parameters, coordinates and velocities), from the summary a sweep of the same bytes kept:
+    no SymPy."""
+
+    def __init__(self, summary: Mapping[str, Any]) -> None:
+        from chaplygin.numeric._plan import _Name
+
+        self.name = str(summary["name"])
+        self.parameters = tuple(_Name(str(p)) for p in summary["parameters"])
+        self.coordinates = tuple(_Name(str(q)) for q in summary["coordinates"])
+        self.independent = tuple(_Name(str(q)) for q in summary["independent"])
+        self.dependent = tuple(_Name(str(q)) for q in summary["dependent"])
+
+    def parameter(self, key: str) -> Any:
+        return next(p for p in self.parameters if p.name == key)
+
+
+def _warm(
+    spec: Any,
+    model: str | None,
+    form: str,
+    backend: str,
+    constants: Any,
+    grid: Mapping[Any, Any],
+    given: Sequence[Mapping[Any, Any] | None],
+) -> tuple[_Names, _Recipe, dict[str, float], dict[str, float], str, str, dict[str, Any]] | None:
+    """``(names, recipe, default parameters, default initial state, label, model, summary)`` of a
+    system file swept before with the same model, form and backend (its summary and run plan in
+    the cache), where every name given is the file's; else None (the file is read and built)."""
+    if not isinstance(spec, (str, os.PathLike)) or (isinstance(spec, str) and spec.startswith("example:")):
+        return None
+    if constants is not None:
+        return None
+    from chaplygin.io._file import MAX_FILE_SIZE  # (chaplygin.io.files imports SymPy)
+    from chaplygin.numeric import _plan, cache
+
+    source = os.fspath(spec)
+    try:
+        with open(source, "rb") as fh:
+            raw = fh.read(MAX_FILE_SIZE + 1)
+        text = raw.decode("utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None  # the full path says why
+    stem = Path(source).stem
+    summary = cache.load(_summary_key(raw, stem))
+    try:
+        names = _Names(summary)  # type: ignore[arg-type]
+        chosen = model if model is not None else str(summary["true_motion"])  # type: ignore[index]
+        defaults = summary["defaults"]  # type: ignore[index]
+        base_params = {str(k): float(v) for k, v in defaults["parameters"].items()}
+        base_initial = {str(k): float(v) for k, v in defaults["initial"].items()}
+    except (KeyError, TypeError, ValueError, AttributeError):
+        return None
+    if chosen not in _plan.REDUCED or _plan.plan(raw, chosen, form, backend) is None:
+        return None
+    known = {p.name for p in names.parameters} | {q.name for q in names.coordinates}
+    known |= {q.name + "'" for q in names.independent}
+    keys = [*grid, *(k for values in given for k in (values or {}))]
+    if not all(isinstance(k, str) and k.strip() == k and k in known for k in keys):
+        return None  # a symbol, or a name the full path explains
+    digest = hashlib.sha256(f"{source}\0{text}".encode()).hexdigest()
+    recipe = _Recipe("toml", text, source, stem, digest)
+    return names, recipe, base_params, base_initial, source, chosen, summary  # type: ignore[return-value]
+
+
+def _keep_warm(recipe: _Recipe, system: System, model: str, form: str, backend: str, loaded: Any) -> None:
+    """After a sweep of a system file: the run plan of ``model`` (from a successful run of the
+    sweep) and a summary of the file's names, so that the next sweep of the same bytes runs
+    without SymPy (:func:`_warm`)."""
+    tr = _MADE.pop(recipe.digest, None)
+    if recipe.kind != "toml" or loaded is None:
+        return
+    from chaplygin.numeric import _plan, cache
+
+    raw = recipe.payload.encode("utf-8")
+    if tr is not None and _plan.plan(raw, model, form, backend) is None:
+        _plan.remember(raw, model, form, loaded, tr)
+    key = _summary_key(raw, str(recipe.default_name))
+    if _plan.plan(raw, model, form, backend) is None or cache.load(key) is not None:
+        return  # (a sweep whose runs a plan answered: the plan is there)
+    summary = {
+        "name": system.name,
+        "fingerprint": _fingerprint(system),
+        "true_motion": registry.true_motion(system),
+        "parameters": [p.name for p in system.parameters],
+        "coordinates": [q.func.__name__ for q in system.coordinates],
+        "independent": [q.func.__name__ for q in system.independent],
+        "dependent": [q.func.__name__ for q in system.dependent],
+        "defaults": {"parameters": dict(loaded.parameters), "initial": dict(loaded.initial)},
+    }
+    try:
+        cache.store(key, json.loads(json.dumps(summary)))
+    except (TypeError, ValueError):
+        pass
 
 
 def _worker_version() -> str:
@@ -556,6 +709,25 @@ def _parts(directory: Path) -> list[tuple[int, Path]]:
         if m and p.is_file():
             found.append((int(m.group(1)), p))
     return sorted(found)
+
+
+def _column(values: list[Any], kind: pa.DataType) -> pa.Array:
+    """``values`` (numbers, or strings for a string column) as an Arrow array of type ``kind``,
+    built from its buffers: ``pyarrow.array`` imports pandas (0.2 s) to ask whether they are
+    pandas objects."""
+    import pyarrow as pa
+
+    if kind == pa.string():
+        data = [str(v).encode("utf-8") for v in values]
+        offsets = np.zeros(len(data) + 1, dtype=np.int64)
+        np.cumsum([len(d) for d in data], out=offsets[1:])
+        if offsets[-1] >= 2**31:  # (beyond a string column's 32-bit offsets: pyarrow.compute casts)
+            buffers = [None, pa.py_buffer(offsets), pa.py_buffer(b"".join(data))]
+            return pa.Array.from_buffers(pa.large_string(), len(data), buffers).cast(pa.string())
+        buffers = [None, pa.py_buffer(offsets.astype(np.int32)), pa.py_buffer(b"".join(data))]
+        return pa.Array.from_buffers(pa.string(), len(data), buffers)
+    array = np.ascontiguousarray(values, dtype=np.int64 if kind == pa.int64() else np.float64)
+    return pa.Array.from_buffers(kind, len(array), [None, pa.py_buffer(array)])
 
 
 def _read_part(path: Path, columns: list[str] | None = None) -> pa.Table:
@@ -689,7 +861,8 @@ class _Writer:
 
         pq = _require("pyarrow.parquet")
         rows = sorted(self.rows, key=lambda r: r["run_id"])
-        table = pa.Table.from_pydict({c: [r[c] for r in rows] for c in self.schema.names}, schema=self.schema)
+        columns = [_column([r[f.name] for r in rows], f.type) for f in self.schema]
+        table = pa.Table.from_arrays(columns, schema=self.schema)
         path = self.directory / f"part-{self.next_part:06d}.parquet"
         _atomic_bytes(path, lambda fh: pq.write_table(table, fh))
         self.next_part += 1
@@ -928,7 +1101,9 @@ def _names(system: System, values: Mapping[Any, Any] | None, what: str) -> dict[
     out: dict[str, float] = {}
     coords = [q.func.__name__ for q in system.coordinates]
     for key, value in (values or {}).items():
-        if what == "parameters":
+        if isinstance(system, _Names):  # (a warm sweep: every name checked, see _warm)
+            name = str(key).strip()
+        elif what == "parameters":
             name = system.parameter(key).name
         else:
             kind, i = _lookup(system, key)
@@ -1145,7 +1320,15 @@ def sweep(
     from chaplygin.numeric.simulate import choose_backend
 
     backend = choose_backend(backend)
-    sys_, recipe, base_params, base_initial, label = _resolve(system, runner != "cluster")
+    # a system file swept before with this model: its names and run plan answer without SymPy
+    warm = _warm(system, model, form, backend, constants, grid, (parameters, initial))
+    loaded: SystemFile | None = None
+    summary: dict[str, Any] = {}
+    if warm is not None:
+        names, recipe, base_params, base_initial, label, model, summary = warm
+        sys_: Any = names
+    else:
+        sys_, recipe, base_params, base_initial, label, loaded = _resolve(system, runner != "cluster")
     if model is None:
         model = registry.true_motion(sys_)  # as simulate on the command line
     params = {**_names(sys_, base_params, "parameters"), **_names(sys_, parameters, "parameters")}
@@ -1176,13 +1359,14 @@ def sweep(
             f"initial: {', '.join(unknown)} follow from the constraints; give coordinates and the "
             f"independent velocities ({', '.join(initial_names)})."
         )
-    from chaplygin.numeric.codegen import is_compiled
-
     # a model that does not apply fails here, before any run; one compiled before (in the disk
     # cache) applies, and its runs load it without deriving (the family is derived with its
-    # constants, in the runs)
-    if not registry.get(model).constants and not is_compiled(sys_, model, form, backend):
-        sys_.equations(model, form)
+    # constants, in the runs); a warm sweep's run plan was made by a run of the model
+    if warm is None and not registry.get(model).constants:
+        from chaplygin.numeric.codegen import is_compiled
+
+        if not is_compiled(sys_, model, form, backend):
+            sys_.equations(model, form)
 
     plan = _Plan(
         recipe,
@@ -1214,7 +1398,7 @@ def sweep(
                 "chaplygin": __version__,
                 "system": sys_.name,
                 "source": label,
-                "fingerprint": _fingerprint(sys_),
+                "fingerprint": summary["fingerprint"] if warm is not None else _fingerprint(sys_),
                 "model": model,
                 "form": form,
                 "backend": backend,
@@ -1256,7 +1440,7 @@ def sweep(
             done[ids] = True
         todo = np.flatnonzero(~done)
         resumed = total - len(todo)
-        if notice is not None and len(todo):
+        if notice is not None and len(todo) and warm is None:
             words = _first_compile(sys_, plan)
             if words is not None:
                 notice(words)
@@ -1270,7 +1454,8 @@ def sweep(
                     plan, todo, writer, resumed, report, scheduler, workers, chunk_size, retries
                 )
             elif len(todo):
-                _remember(recipe, sys_)
+                if warm is None:
+                    _remember(recipe, sys_)
                 here = _serial(
                     plan,
                     todo,
@@ -1303,6 +1488,9 @@ def sweep(
             writer.close()
         if compact:
             writer.compact()
+    if warm is None:
+        with suppress(ChaplyginError, OSError):
+            _keep_warm(recipe, sys_, model, form, backend, loaded)
     return SweepResult(
         directory,
         total,

@@ -14,19 +14,28 @@ and initial state.  The next run of the same system, model and backend loads
 the compiled code (or builds it from the stored source) and integrates
 without importing SymPy (nor SciPy or numba, with the ``c`` backend).
 
-A plan answers only what it can answer exactly as the full path would, and is
-made only by a run from the file's own parameters and coordinates (the run that
-passed the checks of the start there): DOP853, no constants, no holonomic
-constraints (their coordinates are solved at the start and their residual
-monitored: the full path), overrides naming known parameters, coordinates or
-velocities.  A reduced model (``chaplygin``, ``voronets``, ``lindelof``, whose
-state is the coordinates and the independent velocities, taken as given) answers
-other velocities, and checks a given dependent velocity against the constraints
-(the kernel's velocities).  A multiplier model (``chetaev``, constraints linear
-in the velocities) keeps the start of the run that made it, the dependent
-velocities solved from the constraints, and answers that start only.  Anything
-else, a disagreement included, returns ``None`` and the full path runs (and
-reports the error).
+A plan answers only what it can answer exactly as the full path would: DOP853,
+no constants, no holonomic constraints (their coordinates are solved at the start
+and their residual monitored: the full path), no constraints nonlinear in the
+velocities (their start and watch need SymPy), overrides naming known
+parameters, coordinates or velocities.  A multiplier model (``chetaev``,
+constraints linear in the velocities) is planned only by a run from the file's
+own parameters and coordinates, keeps that start (the dependent velocities
+solved from the constraints) and answers it only.  A reduced model
+(``chaplygin``, ``voronets``, ``lindelof``, whose state is the coordinates and
+the independent velocities, taken as given) is planned by any run that
+succeeded, and answers other velocities (a given dependent one checked against
+the constraints: the kernel's velocities) and, where the full path's start
+checks (the constraints solvable for the dependent velocities, a positive
+definite, well-conditioned reduced mass matrix) pass by a wide margin
+(:func:`_clearly_admissible`), other coordinates and parameters; its run is
+judged along the way by the full path's own watch
+(:func:`chaplygin.numeric.simulate._watch`: poles of the solved constraints at
+and between the samples, the reduced mass matrix's definiteness, velocities gone
+non-finite), run on :class:`Watched`, what the watch reads of the system, kept
+in the plan with generated NumPy modules of the pole functions and the mass
+matrix.  Anything else, a disagreement included, returns ``None`` and the full
+path runs (and reports the error).
 """
 
 from __future__ import annotations
@@ -58,7 +67,7 @@ PLANNED = ("c", "numpy", "numba")
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's (or the file summary's) shape changes
-FORMAT = 6
+FORMAT = 7
 #: what a plan keeps of the file it was made from (:func:`summary_key`): every field of a
 #: :class:`~chaplygin.io.files.SystemFile` but the SymPy ones
 SUMMARY = ("parameters", "initial", "name", "defaulted", "body")
@@ -112,23 +121,24 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     """Store the plan of a finished run (a no-op for anything a plan cannot answer).
 
     ``asked`` is the model as the command line asked for it (:data:`TRUE_MOTION` for none);
-    only a run that succeeded from the file's own parameters and coordinates makes a plan, so
-    the checks of its start passed there.
+    only a run that succeeded makes a plan, and of a multiplier model only one from the file's
+    own parameters and coordinates, so the checks of its start passed there.
     """
     if definition is None or tr.backend not in PLANNED or not tr.success or not len(tr.t):
         return
     system = loaded.system
     reduced = tr.model in REDUCED
-    if not reduced and (tr.model not in MULTIPLIER or system.is_nonlinear):
-        return  # (nonlinear constraints: a multiplier run is watched for their singular set)
+    if system.is_nonlinear or (not reduced and tr.model not in MULTIPLIER):
+        return  # (nonlinear constraints: the start and the watch need SymPy)
     if getattr(system, "holonomic", None):  # its start is solved and its residual monitored
         return
     defaults = {k: float(v) for k, v in (loaded.initial or {}).items()}
     started = {c: float(tr.coordinates[c][0]) for c in tr.coordinates}
     if not reduced:  # the start kept: every velocity, the dependent ones solved from the constraints
         started |= {v: float(tr.velocities[v][0]) for v in tr.velocities}
-    if tr.parameters != loaded.parameters or any(
-        started[k] != v for k, v in defaults.items() if k in started
+    if not reduced and (
+        tr.parameters != loaded.parameters
+        or any(started[k] != v for k, v in defaults.items() if k in started)
     ):
         return  # a run from other numbers: its checks say nothing of the file's
     from pathlib import Path
@@ -143,7 +153,11 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         code |= {"n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react}
     else:
         code = {"module": Path(kernel.__file__).read_text(encoding="utf-8")}
+    watch = _watch_of(system) if reduced else None
+    if reduced and watch is None:
+        return  # pole functions not printable as a module: the watch needs SymPy
     value = {
+        "watch": watch,
         "layout": {
             f: list(getattr(layout, f))
             for f in ("coordinates", "velocities", "multipliers", "parameters", "reactions")
@@ -157,6 +171,11 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
         "initial": defaults,
         "defaulted": list(getattr(loaded, "defaulted", ())),
         "start": None if reduced else [started[c] for c in layout.coordinates + layout.velocities],
+        # the parameters and coordinates whose start the full path checked
+        "checked": {
+            "parameters": {k: float(v) for k, v in tr.parameters.items()},
+            "coordinates": {c: started[c] for c in layout.coordinates},
+        },
     }
     cache.store(key(definition, asked, form, tr.backend), value)
     if getattr(loaded, "definition", None) == definition:  # a file read by chaplygin.load
@@ -165,6 +184,145 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
             cache.store(summary_key(definition, Path(loaded.source).stem), summary)
         except (TypeError, ValueError):  # a [body] value that JSON does not hold: no summary
             pass
+
+
+def _watch_of(system: Any) -> dict[str, Any] | None:
+    """What :class:`Watched` needs of ``system`` (JSON), or None where the pole functions are
+    not a module (lambdified: the watch needs SymPy)."""
+    from chaplygin.numeric import _modelcache
+    from chaplygin.numeric.simulate import POLE_FORMAT, _pole_source, monitor
+
+    if system.g:
+        found = _modelcache.load_source(_modelcache.source_key(system, "pole-functions", POLE_FORMAT))
+        made = (
+            (found["source"], found["factors"], found["free"]) if found is not None else _pole_source(system)
+        )
+        if made is None:
+            return None
+    else:
+        made = ("def poles():\n    return []\n", 0, True)
+    watched = monitor(system)
+    return {
+        "poles": made[0],
+        "factors": int(made[1]),
+        "free": bool(made[2]),
+        "coordinates": [c.func.__name__ for c in system.coordinates],
+        "parameters": [par.name for par in system.parameters],
+        "dep": list(system._dep),
+        "ind": list(system._ind),
+        "conserves_energy": bool(watched.conserved),
+        "quadratic": watched.column == "energy",
+        "mass": _mass_source(system),
+    }
+
+
+#: the largest mass matrix (in expression nodes) a plan keeps as a module: the rattleback's has
+#: 3,220 (printed in 0.07 s), the Whipple bicycle's 42,350 (1.3 s)
+MASS_NODES = 20_000
+
+
+def _mass_source(system: Any) -> str | None:
+    """A module whose ``mass(t, q…, parameters…)`` is the mass matrix ``∂²T/∂q̇²`` (rows), or None
+    where it depends on the velocities or is not printable as NumPy code."""
+    import sympy as sp
+    from sympy.printing.numpy import NumPyPrinter
+
+    from chaplygin.core._symbols import TIME
+
+    v = system._vars
+    args = [TIME, *v.x, *system.parameters]
+    names = sp.symbols(f"a0:{len(args)}")
+    rename = dict(zip(args, names))
+    entries = [sp.sympify(e).xreplace(rename) for e in system._M]
+    if sum(1 for e in entries for _ in sp.preorder_traversal(e)) > MASS_NODES:
+        return None  # (printing it would add seconds to the run that makes the plan)
+    if any(not e.free_symbols <= set(names) for e in entries):
+        return None
+    printer = NumPyPrinter(
+        {"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False}
+    )
+    try:
+        body = [printer.doprint(e) for e in entries]
+    except NotImplementedError:
+        return None
+    if any("\n" in line for line in body):
+        return None
+    n = system.n
+    rows = ["[" + ", ".join(body[i * n : (i + 1) * n]) + "]" for i in range(n)]
+    return (
+        '"""Generated by chaplygin (a run plan\'s mass matrix)."""\n\nimport numpy\n\n\n'
+        f"def mass({', '.join(map(str, names))}):\n"
+        "    return [\n" + "".join(f"        {row},\n" for row in rows) + "    ]\n"
+    )
+
+
+class _Name:
+    """A coordinate or parameter as the watch reads it: ``.name``, ``.func.__name__``."""
+
+    def __init__(self, name: str) -> None:
+        self.name = self.__name__ = name
+        self.func = self
+
+
+class Watched:
+    """What the full path's watch of a run (:func:`chaplygin.numeric.simulate._watch`,
+    :func:`~chaplygin.numeric.simulate._pole_between_samples`) reads of a
+    :class:`~chaplygin.System` without nonlinear or holonomic constraints, from a plan's
+    ``watch`` (:func:`_watch_of`): its sizes, coordinates, parameters, which velocities are
+    dependent, how its energy column reads, and the pole functions' generated module."""
+
+    is_nonlinear = False
+    _holonomic = ()
+
+    def __init__(self, watch: Mapping[str, Any]) -> None:
+        self.coordinates = tuple(_Name(str(c)) for c in watch["coordinates"])
+        self.parameters = tuple(_Name(str(p)) for p in watch["parameters"])
+        self._dep = tuple(int(i) for i in watch["dep"])
+        self._ind = tuple(int(i) for i in watch["ind"])
+        self.n, self.g = len(self.coordinates), len(self._dep)
+        self.conserves_energy = bool(watch["conserves_energy"])
+        self.__dict__["_quadratic_T"] = bool(watch["quadratic"])
+        poles = cache.import_source(str(watch["poles"]), "poles").poles
+        self.__dict__["_pole_functions"] = (poles, int(watch["factors"]), bool(watch["free"]))
+        self.mass = cache.import_source(str(watch["mass"]), "mass").mass if watch["mass"] else None
+
+
+#: how far inside the full path's limits (:func:`chaplygin.numeric.simulate._check_mass`'s condition
+#: number, :func:`~chaplygin.numeric.simulate._solvable`'s smallest singular value) a start must lie
+#: for a plan to answer it: NumPy's numbers and the full path's differ in the last digits
+MARGIN = 100.0
+
+
+def _clearly_admissible(system: Watched, q: list[float], values: Mapping[str, float]) -> bool:
+    """Whether the full path's start checks (:func:`chaplygin.numeric.simulate.initial_state`: the
+    constraints solvable for the dependent velocities; ``_check_mass``: a positive definite,
+    well-conditioned reduced mass matrix) pass at coordinates ``q`` and parameters ``values`` by
+    a wide :data:`MARGIN` (else the full path decides, and says why)."""
+    from chaplygin.numeric.simulate import MAX_CONDITION
+
+    if system.mass is None:
+        return False
+    numbers = [values[par.name] for par in system.parameters]
+    with np.errstate(all="ignore"):
+        m = np.array(system.mass(0.0, *q, *numbers), dtype=float)
+        c = np.eye(system.n)[:, list(system._ind)]
+        if system.g:
+            poles = system.__dict__["_pole_functions"][0]
+            values_ = [np.asarray(v, dtype=float) for v in poles(0.0, *q, *numbers)]
+            a = np.array(values_[: system.g * system.n], dtype=float).reshape(system.g, system.n)
+            factors = np.array(values_[system.g * system.n :], dtype=float)
+            scale = np.max(np.abs(a), axis=1, keepdims=True)
+            if not (np.all(np.isfinite(a)) and np.all(np.abs(factors) > 1e-12) and np.all(scale > 0)):
+                return False  # (a factor of a denominator of [A | A_0] near 0: a pole near)
+            dep, ind = list(system._dep), list(system._ind)
+            if not np.linalg.svd(a[:, dep] / scale, compute_uv=False)[-1] > MARGIN * 1e-10:
+                return False
+            c[dep] = -np.linalg.solve(a[:, dep], a[:, ind])
+        if not (np.all(np.isfinite(m)) and np.all(np.isfinite(c))):
+            return False
+        reduced = c.T @ m @ c
+        w = np.linalg.eigvalsh((reduced + reduced.T) / 2)
+    return bool(len(w) and w[0] > MARGIN * np.max(np.abs(w)) / MAX_CONDITION)
 
 
 def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
@@ -216,9 +374,10 @@ def run(
     ``params`` and ``initial`` are the command line's overrides (by name).  The
     full path checks the start (a positive definite, well-conditioned mass
     matrix; no pole of the solved constraints); the plan was made by a run that
-    passed those checks, so it answers only runs whose mass matrix and
-    constraints are the same: the same parameters and coordinates (velocities
-    may differ), every number finite, ``samples`` within the full path's limits.
+    passed those checks, so it answers runs from that start's parameters and
+    coordinates (a reduced model's velocities may differ), and a reduced model's
+    runs from others where the checks pass by a wide margin; every number
+    finite, ``samples`` within the full path's limits.
     """
     from chaplygin.numeric.simulate import MAX_SAMPLES, choose_backend
 
@@ -235,7 +394,7 @@ def run(
         return None
     try:
         return _run(found, chosen, t_end, samples, params, initial, rtol, atol, progress, time_limit, warn)
-    except (KeyError, TypeError, ValueError):  # a plan of an unexpected shape: the full path decides
+    except (AttributeError, KeyError, TypeError, ValueError):  # a plan of another shape: the full path
         return None
 
 
@@ -253,7 +412,7 @@ def _run(
     warn: bool = True,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import Layout
-    from chaplygin.numeric.simulate import integrate
+    from chaplygin.numeric.simulate import _pole_between_samples, _watch, integrate
 
     lay = found["layout"]
     layout = Layout(
@@ -263,14 +422,26 @@ def _run(
     )
     values = {**found["parameters"], **params}
     state = {**found["initial"], **initial}
-    if set(values) != set(layout.parameters) or values != found["parameters"]:
-        return None  # another parameter value (or an unknown name): the full path checks it
-    if any(name in initial and initial[name] != found["initial"].get(name) for name in layout.coordinates):
-        return None  # another configuration: the full path checks the mass matrix there
+    if set(values) != set(layout.parameters) or not all(np.isfinite(v) for v in values.values()):
+        return None  # an unknown name, or a number the full path refuses
     if not all(np.isfinite(v) for v in state.values()):
         return None
     every = set(layout.coordinates) | {c + "'" for c in layout.coordinates}
     start = found["start"]
+    # a reduced model's run is watched as the full path watches it (System's stand-in)
+    system: Any = Watched(found["watch"]) if start is None else None
+    if system is not None and (system.n, system.g) != (len(layout.coordinates), int(found["g"])):
+        return None
+    checked = found["checked"]
+    moved = values != checked["parameters"] or any(
+        state.get(name) != checked["coordinates"][name] for name in layout.coordinates
+    )
+    if moved and (
+        system is None
+        or not set(layout.coordinates) <= set(state)
+        or not _clearly_admissible(system, [state[c] for c in layout.coordinates], values)
+    ):
+        return None  # another configuration or parameter: the full path's start checks decide
     if start is not None and state != found["initial"]:
         return None  # a multiplier model's plan answers the start it kept, and no other
     if not set(state) <= every or (
@@ -294,21 +465,28 @@ def _run(
             return None  # a dependent velocity that violates the constraints: the full path's error
     if warn:  # as the command line's full path does (chaplygin.apps.cli._numbers)
         warn_defaulted(found["defaulted"], initial)
+    options: dict[str, Any] = {"rtol": rtol, "atol": atol, "method": "DOP853", "max_step": np.inf}
+    span = (0.0, float(t_end))
     tr = integrate(
         compiled,
-        (0.0, float(t_end)),
+        span,
         y0,
         p,
         dict(values),
-        rtol=rtol,
-        atol=atol,
-        method="DOP853",
         samples=samples,
-        max_step=np.inf,
         g=int(found["g"]),
         progress=progress,
         time_limit=time_limit,
+        **options,
     )
+    if system is not None:  # a reduced model: judged as the full path judges it
+        pole = None
+        if system.g and not system.__dict__["_pole_functions"][2]:
+            pole = _pole_between_samples(system, compiled, tr, span, samples, y0, p, dict(values), **options)
+        notes = tr.notes
+        tr = _watch(system, tr, dict(values), reduced=True, compiled=compiled, p=p, pole=pole)
+        tr.notes = notes
+        return tr
     if start is not None and not (tr.success and all(np.all(np.isfinite(v)) for v in tr.velocities.values())):
         return (
             None  # the full path says why a multiplier run failed, and cuts it where a velocity is not finite
