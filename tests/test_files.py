@@ -692,3 +692,15 @@ def test_a_large_expression_prints_in_argument_order_and_reads_back(monkeypatch)
     monkeypatch.undo()
     # read back (the parser's symbols carry their own assumptions) and printed sorted: the same text
     assert [_symbols.file_syntax(parse_expression(text, names)) for text in unsorted] == ordered
+
+
+def test_time_made_after_sympys_cache_let_it_go_is_time() -> None:
+    """A user's ``t`` equal to chaplygin's time but not the same object (SymPy's cache cleared or
+    evicted between the two) is time when the system is written (it was refused as a parameter)."""
+    sp.core.cache.clear_cache()
+    t2, x2 = sp.Symbol("t"), sp.Function("x")(sp.Symbol("t"))
+    from chaplygin.core._symbols import TIME
+
+    assert t2 == TIME and t2 is not TIME
+    s = System([x2], x2.diff(t2) ** 2 / 2 + t2 * x2, {})
+    assert loads(dumps(s)).system.kinetic_energy == s.kinetic_energy

@@ -998,7 +998,8 @@ class _Writer:
             if isinstance(node, (sp.Add, sp.Mul, sp.Pow)) or type(node) in _PRINTED_FUNCTIONS:
                 stack.extend(node.args)
                 continue
-            if isinstance(node, (sp.Rational, sp.Float)) or node is TIME:
+            # (== TIME, not `is`: a user's t made after SymPy's cache let chaplygin's go is equal, not the same)
+            if isinstance(node, (sp.Rational, sp.Float)) or node == TIME:
                 continue
             if node in (sp.pi, sp.E) or node in coords:
                 continue
