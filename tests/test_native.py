@@ -354,6 +354,27 @@ def test_a_derivation_converts_each_expression_to_symengine_once(monkeypatch) ->
     assert (eqs.mass_matrix - system.to_user(hessian)).applyfunc(sp.simplify) == sp.zeros(*hessian.shape)
 
 
+def test_the_code_generator_does_not_convert_the_reduced_forcing_again(monkeypatch) -> None:
+    """Chaplygin's equations of the rolling disk: F reaches the code generator in SymEngine, summed
+    there from the terms the derivation computed in it (none converted a second time), and it is
+    the SymPy F (the difference simplifies to 0)."""
+    from chaplygin.core import _fast
+    from chaplygin.numeric import codegen
+
+    system = examples.rolling_disk()
+    eqs = system.equations("chaplygin")
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(
+        _fast, "_to_symengine", lambda e: (isinstance(e, sp.Basic) and seen.append(e), convert(e))[1]
+    )
+    codegen._parts(eqs)
+    assert not set(eqs._F) & set(seen), "the code generator converted F"
+    assert eqs._native_F is not None
+    for f, e in zip(eqs._F, eqs._native_F):
+        assert sp.simplify(_fast.to_sympy(e) - f) == 0
+
+
 def test_symengine_expressions_with_assumed_parameters_pickle() -> None:
     """A parameter with assumptions crosses into SymEngine as a symbol that converts back to
     itself; expressions holding it pickle and come back with the assumption."""

@@ -120,8 +120,15 @@ def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
 
 
 def _back(values: Sequence[Any]) -> list[sp.Expr]:
-    """SymEngine's ``values`` as SymPy expressions (assumed symbols are :class:`_Kept`: as given)."""
-    return [v._sympy_() for v in values]
+    """SymEngine's ``values`` as SymPy expressions (assumed symbols are :class:`_Kept`: as given),
+    each remembered as the conversion of what it came from (:data:`_CONVERTED`): a derivative
+    converted back and used again (d/dt of a momentum, say) is not converted a second time."""
+    out = [v._sympy_() for v in values]
+    for e, v in zip(out, values):
+        if len(_CONVERTED) >= _CONVERTED_MAX:
+            _CONVERTED.clear()
+        _CONVERTED[e] = v
+    return out
 
 
 def _real(exprs: Sequence[sp.Expr]) -> tuple[dict[sp.Symbol, sp.Symbol], dict[sp.Symbol, sp.Symbol]]:

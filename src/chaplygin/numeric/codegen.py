@@ -329,7 +329,8 @@ def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
 
 def _parts(eqs: Equations) -> _Parts:
     layout, to_num, velocities, k = state_symbols(eqs)
-    fill = _Fill(_main_block(eqs.system, list(eqs._M), list(eqs._F), velocities, _plain(to_num)))
+    F = list(eqs._F) if eqs._native_F is None else eqs._native_F
+    fill = _Fill(_main_block(eqs.system, list(eqs._M), F, velocities, _plain(to_num)))
     return _Parts(eqs.system, layout, fill, eqs._M.shape[0], k)
 
 
