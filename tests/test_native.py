@@ -393,6 +393,27 @@ def test_a_homogeneous_kinetic_energy_is_known_from_symengine() -> None:
     assert monitor(rotating).column == "jacobi_integral"
 
 
+def test_shown_nonzero_never_takes_an_identity_for_a_nonzero_value() -> None:
+    """An expression that vanishes identically (the trigonometric identity, a cancelling
+    polynomial, (√a)² − a, a difference of large equal sums) is never shown nonzero; values that
+    are not 0, however small or near a cancellation, are; a pole is not shown."""
+    from chaplygin.core._fast import shown_nonzero
+
+    x, y, a = se.symbols("x y a")
+    big = sum((se.sin(k * x) * se.cos(y) ** k / (k + a) for k in range(1, 40)), se.Integer(0))
+    zero = [
+        se.sin(x) ** 2 + se.cos(x) ** 2 - 1,
+        (x + y) ** 3 - x**3 - 3 * x**2 * y - 3 * x * y**2 - y**3,
+        se.sqrt(a) ** 2 - a,
+        se.expand(big * (x - y)) - big * x + big * y,
+        se.sin(x + y) - se.sin(x) * se.cos(y) - se.cos(x) * se.sin(y),
+    ]
+    assert shown_nonzero(zero) == [False] * len(zero)
+    nonzero = [x, se.Integer(10) ** -12 * x, se.sin(x) ** 2 + se.cos(x) ** 2 - 1 + y / 10**6, big]
+    assert shown_nonzero(nonzero) == [True] * len(nonzero)
+    assert shown_nonzero([1 / (x - x)]) == [False]
+
+
 def test_symengine_expressions_with_assumed_parameters_pickle() -> None:
     """A parameter with assumptions crosses into SymEngine as a symbol that converts back to
     itself; expressions holding it pickle and come back with the assumption."""

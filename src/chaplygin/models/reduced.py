@@ -23,11 +23,12 @@ it is the multiplier system (6) with λ eliminated through (10).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
-from chaplygin.core._fast import gradient, jacobian, native
+from chaplygin.core._fast import gradient, jacobian, native, shown_nonzero
 from chaplygin.core._rational import solve_linear, zero_if_vanishing
 from chaplygin.core._symbols import TIME, total_derivative
 from chaplygin.models.equations import Equations
@@ -180,10 +181,14 @@ def reduced_equations(system: System, model: str, form: str) -> Equations:
     # (nonlinear constraints: W has accelerations too, d/dt ∂φ/∂q̇_σ; M is the residuals' Jacobian)
     mass = None if system.is_nonlinear else reduced_mass_matrix(system, r)
     residuals, fast = _classic(system, r)
-    eqs = reduced_system(system, model, form, residuals, r, mass=mass)
-    if fast is not None:  # F = −(residuals at zero accelerations), in SymEngine for the code generator
-        rule = dict(zip(native(r.ind_xdd) or [], [0] * r.eps))
-        eqs._native_F = [0 if f == 0 else -e.xreplace(rule) for f, e in zip(eqs._F, fast)]
+    if fast is None:
+        return reduced_system(system, model, form, residuals, r, mass=mass)
+    # F = −(residuals at zero accelerations), in SymEngine for the code generator; where its
+    # value shows it nonzero, the exact test for a cancelling sum (zero_if_vanishing) is spared
+    rule = dict(zip(native(r.ind_xdd) or [], [0] * r.eps))
+    forcing = [-e.xreplace(rule) for e in fast]
+    eqs = reduced_system(system, model, form, residuals, r, mass=mass, shown=shown_nonzero(forcing))
+    eqs._native_F = [0 if f == 0 else e for f, e in zip(eqs._F, forcing)]
     return eqs
 
 
@@ -208,18 +213,22 @@ def reduced_system(
     r: Reduction,
     *,
     mass: sp.Matrix | None = None,
+    shown: Sequence[bool] | None = None,
     **extra: object,
 ) -> Equations:
     """Wrap ε residuals linear in the independent accelerations as :class:`Equations`.
 
     ``mass``, where the caller knows it, is the matrix of their coefficients (else it is
-    the residuals' Jacobian in the accelerations).
+    the residuals' Jacobian in the accelerations).  ``shown``, where given, marks the forcing
+    terms already shown not to vanish (:func:`chaplygin.core._fast.shown_nonzero`).
     """
     res = sp.Matrix(residuals)
     M = jacobian(res, r.ind_xdd) if mass is None else mass
     # a forcing term that vanishes identically is 0, not a sum that cancels only exactly: the
     # compiled right-hand sides solve M·x = F numerically (the snakeboard's classic φ row)
-    F = (-res.xreplace({a: 0 for a in r.ind_xdd})).applyfunc(zero_if_vanishing)
+    F = -res.xreplace({a: 0 for a in r.ind_xdd})
+    shown = shown or [False] * F.rows
+    F = sp.Matrix(F.rows, 1, [f if seen else zero_if_vanishing(f) for f, seen in zip(F, shown)])
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
         return dict(zip(r.ind_xdd, solve_linear(M, F, f"the {model} equations")))
