@@ -60,6 +60,38 @@ def test_second_process_loads_the_compiled_kernel(tmp_path):
     assert second["file"] == first["file"]
 
 
+# a process that records, as the rolling disk's Chaplygin equations are derived for the c
+# backend, whether the C compiler is already building the DOP853 loop beside it
+BESIDE = """
+import json, threading
+from chaplygin import examples
+from chaplygin.core.system import System
+from chaplygin.numeric import _ckernel
+from chaplygin.numeric.codegen import compile_model
+seen = []
+derive = System.equations
+def watched(self, *args, **kwargs):
+    seen.append(sorted(t.name for t in threading.enumerate()))
+    return derive(self, *args, **kwargs)
+System.equations = watched
+compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
+loops = sorted(p.name for p in _ckernel.kernel_dir().glob("dop853_*.so"))
+print(json.dumps({"seen": seen, "stats": _ckernel.STATS, "loops": loops}))
+"""
+
+
+@needs_cc
+def test_the_loop_library_is_built_while_the_model_is_derived(tmp_path):
+    # the C compiler's ~0.2 s for the DOP853 loop (once per kernel cache) overlap the derivation
+    first = run_json(BESIDE, [], tmp_path)
+    assert "chaplygin-loop-build" in first["seen"][0]
+    assert first["stats"]["built"] == 2 and len(first["loops"]) == 1
+    # with the loop in the cache nothing is started beside the derivation
+    second = run_json(BESIDE.replace("rolling_disk()", "rolling_sphere()"), [], tmp_path)
+    assert second["seen"] and "chaplygin-loop-build" not in second["seen"][0]
+    assert second["stats"] == {"built": 1, "loaded": 1, "discarded": 0}
+
+
 @needs_cc
 @pytest.mark.parametrize("damage", ["library", "record"])
 def test_a_corrupt_kernel_is_discarded_and_rebuilt(tmp_path, damage):

@@ -328,3 +328,64 @@ def test_abs_of_a_coordinate_differentiates_to_sign_and_compiles() -> None:
     ]
     assert np.all(np.isfinite(rhs))
     np.testing.assert_allclose(rhs, [rhs[0]] * 4, rtol=1e-12)
+
+
+def test_the_code_generator_does_not_convert_the_reduced_forcing_again(monkeypatch) -> None:
+    """Chaplygin's equations of the rolling disk: F reaches the code generator in SymEngine, summed
+    there from the terms the derivation computed in it (none converted a second time), and it is
+    the SymPy F (the difference simplifies to 0)."""
+    from chaplygin.core import _fast
+    from chaplygin.numeric import codegen
+
+    system = examples.rolling_disk()
+    eqs = system.equations("chaplygin")
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(
+        _fast, "_to_symengine", lambda e: (isinstance(e, sp.Basic) and seen.append(e), convert(e))[1]
+    )
+    codegen._parts(eqs)
+    assert not set(eqs._F) & set(seen), "the code generator converted F"
+    assert eqs._native_F is not None
+    for f, e in zip(eqs._F, eqs._native_F):
+        by_name = {sp.Symbol(x.name): x for x in f.free_symbols if isinstance(x, sp.Symbol)}
+        assert sp.simplify(_fast.to_sympy(e).xreplace(by_name) - f) == 0  # (assumptions by name)
+
+
+def test_a_homogeneous_kinetic_energy_is_known_from_symengine() -> None:
+    """The rattleback's T is a quadratic form in the velocities: the System says so from
+    SymEngine when it checks T (the monitor's SymPy check, E = T − U or Jacobi's integral, took
+    0.06 s of its cold build); a particle in a rotating frame (T₁, T₀ parts) is left to the
+    monitor, which names Jacobi's integral."""
+    from chaplygin.numeric.simulate import monitor
+
+    body = examples.rattleback()
+    assert body.__dict__.get("_quadratic_T") is True
+    assert monitor(body).column == "energy"
+    x, y = dynamicsymbols("x y")
+    m, w = sp.symbols("m Omega", positive=True)
+    T = m / 2 * ((x.diff(t) - w * y) ** 2 + (y.diff(t) + w * x) ** 2)
+    rotating = System([x, y], T, {})
+    assert "_quadratic_T" not in rotating.__dict__
+    assert monitor(rotating).column == "jacobi_integral"
+
+
+def test_shown_nonzero_never_takes_an_identity_for_a_nonzero_value() -> None:
+    """An expression that vanishes identically (the trigonometric identity, a cancelling
+    polynomial, (√a)² − a, a difference of large equal sums) is never shown nonzero; values that
+    are not 0, however small or near a cancellation, are; a pole is not shown."""
+    from chaplygin.core._fast import shown_nonzero
+
+    x, y, a = se.symbols("x y a")
+    big = sum((se.sin(k * x) * se.cos(y) ** k / (k + a) for k in range(1, 40)), se.Integer(0))
+    zero = [
+        se.sin(x) ** 2 + se.cos(x) ** 2 - 1,
+        (x + y) ** 3 - x**3 - 3 * x**2 * y - 3 * x * y**2 - y**3,
+        se.sqrt(a) ** 2 - a,
+        se.expand(big * (x - y)) - big * x + big * y,
+        se.sin(x + y) - se.sin(x) * se.cos(y) - se.cos(x) * se.sin(y),
+    ]
+    assert shown_nonzero(zero) == [False] * len(zero)
+    nonzero = [x, se.Integer(10) ** -12 * x, se.sin(x) ** 2 + se.cos(x) ** 2 - 1 + y / 10**6, big]
+    assert shown_nonzero(nonzero) == [True] * len(nonzero)
+    assert shown_nonzero([1 / (x - x)]) == [False]

@@ -73,6 +73,23 @@ def test_branch_of_linear_or_solved_constraints() -> None:
 
 
 # ------------------------------------------------------------------ refusals
+def test_roots_are_checked_real_without_generating_code(monkeypatch) -> None:
+    """Whether a root in a constraint linear in the velocities is real somewhere is sampled by
+    SymEngine's evaluator (no lambdify: 0.07 s of the rattleback's cold build), with the answers
+    of test_a_root_real_nowhere_in_a_velocity_free_term."""
+    from chaplygin.core import _sampling
+
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("lambdify was called")
+
+    monkeypatch.setattr(_sampling, "compile_function", refuse)
+    assert not System([x, y, z], T3, {d(z): d(x) + sp.sqrt(x - 100)}).is_nonlinear
+    msg = error([x, y, z], T3, {d(z): d(x) + sp.sqrt(-(x**2) - 1)})
+    assert msg.startswith("constraints[z'] = sqrt(-x**2 - 1) + x' is not real")
+    msg = error([x, y, z], T3, [d(z) - d(x) + sp.sqrt(-(x**2) - 1)], dependent=[z])
+    assert msg.startswith("constraints[0] = sqrt(-x**2 - 1) - x' + z' is not real")
+
+
 def test_no_solution_sympy_finds() -> None:
     msg = error([x, y, z], T3, [sp.Abs(d(z)) + d(z) ** 3 - d(x)], dependent=[z])
     assert "SymPy cannot solve the implicit constraints for z'" in msg and "{z': expression" in msg

@@ -112,3 +112,36 @@ def test_powers_of_long_sums_are_not_expanded() -> None:
     (sol,) = solve_linear(sp.Matrix([[2 + sp.sin(x) ** 2]]), sp.Matrix([[big]]))
     assert sp.simplify(sol - big / (2 + sp.sin(x) ** 2)) == 0
     assert normal_all([big]) == [big]
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(top=polynomials(4), bottom=polynomials(3), common=polynomials(2), power=st.integers(0, 2))
+def test_cancelling_by_the_denominators_factors_is_sympys_cancel(
+    top: sp.Expr, bottom: sp.Expr, common: sp.Expr, power: int
+) -> None:
+    """Algebra._cancel (the denominator's factors divided out, then the contents) gives the very
+    pair SymPy's ``PolyElement.cancel`` (a greatest common divisor) gives, common factors and
+    rational coefficients included."""
+    from chaplygin.core._rational import Algebra
+
+    numer, denom = sp.expand(top * common**power / 3), sp.expand(bottom * common**power * sp.Rational(2, 5))
+    alg = Algebra([numer, denom])
+    n, d = alg.convert(numer)[0], alg.convert(denom)[0]
+    if not d:
+        return
+    assert alg._cancel(n, d) == n.cancel(d)
+
+
+def test_the_vakonomic_disk_is_solved_without_a_greatest_common_divisor(monkeypatch) -> None:
+    """The rolling disk's vakonomic accelerations (their denominators are small) cancel by the
+    denominators' factors: SymPy's gcd-based cancel is never called (it was 0.03 of 0.12 s)."""
+    from sympy.polys.rings import PolyElement
+
+    from chaplygin import examples
+
+    def refuse(self: PolyElement, other: PolyElement) -> None:
+        raise AssertionError("PolyElement.cancel was called")
+
+    monkeypatch.setattr(PolyElement, "cancel", refuse)
+    acc = examples.rolling_disk().equations("vakonomic").accelerations
+    assert len(acc) == 7  # the 5 coordinates' accelerations and the 2 multipliers' rates

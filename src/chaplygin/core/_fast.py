@@ -18,6 +18,7 @@ import sympy as sp
 
 try:  # the import line names the converter; no user text ever reaches it
     from symengine import DenseMatrix as _se_matrix
+    from symengine import Integer as _se_integer
     from symengine import Lambdify as _se_lambdify
     from symengine import Symbol as _se_symbol
     from symengine import cse as _se_cse
@@ -34,6 +35,7 @@ __all__ = [
     "gradient",
     "jacobian",
     "native",
+    "shown_nonzero",
     "to_sympy",
     "total_derivative",
 ]
@@ -161,6 +163,30 @@ def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]]
         list(_se_matrix([v for _, v in pairs] + list(reduced)).xreplace(rename)) if rename else list(reduced)
     )
     return list(zip(rename.values(), done[: len(pairs)])), done[len(pairs) :]
+
+
+def shown_nonzero(exprs: Sequence[Any], seed: int = 31) -> list[bool]:
+    """Whether each SymEngine expression is shown not to vanish identically by its value at one
+    random rational point, computed twice: in double precision and in 200 bits (MPFR).  A
+    nonzero value is the same number both times; an expression that is 0 gives rounding noise,
+    ~1e-16 and ~1e-60 of its terms, which never agree to six digits.  False (not shown) for
+    agreeing values only short of that, a pole, or anything not evaluated."""
+    import random
+
+    rng = random.Random(seed)
+    symbols = sorted({x for e in exprs for x in e.free_symbols}, key=str)
+    point = {x: _se_integer(rng.randint(50, 150)) / _se_integer(rng.randint(90, 110)) for x in symbols}
+    out = []
+    for e in exprs:
+        try:
+            value = e.subs(point)
+            low, high = complex(value.n(53, real=False)), complex(value.n(200, real=False))
+        except (ArithmeticError, RuntimeError, TypeError, ValueError):
+            out.append(False)
+            continue
+        size = abs(high)
+        out.append(bool(0 < size < float("inf") and abs(low - high) <= 1e-6 * size))
+    return out
 
 
 def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None:

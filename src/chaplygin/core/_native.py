@@ -30,7 +30,15 @@ from chaplygin.core._symbols import TIME
 if TYPE_CHECKING:
     from chaplygin.core.system import System
 
-__all__ = ["Native", "chetaev_matrices", "is_quadratic", "linear_split", "load", "momenta"]
+__all__ = [
+    "Native",
+    "chetaev_matrices",
+    "is_quadratic",
+    "linear_split",
+    "load",
+    "momenta",
+    "vanishes_at_rest",
+]
 
 
 @dataclass(frozen=True)
@@ -116,6 +124,14 @@ def is_quadratic(T: Any, xd: list[Any], p: list[Any], H: list[list[Any]]) -> tup
     if se.expand(T - taylor) != 0:
         return None
     return True, any(h != 0 for row in H for h in row)
+
+
+def vanishes_at_rest(T: Any, xd: list[Any], p: list[Any]) -> bool:
+    """Whether ``T`` and its momenta ``p`` (:func:`momenta`) expand to 0 at ``xd = 0``: then a
+    ``T`` of degree ≤ 2 in ``xd`` (:func:`is_quadratic`) is a homogeneous quadratic form (no
+    ``T₁``, no ``T₀``).  False where the expansion does not show it."""
+    zero = {v: se.Integer(0) for v in xd}
+    return all(se.expand(e.xreplace(zero)) == 0 for e in [T, *p])
 
 
 def linear_split(e: Any, xd: list[Any]) -> tuple[list[Any], Any] | None:

@@ -196,6 +196,8 @@ class Algebra:
         #: every sum met as a denominator (the base of a negative power): the candidates for
         #: the common factors of a solution's numerator and denominator (:meth:`_divide_out`)
         self._divisors: dict[PolyElement, None] = {}
+        #: the irreducible factors of the denominators met by :meth:`_cancel` (solutions share theirs)
+        self._factors: dict[PolyElement, list[tuple[PolyElement, int]]] = {}
 
     # ------------------------------------------------------------------ conversion
     def convert(self, expr: sp.Expr) -> Fraction:
@@ -300,7 +302,7 @@ class Algebra:
             n, d = _eliminate(best[0], pairs), _eliminate(best[1], pairs)
             if not d:
                 raise ZeroDivisionError
-            best = n.cancel(d)
+            best = self._cancel(n, d)
             candidates.append(best)
         if denom == 1 and not kept:
             candidates.append((numer, denom))  # a polynomial may read best as it was written
@@ -320,6 +322,29 @@ class Algebra:
                 numer, denom, shown = -numer, -denom, -shown
             self._bottoms[denom] = shown
         return self.field.raw_new(numer, denom)
+
+    def _cancel(self, numer: PolyElement, denom: PolyElement) -> tuple[PolyElement, PolyElement]:
+        """``numer.cancel(denom)``, the same pair, without a greatest common divisor: the
+        denominator's irreducible factors (it is small; factored once for all the numerators
+        over it) are divided out of both as often as they divide the numerator, which leaves a
+        constant for their divisor, whose normalisation :func:`_coprime_cancel` repeats.  The
+        vakonomic rolling disk's cancellations: 0.030 -> 0.013 s.  A large denominator is
+        cancelled by SymPy's divisor, as is anything over another domain than ℚ."""
+        if not numer:
+            return numer, self.ring.one
+        if len(denom) > _FACTOR_TERMS or self.ring.domain != sp.QQ:
+            return numer.cancel(denom)
+        factors = self._factors.get(denom)
+        if factors is None:
+            factors = [(f, k) for f, k in denom.factor_list()[1] if not f.is_ground]
+            self._factors[denom] = factors
+        for f, k in factors:
+            for _ in range(k):
+                quotient, remainder = numer.div(f)
+                if remainder:
+                    break
+                numer, denom = quotient, denom.exquo(f)
+        return _coprime_cancel(numer, denom)
 
     def _directions(self) -> list[list[tuple[int, int]]]:
         """The pairs of :func:`_eliminate` for each way of rewriting: sin² → 1 − cos², and back."""
@@ -393,6 +418,25 @@ class Algebra:
     def fractions(self, N: DomainMatrix, d: PolyElement) -> list[FracElement]:
         """The entries of the column ``N / d``, each reduced (:meth:`reduce`)."""
         return [self.reduce((N[i, 0].element, d)) for i in range(N.shape[0])]
+
+
+def _coprime_cancel(f: PolyElement, g: PolyElement) -> tuple[PolyElement, PolyElement]:
+    """``f.cancel(g)`` over ℚ for ``f`` and ``g`` whose divisor is a constant: the steps of
+    SymPy's ``PolyElement.cancel`` (denominators cleared, the integer cofactors, the unit that
+    makes the denominator's leading coefficient positive), the divisor being the contents'."""
+    ring = f.ring
+    if not f:
+        return f, ring.one
+    integers = ring.clone(domain=ring.domain.get_ring())
+    cq, f = f.clear_denoms()
+    cp, g = g.clear_denoms()
+    f, g = f.set_ring(integers), g.set_ring(integers)
+    common = integers.domain.gcd(f.content(), g.content())
+    p, q = f.quo_ground(common), g.quo_ground(common)
+    _, cp, cq = integers.domain.cofactors(cp, cq)
+    p, q = p.set_ring(ring).mul_ground(cp), q.set_ring(ring).mul_ground(cq)
+    unit = q.canonical_unit()
+    return (p, q) if unit == ring.domain.one else (p.mul_ground(unit), q.mul_ground(unit))
 
 
 def _floated(expr: sp.Expr, prec: int) -> sp.Expr:

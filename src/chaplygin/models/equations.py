@@ -5,7 +5,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
@@ -79,6 +79,9 @@ class Equations:
         for mu, mu_dot in (derivatives or {}).items():
             self._to_fun[mu_dot] = self._to_fun[mu].diff(TIME)
         self.constants: tuple[sp.Symbol, ...] = tuple(constants)
+        #: ``F`` as SymEngine expressions where the derivation has them (the code generator's
+        #: input, spared a conversion), else None
+        self._native_F: list[Any] | None = None
 
     @property
     def title(self) -> str:

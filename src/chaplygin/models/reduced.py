@@ -23,11 +23,12 @@ it is the multiplier system (6) with λ eliminated through (10).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
-from chaplygin.core._fast import gradient, jacobian
+from chaplygin.core._fast import gradient, jacobian, native, shown_nonzero
 from chaplygin.core._rational import solve_linear, zero_if_vanishing
 from chaplygin.core._symbols import TIME, total_derivative
 from chaplygin.models.equations import Equations
@@ -109,11 +110,16 @@ def momenta_dependent(system: System, r: Reduction) -> list[sp.Expr]:
     return [p.xreplace(r.sub) for p in gradient(system._T, r.dep_xd)]
 
 
-def lagrange_reduced(system: System, r: Reduction) -> list[sp.Expr]:
-    """``d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ``: Lagrange's operator on T̃ — Lindelöf's eq. (22)."""
+def _lagrange_terms(system: System, r: Reduction) -> list[tuple[sp.Expr, sp.Expr, sp.Expr]]:
+    """``(d/dt ∂T̃/∂q̇_σ, D_σ T̃, Q̃_σ)`` for each σ (:func:`lagrange_reduced`)."""
     Tt = system._T_reduced
     momenta = gradient(Tt, r.ind_xd)
-    return [r.dt(momenta[k]) - r.D(Tt, k) - r.reduced_force(k) for k in range(r.eps)]
+    return [(r.dt(momenta[k]), r.D(Tt, k), r.reduced_force(k)) for k in range(r.eps)]
+
+
+def lagrange_reduced(system: System, r: Reduction) -> list[sp.Expr]:
+    """``d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ``: Lagrange's operator on T̃ — Lindelöf's eq. (22)."""
+    return [a - b - c for a, b, c in _lagrange_terms(system, r)]
 
 
 def lindelof_defect(system: System, r: Reduction) -> list[sp.Expr]:
@@ -123,9 +129,32 @@ def lindelof_defect(system: System, r: Reduction) -> list[sp.Expr]:
     return [sum((p[b] * W[b][k] for b in range(system.g)), sp.S.Zero) for k in range(r.eps)]
 
 
-def _classic(system: System, r: Reduction) -> list[sp.Expr]:
-    """Voronets' equations; Chaplygin's (15) for a Chaplygin system."""
-    return [a + b for a, b in zip(lagrange_reduced(system, r), lindelof_defect(system, r))]
+def _classic(system: System, r: Reduction) -> tuple[list[sp.Expr], list[Any] | None]:
+    """Voronets' equations; Chaplygin's (15) for a Chaplygin system: the residuals, and the
+    same sums taken in SymEngine (None where it cannot), for the generated code.
+
+    The large terms, ``d/dt ∂T̃/∂q̇_σ`` and ``D_σ T̃``, come from SymEngine and are converted to
+    it again for free (:func:`chaplygin.core._fast.native` remembers them), so the code
+    generator is spared converting the whole residuals (the symbolic rattleback's: 0.15 s).
+    """
+    terms = _lagrange_terms(system, r)
+    W = bracket_terms(system)
+    p = momenta_dependent(system, r)
+    g = system.g
+    residuals = [
+        a - b - c + sum((p[i] * W[i][k] for i in range(g)), sp.S.Zero) for k, (a, b, c) in enumerate(terms)
+    ]
+    fast = native([*(e for t in terms for e in t), *p, *(w for row in W for w in row)])
+    if fast is None:
+        return residuals, None
+    n = 3 * len(terms)
+    ft, fp, fw = fast[:n], fast[n : n + g], fast[n + g :]
+    eps = len(terms)
+    combined = [
+        ft[3 * k] - ft[3 * k + 1] - ft[3 * k + 2] + sum((fp[i] * fw[i * eps + k] for i in range(g)), 0)
+        for k in range(eps)
+    ]
+    return residuals, combined
 
 
 def unreduced_tilde(system: System, r: Reduction) -> list[sp.Expr]:
@@ -151,7 +180,16 @@ def reduced_equations(system: System, model: str, form: str) -> Equations:
         return reduced_system(system, model, form, unreduced_tilde(system, r), r)
     # (nonlinear constraints: W has accelerations too, d/dt ∂φ/∂q̇_σ; M is the residuals' Jacobian)
     mass = None if system.is_nonlinear else reduced_mass_matrix(system, r)
-    return reduced_system(system, model, form, _classic(system, r), r, mass=mass)
+    residuals, fast = _classic(system, r)
+    if fast is None:
+        return reduced_system(system, model, form, residuals, r, mass=mass)
+    # F = −(residuals at zero accelerations), in SymEngine for the code generator; where its
+    # value shows it nonzero, the exact test for a cancelling sum (zero_if_vanishing) is spared
+    rule = dict(zip(native(r.ind_xdd) or [], [0] * r.eps))
+    forcing = [-e.xreplace(rule) for e in fast]
+    eqs = reduced_system(system, model, form, residuals, r, mass=mass, shown=shown_nonzero(forcing))
+    eqs._native_F = [0 if f == 0 else e for f, e in zip(eqs._F, forcing)]
+    return eqs
 
 
 def reduced_mass_matrix(system: System, r: Reduction) -> sp.Matrix:
@@ -175,18 +213,22 @@ def reduced_system(
     r: Reduction,
     *,
     mass: sp.Matrix | None = None,
+    shown: Sequence[bool] | None = None,
     **extra: object,
 ) -> Equations:
     """Wrap ε residuals linear in the independent accelerations as :class:`Equations`.
 
     ``mass``, where the caller knows it, is the matrix of their coefficients (else it is
-    the residuals' Jacobian in the accelerations).
+    the residuals' Jacobian in the accelerations).  ``shown``, where given, marks the forcing
+    terms already shown not to vanish (:func:`chaplygin.core._fast.shown_nonzero`).
     """
     res = sp.Matrix(residuals)
     M = jacobian(res, r.ind_xdd) if mass is None else mass
     # a forcing term that vanishes identically is 0, not a sum that cancels only exactly: the
     # compiled right-hand sides solve M·x = F numerically (the snakeboard's classic φ row)
-    F = (-res.xreplace({a: 0 for a in r.ind_xdd})).applyfunc(zero_if_vanishing)
+    F = -res.xreplace({a: 0 for a in r.ind_xdd})
+    shown = shown or [False] * F.rows
+    F = sp.Matrix(F.rows, 1, [f if seen else zero_if_vanishing(f) for f, seen in zip(F, shown)])
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
         return dict(zip(r.ind_xdd, solve_linear(M, F, f"the {model} equations")))

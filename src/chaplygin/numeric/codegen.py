@@ -30,6 +30,7 @@ from __future__ import annotations
 import heapq
 import inspect
 import itertools
+import threading
 import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -328,7 +329,8 @@ def _source(eqs: Equations, backend: str) -> tuple[Layout, str]:
 
 def _parts(eqs: Equations) -> _Parts:
     layout, to_num, velocities, k = state_symbols(eqs)
-    fill = _Fill(_main_block(eqs.system, list(eqs._M), list(eqs._F), velocities, _plain(to_num)))
+    F = list(eqs._F) if eqs._native_F is None else eqs._native_F
+    fill = _Fill(_main_block(eqs.system, list(eqs._M), F, velocities, _plain(to_num)))
     return _Parts(eqs.system, layout, fill, eqs._M.shape[0], k)
 
 
@@ -773,6 +775,8 @@ def _compile_model(
 ) -> CompiledModel:
     """:func:`compile_model` without the disk cache: derive (once per system) and generate."""
     entry = registry.get(model, form)
+    if backend == "c":
+        _build_loop_beside()
     if not numeric:
         kwargs = {} if constants is None else {"constants": constants}
         return compile_equations(system.equations(model, form, **kwargs), backend)
@@ -783,6 +787,36 @@ def _compile_model(
     if key not in cache:
         cache[key] = _load_model(_numeric_reduction_parts(system, model), backend)
     return cache[key]
+
+
+#: the thread building the C loop library while the model is derived (:func:`_build_loop_beside`)
+_BESIDE: list[threading.Thread] = []
+
+
+def _build_loop_beside() -> None:
+    """Start building the C loop library (once per kernel cache, ~0.2 s of the C compiler) in
+    a thread, so that the compiler runs while this process derives and generates the model;
+    :func:`_load_model` waits for it before it loads the loop.  Nothing is started where the
+    loop is loaded, being built or in the cache already (a library of another source there is
+    built by the load as before); a failure is left to the load, which raises it again."""
+    from chaplygin.numeric import _ckernel
+
+    if _ckernel._LOOP or any(t.is_alive() for t in _BESIDE):
+        return
+    try:
+        if next(_ckernel.kernel_dir().glob("dop853_*.so"), None) is not None:
+            return
+    except OSError:
+        return
+
+    def build() -> None:
+        try:
+            _ckernel.library(_ckernel.loop_source(), "dop853")
+        except Exception:  # the main thread's load raises it again, with its context
+            pass
+
+    _BESIDE[:] = [threading.Thread(target=build, name="chaplygin-loop-build")]
+    _BESIDE[0].start()
 
 
 def _compile(eqs: Equations, backend: str) -> CompiledModel:
@@ -803,6 +837,8 @@ def _load_model(parts: _Parts, backend: str) -> CompiledModel:
     if backend == "c":
         from chaplygin.numeric._ckernel import CKernel
 
+        for thread in _BESIDE:  # the loop library, built beside the derivation
+            thread.join()
         s, layout = parts.system, parts.layout
         try:
             kernel = CKernel(
