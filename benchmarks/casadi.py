@@ -259,6 +259,12 @@ def process_rows(systems: Sequence[str], models: Sequence[str], work: Path) -> l
     """The rows of part 1: floors first, then per system CasADi, the Python API and the CLI."""
     rows = [
         Row("floor: chaplygin --help", [PYTHON, "-m", "chaplygin", "--help"]),
+        # what a command that parses options adds to --help: typer 0.29 coerces every option of
+        # the command run through pydantic (imported only then; --help does not)
+        Row(
+            "floor: the CLI + typer's pydantic coercion (imports)",
+            [PYTHON, "-c", "import chaplygin.apps.cli, typer._adapters"],
+        ),
         Row("floor: python -c 'import numpy'", [PYTHON, "-c", "import numpy"]),
         Row("floor: python -c 'import sympy, numpy'", [PYTHON, "-c", "import sympy, numpy"]),
         Row("floor: python -c 'import casadi, numpy'", [PYTHON, "-c", "import casadi, numpy"]),
