@@ -4,7 +4,7 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/warmfile.py                          # best and median of 7
     .venv/bin/python benchmarks/warmfile.py --src /work/main/src     # and another checkout beside
-    .venv/bin/python benchmarks/warmfile.py --casadi SCRIPT.py       # and a CasADi script beside
+    .venv/bin/python benchmarks/warmfile.py --casadi auto            # and benchmarks/casadi.py's CasADi script beside
 
 Each route is a fresh ``python`` process, timed from start to exit, the routes interleaved in
 every repeat (a shared machine's noise falls on all of them alike): the snakeboard of
@@ -51,7 +51,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--src", help="another checkout's src folder, timed beside this one")
-    parser.add_argument("--casadi", help="a CasADi script of the same run, timed beside")
+    parser.add_argument(
+        "--casadi",
+        help="a CasADi script of the same run, timed beside; 'auto': the one benchmarks/casadi.py writes",
+    )
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix="warmfile-"))
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
@@ -76,6 +79,15 @@ def main() -> None:
     py = sys.executable
     routes = {"import numpy": route([py, "-c", "import numpy"])}
     routes["import sympy, numpy"] = route([py, "-c", "import sympy, numpy"])
+    if args.casadi == "auto":  # benchmarks/casadi.py's script of the snakeboard (cvodes, Adams)
+        import importlib.util
+
+        spec = importlib.util.spec_from_file_location("casadi_benchmark", HERE / "casadi.py")
+        assert spec is not None and spec.loader is not None
+        bench = sys.modules["casadi_benchmark"] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(bench)  # (it imports CasADi itself, or says how to install it)
+        args.casadi = str(work / "casadi_snakeboard.py")
+        Path(args.casadi).write_text(bench.casadi_script("snakeboard", "adams"), encoding="utf-8")
     if args.casadi:
         routes["CasADi script"] = route([py, args.casadi])
     trees = {"this tree": str(HERE.parent / "src")} | ({"--src": args.src} if args.src else {})

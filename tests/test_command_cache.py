@@ -194,3 +194,76 @@ def test_a_warm_sweep_derives_nothing(sleigh: Path, tmp_path: Path, monkeypatch:
     warm = run(args)
     assert warm[0] == 0, warm
     assert pq.read_table(out).drop(["wall_time"]).equals(cold)
+
+
+@pytest.mark.parametrize("command", ["check", "simulate"])
+def test_a_file_saved_again_during_a_command_leaves_no_result_under_its_old_bytes(
+    command: str, sleigh: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The file is saved again (another name, another start) just after the command read the bytes
+    its cache key is made of: the command answers for those bytes, and a later run of them
+    replays that answer, not the other file's (the system was read a second time, from the new
+    bytes, and stored under the old ones)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    args = commands(sleigh, out)[command] + (["--force"] if command != "check" else [])
+    original = sleigh.read_text(encoding="utf-8")
+    assert 'name = "Chaplygin sleigh' in original and "\ntheta = 0.0\n" in original
+    edited = original.replace('name = "Chaplygin sleigh', 'name = "EDITED sleigh').replace(
+        "\ntheta = 0.0\n", "\ntheta = 0.5\n"
+    )
+    assert edited != original
+    clean = run(args), outputs(out)  # the original bytes, alone in a fresh cache
+    monkeypatch.setenv("CHAPLYGIN_CACHE", str(tmp_path / "raced"))
+    real = cli._definition
+
+    def saved_meanwhile(spec: str) -> bytes | None:
+        raw = real(spec)
+        sleigh.write_text(edited, encoding="utf-8")
+        return raw
+
+    monkeypatch.setattr(cli, "_definition", saved_meanwhile)
+    raced = run(args), outputs(out)
+    monkeypatch.setattr(cli, "_definition", real)
+    sleigh.write_text(original, encoding="utf-8")
+    assert raced == clean
+    assert (run(args), outputs(out)) == clean  # warm: the original's answer
+
+
+def test_model_cache_off_makes_no_plan_and_reads_no_summary(
+    sleigh: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``CHAPLYGIN_MODEL_CACHE=off``: every process derives anew, a loaded file included (a run
+    plan and a file summary were stored and used all the same)."""
+    import chaplygin
+    from chaplygin.io import _file
+
+    monkeypatch.setenv("CHAPLYGIN_MODEL_CACHE", "off")
+    for _ in range(2):
+        loaded = _file.load(sleigh)
+        assert "system" in vars(loaded)  # read and validated, not a stored summary
+        chaplygin.simulate(loaded, "chaplygin", 1.0)
+    monkeypatch.setenv("CHAPLYGIN_MODEL_CACHE", "on")
+    chaplygin.simulate(_file.load(sleigh), "chaplygin", 1.0)  # the cache on again: a summary is kept
+    assert "system" not in vars(_file.load(sleigh))
+
+
+def test_a_replay_onto_a_stdout_that_cannot_take_the_text_says_so(sleigh: Path, tmp_path: Path) -> None:
+    """A replayed result printed to an ASCII-only stdout: the full path's one-line error, not a
+    traceback from the replay."""
+    import os
+    import subprocess
+    import sys
+
+    board = tmp_path / "board.toml"  # (its integrability conditions print ∂)
+    board.write_bytes((Path(__file__).parents[1] / "benchmarks/systems/snakeboard_spring.toml").read_bytes())
+    cmd = [sys.executable, "-m", "chaplygin", "check", str(board)]
+    stored = subprocess.run(cmd, capture_output=True, text=True, encoding="utf-8", check=False)
+    assert stored.returncode == 0 and "∂" in stored.stdout, stored.stderr[-600:]
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    for _ in range(2):  # the replay, and (stored nothing) the full path after it
+        r = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+        assert r.returncode == 1 and r.stderr.startswith("error: unexpected UnicodeEncodeError"), r.stderr[
+            -600:
+        ]
+        assert "Traceback" not in r.stderr

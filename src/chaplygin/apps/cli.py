@@ -64,10 +64,13 @@ class _Command(_FlagsWithoutType, TyperCommand):
     cache and a second run of the same command replays it (:mod:`chaplygin.apps._replay`)."""
 
     def invoke(self, ctx: Any) -> Any:
+        _READ.clear()  # (a command reads each file once: the bytes as they were when it began)
         k = None
         if self.name in _replay.REPLAYED:
             k = _replay.key(self.name, _definition(str(ctx.params.get("file", ""))), ctx.params)
-            if _replay.replay(k, bool(ctx.params.get("force"))):
+            with _failures():  # (a stdout that cannot take the text: the full path's message)
+                replayed = _replay.replay(k, bool(ctx.params.get("force")))
+            if replayed:
                 return None
         with _replay.recording(k):
             return super().invoke(ctx)
@@ -399,12 +402,14 @@ def _example(name: str) -> Any:
 
 
 def _load(spec: str) -> Any:
-    """A system file, or ``example:NAME``."""
+    """A system file, or ``example:NAME``; a file from the bytes :func:`_definition` read, if it
+    did (the caches are keyed by those: a file changed since is not read again)."""
     if spec.startswith("example:"):
         return _example(spec[len("example:") :])
-    from chaplygin.io import files
+    from chaplygin.io import _file
 
-    return files.load(spec)
+    raw = _READ.get(spec)
+    return _file.load(spec) if raw is None else _file.from_bytes(raw, spec)
 
 
 def _overrides(values: list[str] | None, option: str) -> dict[str, float]:
@@ -735,15 +740,24 @@ def derive(
         _emit(text)
 
 
+#: the bytes of each system file this process read (:func:`_definition`): the command's caches
+#: are keyed by them and :func:`_load` builds the system from them, so that a file saved again
+#: while the command runs cannot store its result under the bytes it had before
+_READ: dict[str, bytes] = {}
+
+
 def _definition(spec: str) -> bytes | None:
-    """What a derivation from ``spec`` depends on: a file's bytes, or an example's name."""
+    """What a derivation from ``spec`` depends on: a file's bytes (read once a process), or an
+    example's name."""
     if spec.startswith("example:"):  # examples change only with the library version
         name = spec[len("example:") :]  # normalised as examples._normalise does, without SymPy
         return f"example:{name.strip().lower().replace('_', '-').replace(' ', '-')}".encode()
-    try:
-        return Path(spec).read_bytes()
-    except OSError:
-        return None  # _load reports the problem
+    if spec not in _READ:
+        try:
+            _READ[spec] = Path(spec).read_bytes()
+        except OSError:
+            return None  # _load reports the problem
+    return _READ[spec]
 
 
 def _derive(

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from chaplygin.numeric import cache
+from chaplygin.numeric import _modelcache, cache
 from chaplygin.numeric._plan import SUMMARY, LoadedFile, summary_key
 
 if TYPE_CHECKING:
@@ -147,6 +147,13 @@ def load(path: str | os.PathLike[str]) -> SystemFile:
             raw = fh.read(MAX_FILE_SIZE + 1)
     except OSError as exc:
         raise _error(f"cannot read the file: {exc.strerror or exc}", source=source) from None
+    return from_bytes(raw, source)
+
+
+def from_bytes(raw: bytes, source: str) -> SystemFile:
+    """The system file whose bytes are ``raw``, read from ``source`` (:func:`load`, for a caller
+    that read the bytes itself: the command line keys its caches by them, and a file changed
+    since must not be read a second time)."""
     if len(raw) > MAX_FILE_SIZE:
         raise _error(
             f"the file is larger than {MAX_FILE_SIZE} bytes",
@@ -162,9 +169,10 @@ def load(path: str | os.PathLike[str]) -> SystemFile:
             allowed="System files are TOML, encoded in UTF-8.",
         ) from None
     stem = Path(source).stem
-    summary = _from_summary(cache.load(summary_key(raw, stem)), source, raw)
-    if summary is not None:
-        return summary
+    if _modelcache.enabled():  # ($CHAPLYGIN_MODEL_CACHE=off: every process reads anew)
+        summary = _from_summary(cache.load(summary_key(raw, stem)), source, raw)
+        if summary is not None:
+            return summary
     from chaplygin.io.files import _loads
 
     loaded = _loads(text, source, stem)

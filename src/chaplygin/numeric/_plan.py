@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from chaplygin.models import registry
-from chaplygin.numeric import cache
+from chaplygin.numeric import _modelcache, cache
 
 if TYPE_CHECKING:
     from chaplygin.numeric.simulate import Trajectory
@@ -125,6 +125,8 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
     own parameters and coordinates, so the checks of its start passed there.
     """
     if definition is None or tr.backend not in PLANNED or not tr.success or not len(tr.t):
+        return
+    if not _modelcache.enabled():  # $CHAPLYGIN_MODEL_CACHE=off: every process derives anew
         return
     system = loaded.system
     reduced = tr.model in REDUCED
@@ -342,7 +344,9 @@ def warn_defaulted(defaulted: Any, given: Mapping[str, float]) -> None:
 
 
 def plan(definition: bytes, model: str, form: str, backend: str) -> dict[str, Any] | None:
-    """The stored plan, or None."""
+    """The stored plan, or None (always, where ``$CHAPLYGIN_MODEL_CACHE`` is off)."""
+    if not _modelcache.enabled():
+        return None
     value = cache.load(key(definition, model, form, backend))
     return value if isinstance(value, dict) else None
 
