@@ -236,3 +236,12 @@ def test_a_parameter_that_makes_a_denominator_vanish_is_named(tmp_path: Path) ->
     assert result.exit_code == 1, result.output
     text = " ".join((result.stdout + result.stderr).split())
     assert "not finite at the initial state" in text and "L = 0" in text and "unexpected" not in text
+
+
+def test_a_solved_constraint_that_is_not_an_expression_is_named_in_the_message() -> None:
+    """The message names the constraint by its velocity as a system file writes it (the name is
+    made only for a message: a valid system never prints one)."""
+    x, y = dynamicsymbols("x y")
+    tt = dynamicsymbols._t
+    with pytest.raises(SystemDefinitionError, match=r"constraints\[y'\]: got the string \"x'\""):
+        System([x, y], (x.diff(tt) ** 2 + y.diff(tt) ** 2) / 2, {y.diff(tt): "x'"})

@@ -12,7 +12,7 @@ the velocity-free terms ``A_β0``/``B_β0`` being Voronets' affine (rheonomic) c
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
@@ -55,12 +55,15 @@ __all__ = ["System"]
 _SAMPLES = 6  # random points used to decide that a matrix is singular everywhere
 
 
-def _as_expr(value: Any, what: str) -> sp.Expr:
-    """Accept SymPy expressions and Python numbers; refuse everything else."""
+def _as_expr(value: Any, what: str | Callable[[], str]) -> sp.Expr:
+    """Accept SymPy expressions and Python numbers; refuse everything else (``what`` names the
+    input in the message: a string, or a function giving it, called only for a message)."""
     if isinstance(value, sp.Eq):
         return value.lhs - value.rhs
     if isinstance(value, sp.Expr):
         return value
+    if callable(what):
+        what = what()
     if isinstance(value, bool):
         raise SystemDefinitionError(f"{what}: expected a SymPy expression, got the boolean {value!r}.")
     if isinstance(value, int):
@@ -323,7 +326,7 @@ class System:
             rhs: list[sp.Expr] = []
             for key, value in constraints.items():
                 dep.append(self._dependent_velocity_index(key))
-                rhs.append(_as_expr(value, f"constraints[{describe(key)}]"))
+                rhs.append(_as_expr(value, lambda: f"constraints[{describe(key)}]"))  # noqa: B023 - used at once
             if len(set(dep)) != len(dep):
                 raise SystemDefinitionError("constraints: a dependent velocity appears twice.")
             if dependent is not None and sorted(given) != sorted(dep):
