@@ -168,3 +168,35 @@ def test_an_interrupt_that_numba_turned_into_a_system_error_is_an_interrupt() ->
         except KeyboardInterrupt:
             raise SystemError("CPUDispatcher(<function f>) returned a result with an exception set") from None
     assert caught.value.exit_code == 130
+
+
+def test_ctrl_c_while_the_command_line_starts_is_no_traceback(
+    monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A Ctrl-C during the command line's own imports (before a command handles it): one line,
+    status 130, no traceback — in process, and in a child interrupted after 0.02–0.1 CPU seconds
+    (its imports; a child killed before Python's handler is in place ends by the signal)."""
+    import chaplygin.apps.cli as cli
+    from chaplygin.__main__ import run
+
+    def interrupted() -> int:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "main", interrupted)
+    assert run() == 130
+    assert capsys.readouterr().err == "interrupted: no output was left half-written.\n"
+    for cpu in (0.02, 0.05, 0.1):
+        child = subprocess.Popen(
+            [sys.executable, "-m", "chaplygin", "examples", "list"],
+            env=_environment(),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        deadline = time.monotonic() + STARTUP
+        while child.poll() is None and _cpu(child.pid) < cpu and time.monotonic() < deadline:
+            time.sleep(0.002)
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=STOPPING)
+        assert "Traceback" not in err, err[-800:]
+        assert child.returncode in (0, 130, -signal.SIGINT), (child.returncode, err[-400:])
