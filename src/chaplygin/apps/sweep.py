@@ -328,13 +328,11 @@ def _resolve(
         system = _system_for(recipe)
         return system, recipe, dict(entry.parameters), dict(entry.initial), spec, None
     if isinstance(spec, (str, os.PathLike)):
-        from chaplygin.io.files import MAX_FILE_SIZE, SystemFileError
+        from chaplygin.io.files import SystemFileError
 
         source = os.fspath(spec)
         try:
-            with open(source, "rb") as fh:
-                raw = fh.read(MAX_FILE_SIZE + 1)
-            text = raw.decode("utf-8")
+            text = _read(source)
         except OSError as exc:
             raise SystemFileError(f"cannot read the file: {exc.strerror or exc}", source=source) from None
         except UnicodeDecodeError as exc:
@@ -570,6 +568,15 @@ class _Names:
         return next(p for p in self.parameters if p.name == key)
 
 
+def _read(source: str) -> str:
+    """A system file's text, as a sweep reads it (at most one byte past the size limit: the
+    parser refuses what is longer)."""
+    from chaplygin.io._file import MAX_FILE_SIZE  # (chaplygin.io.files imports SymPy)
+
+    with open(source, "rb") as fh:
+        return fh.read(MAX_FILE_SIZE + 1).decode("utf-8")
+
+
 def _warm(
     spec: Any,
     model: str | None,
@@ -586,16 +593,14 @@ def _warm(
         return None
     if constants is not None:
         return None
-    from chaplygin.io._file import MAX_FILE_SIZE  # (chaplygin.io.files imports SymPy)
     from chaplygin.numeric import _plan, cache
 
     source = os.fspath(spec)
     try:
-        with open(source, "rb") as fh:
-            raw = fh.read(MAX_FILE_SIZE + 1)
-        text = raw.decode("utf-8")
+        text = _read(source)
     except (OSError, UnicodeDecodeError):
         return None  # the full path says why
+    raw = text.encode("utf-8")
     stem = Path(source).stem
     summary = cache.load(_summary_key(raw, stem))
     try:
