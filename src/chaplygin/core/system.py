@@ -312,8 +312,8 @@ class System:
                 f"got T = {describe(self.kinetic_energy)}."
             )
         if T is not None and vanishes_at_rest(T, self._native_xd, self._native_momenta[0]):
-            # T = T₂: what chaplygin.numeric.simulate.monitor asks (its cache, set here from
-            # SymEngine: SymPy's expansion of the rattleback's T took 0.06 s of a cold build)
+            # T = T₂ shown by SymEngine here: :attr:`_quadratic_T` needs no SymPy expansion
+            # (the rattleback's took 0.06 s of a cold build)
             self.__dict__["_quadratic_T"] = True
 
     def _read_constraints(self, constraints: Any, dependent: Sequence[sp.Expr] | None) -> None:
@@ -699,6 +699,19 @@ class System:
         k, m = len(exprs), len(self._to_sym)
         rule = dict(zip(fast[k : k + m], fast[k + m :]))
         return [e.subs(rule) for e in fast[:k]]
+
+    @cached_property
+    def _quadratic_T(self) -> bool:
+        """Whether T is a homogeneous quadratic form in the velocities, T = T₂ (then the energy
+        ``T − U`` is Jacobi's integral: :func:`chaplygin.numeric.simulate.monitor`): T being a
+        polynomial of degree at most 2 in them (checked on construction, which also fills this
+        where SymEngine shows it), its value and gradient at zero velocity (``T₀`` and the
+        coefficients of ``T₁``) vanish."""
+        xd, T = self._vars.xd, self._T
+        still = {v: sp.S.Zero for v in xd}
+        alone = [T.xreplace({**still, v: v}) for v in xd]  # T₂ + T₁ + T₀ with one velocity moving
+        parts = [T.xreplace(still), *(e.diff(v).xreplace(still) for e, v in zip(alone, xd))]
+        return all(e == 0 or sp.expand(e) == 0 for e in parts)
 
     @cached_property
     def _native_T(self) -> Any:

@@ -271,7 +271,7 @@ class Watched:
         self._ind = tuple(int(i) for i in watch["ind"])
         self.n, self.g = len(self.coordinates), len(self._dep)
         self.conserves_energy = bool(watch["conserves_energy"])
-        self.__dict__["_quadratic_T"] = bool(watch["quadratic"])
+        self._quadratic_T = bool(watch["quadratic"])  # (System._quadratic_T, as the watch reads it)
         poles = cache.import_source(str(watch["poles"]), "poles").poles
         self.__dict__["_pole_functions"] = (poles, int(watch["factors"]), bool(watch["free"]))
         self.mass = cache.import_source(str(watch["mass"]), "mass").mass if watch["mass"] else None
