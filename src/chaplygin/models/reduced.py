@@ -133,28 +133,36 @@ def _classic(system: System, r: Reduction) -> tuple[list[sp.Expr], list[Any] | N
     """Voronets' equations; Chaplygin's (15) for a Chaplygin system: the residuals, and the
     same sums taken in SymEngine (None where it cannot), for the generated code.
 
-    The large terms, ``d/dt ∂T̃/∂q̇_σ`` and ``D_σ T̃``, come from SymEngine and are converted to
-    it again for free (:func:`chaplygin.core._fast.native` remembers them), so the code
-    generator is spared converting the whole residuals (the symbolic rattleback's: 0.15 s).
+    The terms are converted to SymEngine here, once, and summed there: the code generator
+    takes these sums instead of converting the residuals again, and their values at a random
+    point show which forcing terms are nonzero (:func:`reduced_equations`: no exact test of
+    those for a sum that cancels).
     """
     terms = _lagrange_terms(system, r)
     W = bracket_terms(system)
     p = momenta_dependent(system, r)
-    g = system.g
-    residuals = [
-        a - b - c + sum((p[i] * W[i][k] for i in range(g)), sp.S.Zero) for k, (a, b, c) in enumerate(terms)
-    ]
+
+    def residuals(
+        terms: Sequence[Sequence[Any]], p: Sequence[Any], W: Sequence[Sequence[Any]], zero: Any
+    ) -> list[Any]:
+        # d/dt ∂T̃/∂q̇_σ − D_σ T̃ − Q̃_σ + Σ_β p_β W_βσ, in SymPy or SymEngine
+        return [
+            a - b - c + sum((p[i] * W[i][k] for i in range(len(p))), zero)
+            for k, (a, b, c) in enumerate(terms)
+        ]
+
     fast = native([*(e for t in terms for e in t), *p, *(w for row in W for w in row)])
     if fast is None:
-        return residuals, None
-    n = 3 * len(terms)
-    ft, fp, fw = fast[:n], fast[n : n + g], fast[n + g :]
-    eps = len(terms)
-    combined = [
-        ft[3 * k] - ft[3 * k + 1] - ft[3 * k + 2] + sum((fp[i] * fw[i * eps + k] for i in range(g)), 0)
-        for k in range(eps)
-    ]
-    return residuals, combined
+        return residuals(terms, p, W, sp.S.Zero), None
+    eps, g = len(terms), system.g
+    n = 3 * eps
+    fw = fast[n + g :]
+    return residuals(terms, p, W, sp.S.Zero), residuals(
+        [fast[3 * k : 3 * k + 3] for k in range(eps)],
+        fast[n : n + g],
+        [fw[i * eps : (i + 1) * eps] for i in range(g)],
+        0,
+    )
 
 
 def unreduced_tilde(system: System, r: Reduction) -> list[sp.Expr]:
