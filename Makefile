@@ -6,7 +6,8 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test lint docs bench clean
 
-$(STAMP): pyproject.toml
+# setup.py builds the C loop library into the package (src/chaplygin/numeric/_dop853_loop.*)
+$(STAMP): pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test,sweep]'
@@ -44,4 +45,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/derive.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis build dist site src/*.egg-info
+	rm -rf $(VENV) .pytest_cache .hypothesis build dist site src/*.egg-info src/chaplygin/numeric/_dop853_loop.*

@@ -18,6 +18,7 @@ import pytest
 
 import chaplygin
 from chaplygin import examples
+from chaplygin.numeric import _ckernel
 from chaplygin.numeric._ckernel import Unavailable, compiler
 from chaplygin.numeric.simulate import SYMMETRIC_METHODS, choose_backend, simulate
 from chaplygin.numeric.symmetric import METHODS
@@ -32,16 +33,29 @@ except Unavailable:  # pragma: no cover - every CI machine has a C compiler
 needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler")
 RUN = ["simulate", "example:rolling-disk", "-m", "chaplygin", "-t", "2", "-n", "21"]
 
+# The processes below exercise the kernel cache, so the loop library that an installation built
+# into the package (setup.py) is hidden from them (PACKAGED_DIR names another folder: an empty one,
+# or one a test fills), and they build the loop as an installation without one does.
+PACKAGED = """
+import os, pathlib
+from chaplygin.numeric import _ckernel
+_ckernel.PACKAGED = pathlib.Path(os.environ.get("PACKAGED_DIR", "/nonexistent"))
+"""
 # a process that runs the command line, then reports what it built and imported
-CLI = """
+CLI = (
+    PACKAGED
+    + """
 import json, sys
 from chaplygin.numeric import _ckernel
 from chaplygin.apps.cli import main
 code = main(sys.argv[1:])
 print(json.dumps({"code": code, "stats": _ckernel.STATS, "sympy": "sympy" in sys.modules}))
 """
+)
 # a process that compiles the rolling disk's Chaplygin model for the c backend
-COMPILE = """
+COMPILE = (
+    PACKAGED
+    + """
 import json
 from chaplygin.numeric import _ckernel
 from chaplygin import examples
@@ -49,6 +63,7 @@ from chaplygin.numeric.codegen import compile_model
 model = compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
 print(json.dumps({"stats": _ckernel.STATS, "file": model.module.__file__}))
 """
+)
 
 
 @needs_cc
@@ -62,7 +77,9 @@ def test_second_process_loads_the_compiled_kernel(tmp_path):
 
 # a process that records, as the rolling disk's Chaplygin equations are derived for the c
 # backend, whether the C compiler is already building the DOP853 loop beside it
-BESIDE = """
+BESIDE = (
+    PACKAGED
+    + """
 import json, threading
 from chaplygin import examples
 from chaplygin.core.system import System
@@ -78,6 +95,7 @@ compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
 loops = sorted(p.name for p in _ckernel.kernel_dir().glob("dop853_*.so"))
 print(json.dumps({"seen": seen, "stats": _ckernel.STATS, "loops": loops}))
 """
+)
 
 
 @needs_cc
@@ -103,6 +121,43 @@ def test_a_corrupt_kernel_is_discarded_and_rebuilt(tmp_path, damage):
     assert again["stats"] == {"built": 1, "loaded": 1, "discarded": 1}
     assert again["file"] == first["file"]
     assert run_json(COMPILE, [], tmp_path)["stats"]["built"] == 0  # and the rebuilt one is reused
+
+
+@needs_cc
+def test_the_loop_library_built_at_install_is_used(tmp_path):
+    # setup.py's build, into a package folder of its own: a first run builds only the model's fill
+    package = tmp_path / "package"
+    _ckernel.install_loop(package / "_dop853_loop.cpython-test.so")
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    used = run_json(CLI, [*RUN, "-o", str(a)], tmp_path / "one", PACKAGED_DIR=str(package))
+    assert used["code"] == 0 and used["stats"] == {"built": 1, "loaded": 0, "discarded": 0}
+    assert not list((tmp_path / "one" / "kernels").glob("dop853_*"))
+    # the same numbers as the loop the kernel cache builds
+    cached = run_json(CLI, [*RUN, "-o", str(b)], tmp_path / "two")
+    assert (
+        cached["stats"]["built"] == 2 and len(list((tmp_path / "two" / "kernels").glob("dop853_*.so"))) == 1
+    )
+    x, y = np.load(a), np.load(b)
+    assert x.files == y.files and all(np.array_equal(x[k], y[k]) for k in x.files)
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["another source", "not a library"])
+def test_a_packaged_loop_library_of_another_build_is_ignored(tmp_path, monkeypatch, kind):
+    # an installation of other sources (an edited checkout), or a damaged file: the kernel cache
+    # builds this run's loop, and the run succeeds
+    package = tmp_path / "package"
+    library = package / "_dop853_loop.so"
+    if kind == "another source":
+        source = _ckernel.loop_source()
+        monkeypatch.setattr(_ckernel, "loop_source", lambda: source + "\n/* another */\n")
+        _ckernel.install_loop(library)
+    else:
+        package.mkdir()
+        library.write_bytes(b"\x7fELF not a library")
+    run = run_json(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], tmp_path / "cache", PACKAGED_DIR=str(package))
+    assert run["code"] == 0 and run["stats"]["built"] == 2
+    assert len(list((tmp_path / "cache" / "kernels").glob("dop853_*.so"))) == 1
 
 
 @needs_cc

@@ -4,9 +4,11 @@ Why C and not numba for the everyday path
 ------------------------------------------
 numba compiles the DOP853 loop of :mod:`chaplygin.numeric._loop` once per
 installation (8–15 s on a 2-core machine) and each model's ``fill`` in a second
-or two, and ``import numba`` alone costs about half a second.  Here the loop is C, built once per installation (and
-compiler) into a shared library of the kernel cache, and each model adds one
-small library holding its generated ``fill`` (:mod:`chaplygin.numeric._cfill`), built
+or two, and ``import numba`` alone costs about half a second.  Here the loop is C, built
+once per installation into a shared library: by ``setup.py`` into the installed package
+(:func:`install_loop`), or, where that was not possible or the library there is not the one
+this run would build (:func:`packaged_loop`), into the kernel cache on first use.  Each model
+adds one small library of the kernel cache holding its generated ``fill`` (:mod:`chaplygin.numeric._cfill`), built
 by the C compiler in a fraction of a second.  The loop calls ``fill`` through a
 function pointer; Python reaches both through :mod:`ctypes` (no import of
 numba, no compile on a warm cache).  ``ctypes`` releases the GIL during a call.
@@ -189,8 +191,10 @@ def _verified(so: Path, record: Path, digest: str) -> bool:
         return False
 
 
-def _compile(source: str, cmd: list[str], directory: Path, so: Path, record: Path, digest: str) -> None:
-    """Build ``source`` into ``so`` (atomically) and record its SHA-256 in ``record``."""
+def _compile(
+    source: str, cmd: list[str], directory: Path, so: Path, record: Path | None, digest: str
+) -> None:
+    """Build ``source`` into ``so`` (atomically) and record its SHA-256 in ``record`` (if any)."""
     with tempfile.TemporaryDirectory(dir=directory) as tmp:
         c_file = os.path.join(tmp, "kernel.c")
         with open(c_file, "w", encoding="utf-8") as fh:
@@ -213,8 +217,14 @@ def _compile(source: str, cmd: list[str], directory: Path, so: Path, record: Pat
         with open(meta, "w", encoding="utf-8") as fh:
             json.dump({"key": digest, "sha256": _sha256(Path(out)), "compiler": cmd}, fh)
         os.replace(out, so)
-        os.replace(meta, record)
+        if record is not None:
+            os.replace(meta, record)
     STATS["built"] += 1
+
+
+def _key(source: str, cmd: list[str]) -> str:
+    """The key of a library: its source, the compiler command and :data:`FLAGS` (24 hex digits)."""
+    return hashlib.sha256("\0".join([source, *cmd, *FLAGS]).encode()).hexdigest()[:24]
 
 
 def library(source: str, stem: str) -> tuple[str, Path]:
@@ -225,7 +235,7 @@ def library(source: str, stem: str) -> tuple[str, Path]:
     Raises :class:`Unavailable` when there is no compiler or it fails.
     """
     cmd = compiler()
-    digest = hashlib.sha256("\0".join([source, *cmd, *FLAGS]).encode()).hexdigest()[:24]
+    digest = _key(source, cmd)
     directory = kernel_dir()
     so, record = directory / f"{stem}_{digest}.so", directory / f"{stem}_{digest}.json"
     if so.exists() and _verified(so, record, digest):
@@ -631,10 +641,43 @@ class _Loop(NamedTuple):
 _LOOP: list[_Loop] = []
 
 
+#: where an installation keeps the loop library it built (``setup.py``: :func:`install_loop`)
+PACKAGED = Path(__file__).resolve().parent
+_PACKAGED_STEM = "_dop853_loop"
+
+
+def install_loop(path: Path) -> None:
+    """Build the loop library into ``path`` (``setup.py`` calls it when the package is installed).
+
+    Its symbols carry the key :func:`library` would give it (source, compiler command,
+    :data:`FLAGS`), so that :func:`packaged_loop` uses it only while all three are unchanged.
+    """
+    cmd = compiler()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _compile(loop_source().replace("@DIGEST@", _key(loop_source(), cmd)), cmd, path.parent, path, None, "")
+
+
+def packaged_loop() -> tuple[str, ctypes.CDLL] | None:
+    """The loop library built when the package was installed, if it is there and is the one
+    this process would build (same source, compiler command and flags); else None."""
+    digest = _key(loop_source(), compiler())
+    for path in sorted(PACKAGED.glob(_PACKAGED_STEM + ".*")):
+        if path.suffix not in (".so", ".dylib"):
+            continue
+        try:
+            lib = ctypes.CDLL(str(path))
+        except OSError:  # not a library this system loads: the kernel cache builds one
+            continue
+        if hasattr(lib, f"chaplygin_dop853_{digest}"):
+            return digest, lib
+    return None
+
+
 def loop() -> _Loop:
-    """The loop library's functions (built into the kernel cache once per installation)."""
+    """The loop library's functions: the installation's (:func:`packaged_loop`), else built into
+    the kernel cache once."""
     if not _LOOP:
-        digest, lib = _open(loop_source(), "dop853")
+        digest, lib = packaged_loop() or _open(loop_source(), "dop853")
         dop = getattr(lib, f"chaplygin_dop853_{digest}")
         dop.argtypes = [
             _PTR,

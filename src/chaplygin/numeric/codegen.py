@@ -794,7 +794,8 @@ _BESIDE: list[threading.Thread] = []
 
 
 def _build_loop_beside() -> None:
-    """Start building the C loop library (once per kernel cache, ~0.2 s of the C compiler) in
+    """Start building the C loop library (once per kernel cache where the installation did not
+    build it, ~0.2 s of the C compiler) in
     a thread, so that the compiler runs while this process derives and generates the model;
     :func:`_load_model` waits for it before it loads the loop.  Nothing is started where the
     loop is loaded, being built or in the cache already (a library of another source there is
@@ -806,7 +807,9 @@ def _build_loop_beside() -> None:
     try:
         if next(_ckernel.kernel_dir().glob("dop853_*.so"), None) is not None:
             return
-    except OSError:
+        if _ckernel.packaged_loop() is not None:  # built when the package was installed
+            return
+    except (OSError, _ckernel.Unavailable):
         return
 
     def build() -> None:
