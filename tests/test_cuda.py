@@ -23,25 +23,14 @@ from typing import Any
 import numpy as np
 import pytest
 
+from cases import DISK_0, DISK_P, KNIFE_0, KNIFE_P, require_c_compiler
 from chaplygin import ChaplyginError, examples
 from chaplygin.numeric import _ckernel, _cuda
-from chaplygin.numeric._ckernel import Unavailable, compiler
 from chaplygin.numeric._loop import ensemble_dop853
 from chaplygin.numeric.codegen import compile_model, parameter_vector
 from chaplygin.numeric.ensemble import simulate_ensemble
 
-try:
-    compiler()
-except Unavailable as exc:  # pragma: no cover - every CI machine has a C compiler
-    pytest.skip(f"no C compiler: {exc}", allow_module_level=True)
-
-DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
-DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
-KNIFE_P = {"m": 1.0, "J": 0.5}
-KNIFE_0 = [
-    {"x": 0.0, "y": 0.0, "phi": 1.2, "x'": 1.0, "phi'": 1.0},  # φ = π/2 at t = π/2 − 1.2 ≈ 0.371
-    {"x": 0.0, "y": 0.0, "phi": 0.1, "x'": 1.0, "phi'": 0.2},  # φ ≤ 0.3: never
-]
+require_c_compiler()
 
 
 @pytest.fixture(scope="module")
@@ -98,6 +87,17 @@ def test_host_build_of_the_kernel_takes_the_c_loops_steps(disk_both):
     t = np.linspace(0.0, 1.0, len(Y0))
     expected_obs = np.array([disk_c.observe(ti, y, p) for ti, y, p in zip(t, Y0, P)])
     np.testing.assert_array_equal(host.observe(t, Y0, P), expected_obs)
+
+
+def test_the_kernel_and_the_c_loop_share_one_dop853_source(disk_c):
+    """The loop is written once (issue 32, item 6): the C loop library and the GPU kernel each
+    hold :data:`~chaplygin.numeric._ckernel.DOP853` once, and nothing else in either source reads
+    the tableau, so neither holds a step, error norm or dense output of its own."""
+    kernel = _cuda.kernel_source(disk_c.module, len(disk_c.layout.state), len(disk_c.layout.parameters))
+    for source in (kernel, _ckernel.loop_source()):
+        assert source.count(_ckernel.DOP853) == 1 and source.count(_ckernel.tables()) == 1
+        rest = source.replace(_ckernel.DOP853, "").replace(_ckernel.tables(), "")
+        assert "DOP_" not in rest
 
 
 def test_host_build_reports_the_c_loops_failures(failing):
@@ -302,7 +302,7 @@ def test_the_device_source_is_valid_cuda_cpp(disk_both, tmp_path):
         )  # fmt: skip
         assert run.returncode == 0, run.stderr[:3000]
         # one copy of the right-hand side, called from each site (inline=False): the loop keeps its
-        # registers (the disk's six inlined copies take 255 registers and spill 600 bytes on sm_90)
+        # registers (220 on sm_90; the disk's six inlined copies take 254)
         usage = run.stderr[run.stderr.index("properties for chaplygin_members") :]
         assert " 0 bytes spill stores" in usage.splitlines()[1], usage[:400]
 

@@ -12,18 +12,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cases import DISK_0, DISK_P, require_c_compiler
 from chaplygin import examples
-from chaplygin.numeric._ckernel import CKernel, Unavailable, compiler
+from chaplygin.numeric._ckernel import CKernel
 from chaplygin.numeric.codegen import compile_model, parameter_vector
 from chaplygin.numeric.ensemble import _observe_all, simulate_ensemble
 
-try:
-    compiler()
-except Unavailable as exc:  # pragma: no cover - every CI machine has a C compiler
-    pytest.skip(f"no C compiler: {exc}", allow_module_level=True)
-
-DISK_P = {"m": 1.0, "r": 0.5, "A": 0.0625, "C": 0.125, "g": 9.81}
-DISK_0 = {"psi": 0.0, "theta": 0.3, "phi": 0.0, "x": 0.0, "y": 0.0, "psi'": 2.0, "theta'": 0.0, "phi'": 5.0}
+require_c_compiler()
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ import pytest
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
+from cases import KNIFE_0, KNIFE_P
 from chaplygin import System, examples, simulate
 from chaplygin.numeric._ckernel import Unavailable, compiler
 from chaplygin.numeric.ensemble import simulate_ensemble
@@ -32,11 +33,6 @@ try:
 except ImportError:
     pass
 
-KNIFE_P = {"m": 1.0, "J": 0.5}
-KNIFE_0 = [
-    {"x": 0.0, "y": 0.0, "phi": 1.2, "x'": 1.0, "phi'": 1.0},  # φ = π/2 at t = π/2 − 1.2 ≈ 0.371
-    {"x": 0.0, "y": 0.0, "phi": 0.1, "x'": 1.0, "phi'": 0.2},  # φ ≤ 0.3: never
-]
 SLEIGH_P = {"m": 1.0, "I": 0.3, "a": 0.4, "g": 2.0}
 SLEIGH_0 = [
     {"x": 0.0, "y": 0.0, "theta": th, "x'": v, "theta'": w}

@@ -23,7 +23,8 @@ differs in how, not in what: the 12 stages of a step are evaluated without check
 each value for a pole or a blow-up, and the step is evaluated again with the checks
 only where its error norm is not finite or a solve failed (then it fails where the
 numba loop fails, with its count); ``benchmarks/dop853_floor.py`` measures the loop
-against a hand-written DOP853 on the same ``fill``.
+against a hand-written DOP853 on the same ``fill``.  Its source, :data:`DOP853`, is also the
+loop of the GPU kernel (:mod:`chaplygin.numeric._cuda`), there with compile-time sizes.
 
 The kernel cache
 ----------------
@@ -269,64 +270,45 @@ def _open(source: str, stem: str) -> tuple[str, ctypes.CDLL]:
 
 
 # ------------------------------------------------------------------ the DOP853 loop in C
-def _array(name: str, values: Any) -> str:
-    flat = np.asarray(values, dtype=float).ravel()
-    return f"static const double {name}[{flat.size}] = {{{', '.join(repr(float(v)) for v in flat)}}};"
+def tables() -> str:
+    """The DOP853 tableau (:mod:`chaplygin.numeric._dop853`) as C arrays ``DOP_A`` … ``DOP_D``,
+    each qualified by the target's ``CH_TABLE``."""
+    from chaplygin.numeric import _dop853 as tab
+
+    lines = []
+    for name in ("A", "B", "C", "E3", "E5", "D"):
+        flat = np.asarray(getattr(tab, name), dtype=float).ravel()
+        lines.append(
+            f"CH_TABLE double DOP_{name}[{flat.size}] = {{{', '.join(repr(float(v)) for v in flat)}}};"
+        )
+    return "\n".join(lines)
 
 
 def loop_source() -> str:
-    """The C source of the DOP853 loop library (tableau from :mod:`chaplygin.numeric._dop853`)."""
-    from chaplygin.numeric import _dop853 as tab
-
-    tables = "\n".join(
-        [
-            _array("DOP_A", tab.A),
-            _array("DOP_B", tab.B),
-            _array("DOP_C", tab.C),
-            _array("DOP_E3", tab.E3),
-            _array("DOP_E5", tab.E5),
-            _array("DOP_D", tab.D),
-        ]
-    )
-    return _LOOP_C.replace("@TABLES@", tables)
+    """The C source of the DOP853 loop library: :data:`DOP853` with runtime sizes, and its entries."""
+    return "\n".join([_LOOP_HEAD, tables(), DOP853, _LOOP_ENTRIES])
 
 
-_LOOP_C = r"""
-/* chaplygin: SciPy's DOP853 as a C loop over a generated fill(t, y, p, M, F, V, O).
-   A port of chaplygin.numeric._loop._k_dop853 (see chaplygin.numeric._ckernel). */
-#include <math.h>
-#include <stdlib.h>
-#include <string.h>
+#: The DOP853 loop, written once for every code target: this library (``c``) and the GPU kernel
+#: of :mod:`chaplygin.numeric._cuda`, whose host build the suite checks against this one bit for
+#: bit.  The target defines before it: the sizes ``CH_N`` (the state), ``CH_NV`` (velocities
+#: solved from the constraints, ``V``), ``CH_DIM`` (the mass matrix), ``CH_NOBS``, ``CH_NREACT``
+#: (computed multipliers), constants or expressions of the work space ``w`` in scope; the type
+#: ``ch_work`` (``M``, ``b``, ``V``, ``O``: arrays or pointers); ``CH_FILL(w, t, y, p)``, the
+#: model's fill; ``CH_FINITE(x)``; ``CH_HALTED`` (nonzero: stop at the next step, status 10);
+#: ``CH_FAST`` (1: a step's stages evaluated unchecked first, see ``ch_dop853``); ``CH_DEVICE``,
+#: ``CH_EVAL_ATTR`` (qualifiers), ``CH_INF`` and the tables.  A member's samples and observations
+#: are written at ``[(k * CH_N + i) * stride + m]``: its own rows with stride 1 and m = 0 (here),
+#: members-last arrays with stride = members (the GPU).
+DOP853 = r"""
+CH_DEVICE static double ch_min(double a, double b) { return a < b ? a : b; }
+CH_DEVICE static double ch_max(double a, double b) { return a > b ? a : b; }
 
-typedef void (*fill_t)(double, const double *, const double *, double *, double *, double *, double *);
-
-@TABLES@
-
-typedef struct {
-    fill_t fill;
-    int dim, nv, n_obs;
-    double *M, *b, *V, *O;
-} work_t;
-
-static int work_init(work_t *w, fill_t fill, int dim, int nv, int n_obs)
+/* w->b <- M^-1 b, Gaussian elimination with partial pivoting in place; 5 if singular */
+CH_DEVICE static int ch_solve(ch_work *w)
 {
-    w->fill = fill; w->dim = dim; w->nv = nv; w->n_obs = n_obs;
-    w->M = malloc(sizeof(double) * (dim * dim + dim + nv + n_obs + 1));
-    if (!w->M) return 0;
-    w->b = w->M + dim * dim; w->V = w->b + dim; w->O = w->V + nv;
-    return 1;
-}
-
-static int k_fill(work_t *w, double t, const double *y, const double *p)
-{
-    memset(w->M, 0, sizeof(double) * w->dim * w->dim);
-    w->fill(t, y, p, w->M, w->b, w->V, w->O);
-    return 0;
-}
-
-/* b <- M^-1 b, Gaussian elimination with partial pivoting in place; 5 if singular */
-static int k_solve(int n, double *M, double *b)
-{
+    const int n = CH_DIM;
+    double *M = w->M, *b = w->b;
     for (int c = 0; c < n; ++c) {
         int piv = c;
         double big = fabs(M[c * n + c]);
@@ -351,91 +333,108 @@ static int k_solve(int n, double *M, double *b)
     return 0;
 }
 
-/* f <- [V, M^-1 F]; checked: 9 where V is not finite (a pole of the constraints), 2 where f is
-   not; unchecked, a value that is not finite is left in f (see the step of chaplygin_dop853) */
-static int k_eval(work_t *w, double t, const double *y, const double *p, double *f, int n, int checked)
+CH_DEVICE static void ch_fill(ch_work *w, double t, const double *y, const double *p)
 {
-    k_fill(w, t, y, p);
-    if (checked) for (int i = 0; i < w->nv; ++i) if (!isfinite(w->V[i])) return 9;
-    if (k_solve(w->dim, w->M, w->b) != 0) return 5;
-    for (int i = 0; i < w->nv; ++i) f[i] = w->V[i];
-    for (int i = 0; i < n - w->nv; ++i) f[w->nv + i] = w->b[i];
-    if (checked) for (int i = 0; i < n; ++i) if (!isfinite(f[i])) return 2;
+    const int size = CH_DIM * CH_DIM;
+    for (int i = 0; i < size; ++i) w->M[i] = 0.0;
+    CH_FILL(w, t, y, p);
+}
+
+/* f <- [V, M^-1 F]; checked: 9 where V is not finite (a pole of the constraints), 2 where f is
+   not; unchecked, a value that is not finite is left in f (see the step of ch_dop853) */
+CH_EVAL_ATTR CH_DEVICE static int ch_eval(ch_work *w, double t, const double *y, const double *p, double *f,
+                                          int checked)
+{
+    const int n = CH_N, nv = CH_NV;
+    ch_fill(w, t, y, p);
+    if (checked) for (int i = 0; i < nv; ++i) if (!CH_FINITE(w->V[i])) return 9;
+    if (ch_solve(w) != 0) return 5;
+    for (int i = 0; i < nv; ++i) f[i] = w->V[i];
+    for (int i = 0; i < n - nv; ++i) f[nv + i] = w->b[i];
+    if (checked) for (int i = 0; i < n; ++i) if (!CH_FINITE(f[i])) return 2;
     return 0;
 }
 
-static int k_stages(work_t *w, int first, int last, double t, double h, const double *y, const double *p,
-                    double *K, double *y_stage, int n, int *s_out, int checked)
+/* the stages first .. last-1 into K; on a failure *s_out is the failing stage, else last - 1 */
+CH_DEVICE static int ch_stages(ch_work *w, int first, int last, double t, double h, const double *y,
+                               const double *p, double *K, double *y_stage, int *s_out, int checked)
 {
+    const int n = CH_N;
     for (int s = first; s < last; ++s) {
         for (int i = 0; i < n; ++i) {
             double acc = 0.0;
             for (int j = 0; j < s; ++j) acc += K[j * n + i] * DOP_A[s * 16 + j];
             y_stage[i] = y[i] + acc * h;
         }
-        int code = k_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * n, n, checked);
+        int code = ch_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * n, checked);
         if (code != 0) { *s_out = s; return code; }
     }
     *s_out = last - 1;
     return 0;
 }
 
-static double k_rms(const double *v, int n)
+CH_DEVICE static double ch_rms(ch_work *w, const double *v)
 {
+    const int n = CH_N;
     double s = 0.0;
     for (int i = 0; i < n; ++i) s += v[i] * v[i];
     return sqrt(s / n);
 }
 
-/* row <- [O..., reactions, V]; NaN reactions where M is singular */
-static void k_observe(work_t *w, double t, const double *y, const double *p, int n_react, double *row)
+/* to <- from (n values), unless to is a null pointer */
+CH_DEVICE static void ch_keep(double *to, const double *from, int n)
 {
-    k_fill(w, t, y, p);
-    for (int j = 0; j < w->n_obs; ++j) row[j] = w->O[j];
-    int first = w->n_obs - w->nv - n_react;
-    if (n_react > 0) {
-        int singular = k_solve(w->dim, w->M, w->b) != 0;
-        for (int j = 0; j < n_react; ++j) row[first + j] = singular ? NAN : w->b[w->dim - n_react + j];
-    }
-    for (int j = 0; j < w->nv; ++j) row[w->n_obs - w->nv + j] = w->V[j];
+    if (to) for (int i = 0; i < n; ++i) to[i] = from[i];
 }
 
-/* set from Python on an interrupt (Ctrl-C): every running loop stops at its next step, status 10 */
-static volatile int halt_requested = 0;
-
-void chaplygin_halt_@DIGEST@(int on) { halt_requested = on; }
-
-static double dmin(double a, double b) { return a < b ? a : b; }
-static double dmax(double a, double b) { return a > b ? a : b; }
-
-/* info: filled, status, n_rhs, n_steps; dinfo: t, t_fail, the next step (0 after a failure);
-   y_last, y_fail: n each */
-int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t0, double t1,
-                    const double *y0, const double *p, const double *t_out, long n_out, double rtol,
-                    const double *atol, double max_step, double first_step, long max_steps, double *out,
-                    long *info, double *dinfo, double *y_last, double *y_fail)
+/* obs[j * stride + m] <- [O..., computed multipliers, V] at (t, y); NaN multipliers where M is singular */
+CH_DEVICE static void ch_observe(ch_work *w, double t, const double *y, const double *p, long m, long stride,
+                                 double *obs)
 {
-    work_t w;
-    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
-    double *K = malloc(sizeof(double) * (16 * n + 8 * n + 7 * n + 1));
-    if (!K) { free(w.M); return -1; }
-    double *y = K + 16 * n, *y_new = y + n, *y_stage = y_new + n, *f_new = y_stage + n;
-    double *scale = f_new + n, *e5 = scale + n, *e3 = e5 + n, *F = e3 + n;
+    const int n_obs = CH_NOBS, nv = CH_NV, n_react = CH_NREACT;
+    ch_fill(w, t, y, p);
+    for (int j = 0; j < n_obs; ++j) obs[j * stride + m] = w->O[j];
+    int first = n_obs - nv - n_react;
+    if (n_react > 0) {
+        int singular = ch_solve(w) != 0;
+        for (int j = 0; j < n_react; ++j) obs[(first + j) * stride + m] = singular ? NAN : w->b[CH_DIM - n_react + j];
+    }
+    for (int j = 0; j < nv; ++j) obs[(n_obs - nv + j) * stride + m] = w->V[j];
+}
+
+/* what a run of ch_dop853 did: samples filled, status (chaplygin.numeric._loop.STATUS),
+   right-hand sides, steps, the time reached, where it failed, the next step (0 after a failure) */
+typedef struct {
+    long filled, status, n_rhs, n_steps;
+    double t, t_fail, h_next;
+} ch_result;
+
+/* SciPy's DOP853 (chaplygin.numeric._loop._k_dop853) from (t0, y) to t1: y holds the start and,
+   on return, the last state reached (at r->t); samples out[(k * CH_N + i) * stride + m] at
+   t_out[k] for k < r->filled (rows after a failure left as they were); first_step 0: SciPy's
+   guess; max_steps 0: no budget.  K (16 n values), y_new, y_stage, f_new, scale, e5, e3 (n
+   each) and F (7 n) are its scratch; y_fail (a null pointer: not kept) receives the state where it failed
+   (at r->t_fail), or the last state */
+CH_DEVICE static void ch_dop853(ch_work *w, double t0, double t1, double *y, const double *p, const double *t_out,
+                                long n_out, double rtol, const double *atol, double max_step, double first_step,
+                                long max_steps, double *out, long m, long stride, double *K, double *y_new,
+                                double *y_stage, double *f_new, double *scale, double *e5, double *e3, double *F,
+                                double *y_fail, ch_result *r)
+{
+    const int n = CH_N;
     double direction = t1 >= t0 ? 1.0 : -1.0;
     long n_rhs = 0, n_steps = 0, filled = 0;
-    double t = t0, t_new = t0, t_fail = t0;
-    int status = 0, code = 0, s = 0;
-    memcpy(y, y0, sizeof(double) * n);
-    memcpy(y_fail, y0, sizeof(double) * n);
+    double t = t0, t_new = t0, t_fail = t0, h_abs = 0.0, h_next = 0.0, interval = fabs(t1 - t0);
+    int status = 0, code = 0, s = 0;  /* (declared before the first goto: C++ jumps over no initialisation) */
+    ch_keep(y_fail, y, n);
     while (filled < n_out && direction * (t_out[filled] - t0) <= 0.0) {
-        memcpy(out + filled * n, y0, sizeof(double) * n);
+        for (int i = 0; i < n; ++i) out[(filled * n + i) * stride + m] = y[i];
         filled += 1;
     }
-    code = k_eval(&w, t, y, p, K, n, 1);
+    code = ch_eval(w, t, y, p, K, 1);
     n_rhs += 1;
     if (code != 0) { status = code; goto done; }
 
-    double interval = fabs(t1 - t0), h_abs;
     if (first_step > 0.0) h_abs = first_step;
     else if (n == 0 || interval == 0.0) h_abs = interval;
     else {
@@ -444,24 +443,24 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
             e5[i] = y[i] / scale[i];
             e3[i] = K[i] / scale[i];
         }
-        double d0 = k_rms(e5, n), d1 = k_rms(e3, n);
+        double d0 = ch_rms(w, e5), d1 = ch_rms(w, e3);
         double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-        h0 = dmin(h0, interval);
+        h0 = ch_min(h0, interval);
         for (int i = 0; i < n; ++i) y_stage[i] = y[i] + h0 * direction * K[i];
-        code = k_eval(&w, t + h0 * direction, y_stage, p, f_new, n, 1);
+        code = ch_eval(w, t + h0 * direction, y_stage, p, f_new, 1);
         n_rhs += 1;
-        if (code != 0) { status = code; t_fail = t + h0 * direction; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
+        if (code != 0) { status = code; t_fail = t + h0 * direction; ch_keep(y_fail, y_stage, n); goto done; }
         for (int i = 0; i < n; ++i) e5[i] = (f_new[i] - K[i]) / scale[i];
-        double d2 = k_rms(e5, n) / h0, h1;
-        if (d1 <= 1e-15 && d2 <= 1e-15) h1 = dmax(1e-6, h0 * 1e-3);
-        else h1 = pow(0.01 / dmax(d1, d2), 1.0 / 8.0);
-        h_abs = dmin(dmin(100.0 * h0, h1), dmin(interval, max_step));
+        double d2 = ch_rms(w, e5) / h0, h1;
+        if (d1 <= 1e-15 && d2 <= 1e-15) h1 = ch_max(1e-6, h0 * 1e-3);
+        else h1 = pow(0.01 / ch_max(d1, d2), 1.0 / 8.0);
+        h_abs = ch_min(ch_min(100.0 * h0, h1), ch_min(interval, max_step));
     }
 
     while (direction * (t - t1) < 0.0) {
         if (max_steps > 0 && n_steps >= max_steps) { status = 4; break; }
-        if (halt_requested) { status = 10; break; }
-        double min_step = 10.0 * fabs(nextafter(t, direction * INFINITY) - t);
+        if (CH_HALTED) { status = 10; break; }
+        double min_step = 10.0 * fabs(nextafter(t, direction * CH_INF) - t);
         if (h_abs > max_step) h_abs = max_step;
         else if (h_abs < min_step) h_abs = min_step;
         int rejected = 0, accepted = 0;
@@ -472,14 +471,14 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
             if (direction * (t_new - t1) > 0.0) t_new = t1;
             h = t_new - t;
             h_abs = fabs(h);
-            /* the stages unchecked: a value that is not finite in any of K's 13 rows makes the
-               error norm not finite (0 * inf is NaN), and only then is the same step evaluated
-               again with the checks, which fail where the checked loop always failed (the
-               same values up to there) and count what it counted */
+            /* CH_FAST: the stages unchecked: a value that is not finite in any of K's 13 rows makes
+               the error norm not finite (0 * inf is NaN), and only then is the same step evaluated
+               again with the checks, which fail where the checked loop always failed (the same
+               values up to there) and count what it counted; without CH_FAST, checked once */
             double error = 0.0;
             int at_end = 0;
-            for (int checked = 0;; checked = 1) {
-                code = k_stages(&w, 1, 12, t, h, y, p, K, y_stage, n, &s, checked);
+            for (int checked = !CH_FAST;; checked = 1) {
+                code = ch_stages(w, 1, 12, t, h, y, p, K, y_stage, &s, checked);
                 at_end = 0;
                 if (code == 0) {
                     for (int i = 0; i < n; ++i) {
@@ -487,12 +486,12 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
                         for (int j = 0; j < 12; ++j) acc += K[j * n + i] * DOP_B[j];
                         y_new[i] = y[i] + h * acc;
                     }
-                    code = k_eval(&w, t + h, y_new, p, K + 12 * n, n, checked);
+                    code = ch_eval(w, t + h, y_new, p, K + 12 * n, checked);
                     at_end = 1;
                 }
                 if (code == 0) {
                     for (int i = 0; i < n; ++i) {
-                        scale[i] = atol[i] + dmax(fabs(y[i]), fabs(y_new[i])) * rtol;
+                        scale[i] = atol[i] + ch_max(fabs(y[i]), fabs(y_new[i])) * rtol;
                         double a5 = 0.0, a3 = 0.0;
                         for (int j = 0; j < 13; ++j) { a5 += K[j * n + i] * DOP_E5[j]; a3 += K[j * n + i] * DOP_E3[j]; }
                         e5[i] = a5 / scale[i];
@@ -503,51 +502,51 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
                     if (n5 == 0.0 && n3 == 0.0) error = 0.0;
                     else error = h_abs * n5 / sqrt((n5 + 0.01 * n3) * n);
                 }
-                if (checked || (code == 0 && isfinite(error))) break;
+                if (checked || (code == 0 && CH_FINITE(error))) break;
             }
             n_rhs += s + at_end;
             if (code != 0) {
                 status = code;
                 t_fail = at_end ? t + h : t + DOP_C[s] * h;
-                memcpy(y_fail, at_end ? y_new : y_stage, sizeof(double) * n);
+                ch_keep(y_fail, at_end ? y_new : y_stage, n);
                 goto done;
             }
             if (error < 1.0) {
-                double factor = error == 0.0 ? 10.0 : dmin(10.0, 0.9 * pow(error, -1.0 / 8.0));
-                if (rejected) factor = dmin(1.0, factor);
+                double factor = error == 0.0 ? 10.0 : ch_min(10.0, 0.9 * pow(error, -1.0 / 8.0));
+                if (rejected) factor = ch_min(1.0, factor);
                 h_abs *= factor;
                 accepted = 1;
             } else {
-                h_abs *= dmax(0.2, 0.9 * pow(error, -1.0 / 8.0));
+                h_abs *= ch_max(0.2, 0.9 * pow(error, -1.0 / 8.0));
                 rejected = 1;
             }
         }
         if (status != 0) break;
         n_steps += 1;
         if (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
-            code = k_stages(&w, 13, 16, t, h, y, p, K, y_stage, n, &s, 1);
+            code = ch_stages(w, 13, 16, t, h, y, p, K, y_stage, &s, 1);
             n_rhs += s - 12;
-            if (code != 0) { status = code; t_fail = t + DOP_C[s] * h; memcpy(y_fail, y_stage, sizeof(double) * n); goto done; }
+            if (code != 0) { status = code; t_fail = t + DOP_C[s] * h; ch_keep(y_fail, y_stage, n); goto done; }
             for (int i = 0; i < n; ++i) {
                 double dy = y_new[i] - y[i];
                 F[0 * n + i] = dy;
                 F[1 * n + i] = h * K[i] - dy;
                 F[2 * n + i] = 2.0 * dy - h * (K[12 * n + i] + K[i]);
-                for (int r = 0; r < 4; ++r) {
+                for (int q = 0; q < 4; ++q) {
                     double acc = 0.0;
-                    for (int j = 0; j < 16; ++j) acc += DOP_D[r * 16 + j] * K[j * n + i];
-                    F[(3 + r) * n + i] = h * acc;
+                    for (int j = 0; j < 16; ++j) acc += DOP_D[q * 16 + j] * K[j * n + i];
+                    F[(3 + q) * n + i] = h * acc;
                 }
             }
             while (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
                 double x = (t_out[filled] - t) / h;
                 for (int i = 0; i < n; ++i) {
                     double v = 0.0;
-                    for (int r = 0; r < 7; ++r) {
-                        v += F[(6 - r) * n + i];
-                        v *= (r % 2 == 0) ? x : 1.0 - x;
+                    for (int q = 0; q < 7; ++q) {
+                        v += F[(6 - q) * n + i];
+                        v *= (q % 2 == 0) ? x : 1.0 - x;
                     }
-                    out[filled * n + i] = v + y[i];
+                    out[(filled * n + i) * stride + m] = v + y[i];
                 }
                 filled += 1;
             }
@@ -555,13 +554,82 @@ int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, do
         t = t_new;
         for (int i = 0; i < n; ++i) { y[i] = y_new[i]; K[i] = K[12 * n + i]; }
     }
-    dinfo[2] = h_abs;  /* where max_steps stopped the loop: the step a resumed loop starts with */
+    h_next = h_abs;  /* where max_steps stopped the loop: the step a resumed loop starts with */
     t_fail = t;
-    memcpy(y_fail, y, sizeof(double) * n);
+    ch_keep(y_fail, y, n);
 done:
+    r->filled = filled; r->status = status; r->n_rhs = n_rhs; r->n_steps = n_steps;
+    r->t = t; r->t_fail = t_fail; r->h_next = h_next;
+}
+"""
+
+_LOOP_HEAD = r"""
+/* chaplygin: SciPy's DOP853 as a C loop over a generated fill(t, y, p, M, F, V, O): the loop of
+   chaplygin.numeric._ckernel.DOP853 with sizes known at run time and the fill called through a
+   pointer (see chaplygin.numeric._ckernel). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef void (*fill_t)(double, const double *, const double *, double *, double *, double *, double *);
+
+typedef struct {
+    fill_t fill;
+    int dim, nv, n_obs, n, n_react;
+    double *M, *b, *V, *O;
+} ch_work;
+
+#define CH_DEVICE
+#define CH_EVAL_ATTR
+#define CH_TABLE static const
+#define CH_INF INFINITY
+#define CH_N (w->n)
+#define CH_NV (w->nv)
+#define CH_DIM (w->dim)
+#define CH_NOBS (w->n_obs)
+#define CH_NREACT (w->n_react)
+#define CH_FILL(w, t, y, p) (w)->fill(t, y, p, (w)->M, (w)->b, (w)->V, (w)->O)
+#define CH_FINITE(x) isfinite(x)
+#define CH_FAST 1
+
+/* set from Python on an interrupt (Ctrl-C): every running loop stops at its next step, status 10 */
+static volatile int halt_requested = 0;
+#define CH_HALTED halt_requested
+"""
+
+_LOOP_ENTRIES = r"""
+void chaplygin_halt_@DIGEST@(int on) { halt_requested = on; }
+
+/* a work space for states of n values (n_react: the computed multipliers observed) */
+static int work_init(ch_work *w, fill_t fill, int dim, int nv, int n_obs, int n, int n_react)
+{
+    w->fill = fill; w->dim = dim; w->nv = nv; w->n_obs = n_obs; w->n = n; w->n_react = n_react;
+    w->M = malloc(sizeof(double) * (dim * dim + dim + nv + n_obs + 1));
+    if (!w->M) return 0;
+    w->b = w->M + dim * dim; w->V = w->b + dim; w->O = w->V + nv;
+    return 1;
+}
+
+/* info: filled, status, n_rhs, n_steps; dinfo: t, t_fail, the next step (0 after a failure);
+   y_last, y_fail: n each */
+int chaplygin_dop853_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t0, double t1,
+                    const double *y0, const double *p, const double *t_out, long n_out, double rtol,
+                    const double *atol, double max_step, double first_step, long max_steps, double *out,
+                    long *info, double *dinfo, double *y_last, double *y_fail)
+{
+    ch_work w;
+    ch_result r;
+    if (!work_init(&w, fill, dim, nv, n_obs, n, 0)) return -1;
+    double *K = malloc(sizeof(double) * (16 * n + 8 * n + 7 * n + 1));
+    if (!K) { free(w.M); return -1; }
+    double *y = K + 16 * n, *y_new = y + n, *y_stage = y_new + n, *f_new = y_stage + n;
+    double *scale = f_new + n, *e5 = scale + n, *e3 = e5 + n, *F = e3 + n;
+    memcpy(y, y0, sizeof(double) * n);
+    ch_dop853(&w, t0, t1, y, p, t_out, n_out, rtol, atol, max_step, first_step, max_steps, out, 0, 1, K, y_new,
+              y_stage, f_new, scale, e5, e3, F, y_fail, &r);
     memcpy(y_last, y, sizeof(double) * n);
-    info[0] = filled; info[1] = status; info[2] = n_rhs; info[3] = n_steps;
-    dinfo[0] = t; dinfo[1] = t_fail;
+    info[0] = r.filled; info[1] = r.status; info[2] = r.n_rhs; info[3] = r.n_steps;
+    dinfo[0] = r.t; dinfo[1] = r.t_fail; dinfo[2] = r.h_next;
     free(K);
     free(w.M);
     return 0;
@@ -571,9 +639,9 @@ done:
 int chaplygin_observe_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, int n_react, long m,
                      const double *ts, const double *ys, const double *p, double *rows)
 {
-    work_t w;
-    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
-    for (long k = 0; k < m; ++k) k_observe(&w, ts[k], ys + k * n, p, n_react, rows + k * n_obs);
+    ch_work w;
+    if (!work_init(&w, fill, dim, nv, n_obs, n, n_react)) return -1;
+    for (long k = 0; k < m; ++k) ch_observe(&w, ts[k], ys + k * n, p, 0, 1, rows + k * n_obs);
     free(w.M);
     return 0;
 }
@@ -587,8 +655,8 @@ int chaplygin_batch_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, int
                    double *out, double *last, double *t_last, double *obs, long *status, long *n_rhs,
                    long start, long stop)
 {
-    work_t w;
-    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
+    ch_work w;
+    if (!work_init(&w, fill, dim, nv, n_obs, n, n_react)) return -1;
     double *y_fail = malloc(sizeof(double) * (n + 1));
     if (!y_fail) { free(w.M); return -1; }
     long info[4];
@@ -600,7 +668,7 @@ int chaplygin_batch_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, int
                              atol, max_step, 0.0, max_steps, out + i * n_out * n, info, dinfo,
                              last + i * n, y_fail);
         status[i] = info[1]; n_rhs[i] = info[2]; t_last[i] = dinfo[0];
-        k_observe(&w, dinfo[0], last + i * n, p, n_react, obs + i * n_obs);
+        ch_observe(&w, dinfo[0], last + i * n, p, 0, 1, obs + i * n_obs);
     }
     free(y_fail);
     free(w.M);
@@ -611,9 +679,9 @@ int chaplygin_batch_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, int
 int chaplygin_rhs_@DIGEST@(fill_t fill, int dim, int nv, int n_obs, int n, double t, const double *y,
                  const double *p, double *f)
 {
-    work_t w;
-    if (!work_init(&w, fill, dim, nv, n_obs)) return -1;
-    int code = k_eval(&w, t, y, p, f, n, 1);
+    ch_work w;
+    if (!work_init(&w, fill, dim, nv, n_obs, n, 0)) return -1;
+    int code = ch_eval(&w, t, y, p, f, 1);
     free(w.M);
     return code;
 }

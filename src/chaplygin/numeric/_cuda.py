@@ -7,13 +7,15 @@ stage, every intermediate through global memory.  Here, as DiffEqGPU.jl does, th
 compiled into one kernel in which each thread integrates one member from start to end with its
 own adaptive step size, its state and stages in its own (register or cached local) memory.
 The kernel is C: the model's generated ``fill`` (:mod:`chaplygin.numeric._cfill`, exactly the
-source of the ``c`` backend) becomes a ``__device__`` function, and the DOP853 loop is a
-line-by-line port of the C loop of :mod:`chaplygin.numeric._ckernel` (itself a port of
-:func:`chaplygin.numeric._loop._k_dop853`, SciPy's ``DOP853``): the same tableau, step-size
-controller, error norm, first-step guess, dense output at the requested times, Gaussian
-elimination with partial pivoting, and failure codes (:data:`chaplygin.numeric._loop.STATUS`:
-1 step underflow, 2 a non-finite derivative, 4 the step budget, 5 a singular mass matrix, 9 a
-non-finite velocity solved from the constraints).  Float64 throughout.
+source of the ``c`` backend) becomes a ``__device__`` function, and the DOP853 loop is the C
+loop's own source, :data:`chaplygin.numeric._ckernel.DOP853` (a port of
+:func:`chaplygin.numeric._loop._k_dop853`, SciPy's ``DOP853``), with the sizes compile-time
+constants, the fill called directly, members-last arrays and every stage checked: the same
+tableau, step-size controller, error norm, first-step guess, dense output at the requested
+times, Gaussian elimination with partial pivoting, and failure codes
+(:data:`chaplygin.numeric._loop.STATUS`: 1 step underflow, 2 a non-finite derivative, 4 the
+step budget, 5 a singular mass matrix, 9 a non-finite velocity solved from the constraints).
+Float64 throughout.
 
 It is compiled by NVRTC through CuPy (``pip install 'chaplygin[cuda]'``): no CUDA toolkit
 besides the driver and the NVRTC that CuPy's wheels bring, no numba-cuda (whose CUDA target
@@ -119,98 +121,20 @@ CH_DEVICE static inline double ch_pow(double x, int n) { return n == 2 ? x * x :
 #endif
 /* finite: x - x is 0 for a finite x, NaN for an infinite or NaN one (IEEE, no fast-math) */
 #define CH_FINITE(x) ((x) - (x) == 0.0)
+/* the loop of chaplygin.numeric._ckernel.DOP853: no interruption, every stage checked */
+#define CH_HALTED 0
+#define CH_FAST 0
 """
 
-_LOOP = r"""
+#: a member's work space (the sizes are constants) and the fill called directly
+_WORK = r"""
 typedef struct {
     double M[CH_DIM * CH_DIM + 1], b[CH_DIM + 1], V[CH_NV + 1], O[CH_NOBS + 1];
 } ch_work;
+#define CH_FILL(w, t, y, p) chaplygin_fill(t, y, p, (w)->M, (w)->b, (w)->V, (w)->O)
+"""
 
-/* b <- M^-1 b, Gaussian elimination with partial pivoting in place; 5 if singular */
-CH_DEVICE static int ch_solve(double *M, double *b)
-{
-    const int n = CH_DIM;
-    for (int c = 0; c < n; ++c) {
-        int piv = c;
-        double big = fabs(M[c * n + c]);
-        for (int r = c + 1; r < n; ++r)
-            if (fabs(M[r * n + c]) > big) { big = fabs(M[r * n + c]); piv = r; }
-        if (big == 0.0) return 5;
-        if (piv != c) {
-            for (int j = c; j < n; ++j) { double tmp = M[c * n + j]; M[c * n + j] = M[piv * n + j]; M[piv * n + j] = tmp; }
-            double tmp = b[c]; b[c] = b[piv]; b[piv] = tmp;
-        }
-        for (int r = c + 1; r < n; ++r) {
-            double factor = M[r * n + c] / M[c * n + c];
-            for (int j = c + 1; j < n; ++j) M[r * n + j] -= factor * M[c * n + j];
-            b[r] -= factor * b[c];
-        }
-    }
-    for (int c = n - 1; c >= 0; --c) {
-        double acc = b[c];
-        for (int j = c + 1; j < n; ++j) acc -= M[c * n + j] * b[j];
-        b[c] = acc / M[c * n + c];
-    }
-    return 0;
-}
-
-CH_DEVICE static void ch_fill(ch_work *w, double t, const double *y, const double *p)
-{
-    for (int i = 0; i < CH_DIM * CH_DIM; ++i) w->M[i] = 0.0;
-    chaplygin_fill(t, y, p, w->M, w->b, w->V, w->O);
-}
-
-CH_EVAL_ATTR CH_DEVICE static int ch_eval(ch_work *w, double t, const double *y, const double *p, double *f)
-{
-    ch_fill(w, t, y, p);
-    for (int i = 0; i < CH_NV; ++i) if (!CH_FINITE(w->V[i])) return 9;  /* a pole of the constraints */
-    if (ch_solve(w->M, w->b) != 0) return 5;
-    for (int i = 0; i < CH_NV; ++i) f[i] = w->V[i];
-    for (int i = 0; i < CH_N - CH_NV; ++i) f[CH_NV + i] = w->b[i];
-    for (int i = 0; i < CH_N; ++i) if (!CH_FINITE(f[i])) return 2;
-    return 0;
-}
-
-CH_DEVICE static int ch_stages(ch_work *w, int first, int last, double t, double h, const double *y,
-                               const double *p, double *K, double *y_stage, int *s_out)
-{
-    for (int s = first; s < last; ++s) {
-        for (int i = 0; i < CH_N; ++i) {
-            double acc = 0.0;
-            for (int j = 0; j < s; ++j) acc += K[j * CH_N + i] * DOP_A[s * 16 + j];
-            y_stage[i] = y[i] + acc * h;
-        }
-        int code = ch_eval(w, t + DOP_C[s] * h, y_stage, p, K + s * CH_N);
-        if (code != 0) { *s_out = s; return code; }
-    }
-    *s_out = last - 1;
-    return 0;
-}
-
-CH_DEVICE static double ch_rms(const double *v)
-{
-    double s = 0.0;
-    for (int i = 0; i < CH_N; ++i) s += v[i] * v[i];
-    return sqrt(s / CH_N);
-}
-
-CH_DEVICE static double ch_min(double a, double b) { return a < b ? a : b; }
-CH_DEVICE static double ch_max(double a, double b) { return a > b ? a : b; }
-
-/* obs[j * stride + m] <- [O..., reactions, V] at (t, y); NaN reactions where M is singular */
-CH_DEVICE static void ch_observe(ch_work *w, double t, const double *y, const double *p, long m,
-                                 long stride, double *obs)
-{
-    ch_fill(w, t, y, p);
-    for (int j = 0; j < CH_NOBS; ++j) obs[j * stride + m] = w->O[j];
-    int first = CH_NOBS - CH_NV - CH_NREACT;
-    if (CH_NREACT > 0) {
-        int singular = ch_solve(w->M, w->b) != 0;
-        for (int j = 0; j < CH_NREACT; ++j) obs[(first + j) * stride + m] = singular ? NAN : w->b[CH_DIM - CH_NREACT + j];
-    }
-    for (int j = 0; j < CH_NV; ++j) obs[(CH_NOBS - CH_NV + j) * stride + m] = w->V[j];
-}
-
+_MEMBERS = r"""
 /* member m of stride members (chaplygin_batch of the C loop, first_step 0): from Y0[:, m] with
    parameters P[:, m] to t1, samples out[k, :, m] at t_out[k] (NaN from a failure on), the last
    state reached last[:, m] at t_last[m], status[m], n_rhs[m] and obs[:, m] (observe there) */
@@ -221,129 +145,20 @@ CH_DEVICE static void ch_member(long m, long stride, double t0, double t1, const
                                 long long *n_rhs_out)
 {
     ch_work w;
+    ch_result r;
     double p[CH_NP + 1], K[16 * CH_N], y[CH_N], y_new[CH_N], y_stage[CH_N], f_new[CH_N];
     double scale[CH_N], e5[CH_N], e3[CH_N], F[7 * CH_N];
     for (int j = 0; j < CH_NP; ++j) p[j] = P[j * stride + m];
     for (int i = 0; i < CH_N; ++i) y[i] = Y0[i * stride + m];
-    double direction = t1 >= t0 ? 1.0 : -1.0;
-    long n_rhs = 0, n_steps = 0, filled = 0;
-    double t = t0, t_new = t0, h_abs = 0.0, interval = fabs(t1 - t0);
-    int status = 0, code = 0, s = 0;  /* (declared before the first goto: C++ jumps over no initialisation) */
-    while (filled < n_out && direction * (t_out[filled] - t0) <= 0.0) {
-        for (int i = 0; i < CH_N; ++i) out[(filled * CH_N + i) * stride + m] = y[i];
-        filled += 1;
-    }
-    code = ch_eval(&w, t, y, p, K);
-    n_rhs += 1;
-    if (code != 0) { status = code; goto done; }
-
-    if (interval == 0.0) h_abs = interval;
-    else {
-        for (int i = 0; i < CH_N; ++i) {
-            scale[i] = atol[i] + fabs(y[i]) * rtol;
-            e5[i] = y[i] / scale[i];
-            e3[i] = K[i] / scale[i];
-        }
-        double d0 = ch_rms(e5), d1 = ch_rms(e3);
-        double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
-        h0 = ch_min(h0, interval);
-        for (int i = 0; i < CH_N; ++i) y_stage[i] = y[i] + h0 * direction * K[i];
-        code = ch_eval(&w, t + h0 * direction, y_stage, p, f_new);
-        n_rhs += 1;
-        if (code != 0) { status = code; goto done; }
-        for (int i = 0; i < CH_N; ++i) e5[i] = (f_new[i] - K[i]) / scale[i];
-        double d2 = ch_rms(e5) / h0, h1;
-        if (d1 <= 1e-15 && d2 <= 1e-15) h1 = ch_max(1e-6, h0 * 1e-3);
-        else h1 = pow(0.01 / ch_max(d1, d2), 1.0 / 8.0);
-        h_abs = ch_min(ch_min(100.0 * h0, h1), ch_min(interval, max_step));
-    }
-
-    while (direction * (t - t1) < 0.0) {
-        if (max_steps > 0 && n_steps >= max_steps) { status = 4; break; }
-        double min_step = 10.0 * fabs(nextafter(t, direction * CH_INF) - t);
-        if (h_abs > max_step) h_abs = max_step;
-        else if (h_abs < min_step) h_abs = min_step;
-        int rejected = 0, accepted = 0;
-        double h = 0.0;
-        while (!accepted) {
-            if (h_abs < min_step) { status = 1; break; }
-            t_new = t + h_abs * direction;
-            if (direction * (t_new - t1) > 0.0) t_new = t1;
-            h = t_new - t;
-            h_abs = fabs(h);
-            code = ch_stages(&w, 1, 12, t, h, y, p, K, y_stage, &s);
-            n_rhs += s;
-            if (code != 0) { status = code; goto done; }
-            for (int i = 0; i < CH_N; ++i) {
-                double acc = 0.0;
-                for (int j = 0; j < 12; ++j) acc += K[j * CH_N + i] * DOP_B[j];
-                y_new[i] = y[i] + h * acc;
-            }
-            code = ch_eval(&w, t + h, y_new, p, K + 12 * CH_N);
-            n_rhs += 1;
-            if (code != 0) { status = code; goto done; }
-            for (int i = 0; i < CH_N; ++i) {
-                scale[i] = atol[i] + ch_max(fabs(y[i]), fabs(y_new[i])) * rtol;
-                double a5 = 0.0, a3 = 0.0;
-                for (int j = 0; j < 13; ++j) { a5 += K[j * CH_N + i] * DOP_E5[j]; a3 += K[j * CH_N + i] * DOP_E3[j]; }
-                e5[i] = a5 / scale[i];
-                e3[i] = a3 / scale[i];
-            }
-            double n5 = 0.0, n3 = 0.0, error;
-            for (int i = 0; i < CH_N; ++i) { n5 += e5[i] * e5[i]; n3 += e3[i] * e3[i]; }
-            if (n5 == 0.0 && n3 == 0.0) error = 0.0;
-            else error = h_abs * n5 / sqrt((n5 + 0.01 * n3) * CH_N);
-            if (error < 1.0) {
-                double factor = error == 0.0 ? 10.0 : ch_min(10.0, 0.9 * pow(error, -1.0 / 8.0));
-                if (rejected) factor = ch_min(1.0, factor);
-                h_abs *= factor;
-                accepted = 1;
-            } else {
-                h_abs *= ch_max(0.2, 0.9 * pow(error, -1.0 / 8.0));
-                rejected = 1;
-            }
-        }
-        if (status != 0) break;
-        n_steps += 1;
-        if (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
-            code = ch_stages(&w, 13, 16, t, h, y, p, K, y_stage, &s);
-            n_rhs += s - 12;
-            if (code != 0) { status = code; goto done; }
-            for (int i = 0; i < CH_N; ++i) {
-                double dy = y_new[i] - y[i];
-                F[0 * CH_N + i] = dy;
-                F[1 * CH_N + i] = h * K[i] - dy;
-                F[2 * CH_N + i] = 2.0 * dy - h * (K[12 * CH_N + i] + K[i]);
-                for (int r = 0; r < 4; ++r) {
-                    double acc = 0.0;
-                    for (int j = 0; j < 16; ++j) acc += DOP_D[r * 16 + j] * K[j * CH_N + i];
-                    F[(3 + r) * CH_N + i] = h * acc;
-                }
-            }
-            while (filled < n_out && direction * (t_out[filled] - t_new) <= 0.0) {
-                double x = (t_out[filled] - t) / h;
-                for (int i = 0; i < CH_N; ++i) {
-                    double v = 0.0;
-                    for (int r = 0; r < 7; ++r) {
-                        v += F[(6 - r) * CH_N + i];
-                        v *= (r % 2 == 0) ? x : 1.0 - x;
-                    }
-                    out[(filled * CH_N + i) * stride + m] = v + y[i];
-                }
-                filled += 1;
-            }
-        }
-        t = t_new;
-        for (int i = 0; i < CH_N; ++i) { y[i] = y_new[i]; K[i] = K[12 * CH_N + i]; }
-    }
-done:
-    for (long k = filled; k < n_out; ++k)
+    ch_dop853(&w, t0, t1, y, p, t_out, n_out, rtol, atol, max_step, 0.0, max_steps, out, m, stride, K, y_new,
+              y_stage, f_new, scale, e5, e3, F, (double *)0, &r);
+    for (long k = r.filled; k < n_out; ++k)
         for (int i = 0; i < CH_N; ++i) out[(k * CH_N + i) * stride + m] = NAN;
     for (int i = 0; i < CH_N; ++i) last[i * stride + m] = y[i];
-    t_last[m] = t;
-    status_out[m] = status;
-    n_rhs_out[m] = n_rhs;
-    ch_observe(&w, t, y, p, m, stride, obs);
+    t_last[m] = r.t;
+    status_out[m] = r.status;
+    n_rhs_out[m] = r.n_rhs;
+    ch_observe(&w, r.t, y, p, m, stride, obs);
 }
 
 /* obs[:, m] <- observe(t[m], Y[:, m], P[:, m]) */
@@ -393,11 +208,6 @@ int chaplygin_observe_@DIGEST@(long members, const double *t, const double *Y, c
 """
 
 
-def _table(name: str, values: Any) -> str:
-    flat = np.asarray(values, dtype=float).ravel()
-    return f"CH_TABLE double {name}[{flat.size}] = {{{', '.join(repr(float(v)) for v in flat)}}};"
-
-
 def _device_fill(fill_source: str) -> str:
     """The ``c`` backend's ``fill`` source as a function both builds call: ``chaplygin_fill``,
     ``__device__`` under NVRTC, no host header (the prelude includes ``math.h`` on the host)."""
@@ -413,10 +223,9 @@ def kernel_source(kernel: CKernel, width: int, n_params: int) -> str:
     """The CUDA/C source of the ensemble kernel of one model (its ``c`` backend's ``kernel``).
 
     ``width`` is the length of the state, ``n_params`` of the parameter vector; the sizes are
-    compile-time constants, so every array of a member is a fixed-size local array.
+    compile-time constants, so every array of a member is a fixed-size local array.  The loop is
+    the ``c`` backend's own (:data:`chaplygin.numeric._ckernel.DOP853`).
     """
-    from chaplygin.numeric import _dop853 as tab
-
     sizes = {
         "CH_N": width,
         "CH_NV": kernel.N,
@@ -425,14 +234,15 @@ def kernel_source(kernel: CKernel, width: int, n_params: int) -> str:
         "CH_NREACT": kernel.n_react,
         "CH_NP": n_params,
     }
-    tables = [_table(f"DOP_{name}", getattr(tab, name)) for name in ("A", "B", "C", "E3", "E5", "D")]
     return "\n".join(
         [
             _PRELUDE,
             *(f"#define {name} {value}" for name, value in sizes.items()),
-            *tables,
+            _ckernel.tables(),
             _device_fill(kernel.fill_source),
-            _LOOP,
+            _WORK,
+            _ckernel.DOP853,
+            _MEMBERS,
         ]
     )
 
