@@ -23,9 +23,10 @@ Adams (the reference of every ratio) and with BDF.
    the CasADi script; ``chaplygin.load`` + ``chaplygin.simulate(f.system, model, 100, f.initial,
    f.parameters)`` (and ``chaplygin.simulate(f, model, 100)`` where the chaplygin under test
    takes a loaded file); ``chaplygin simulate FILE -m model -t 100 -o out.csv``; each with a warm
-   cache (after an untimed run), a cold one (an empty ``CHAPLYGIN_CACHE`` per run; CasADi
-   has no cache, its cold run is its warm run) and a "new system" one (empty but for the DOP853
-   loop library, built once per installation: what a user meets with a system not run before);
+   cache (after an untimed run) and a cold one (an empty ``CHAPLYGIN_CACHE`` per run: the first
+   run after installation; the C DOP853 loop is part of an installed chaplygin, built by its
+   ``setup.py``, where the checkout under test was installed with ``pip install -e`` or ``make``;
+   CasADi has no cache, its cold run is its warm run);
    the floors ``chaplygin --help``, typer's pydantic coercion of a command's options,
    ``import sympy, numpy``, ``import numpy`` and ``import casadi, numpy``.  Every process prints
    or writes its final state, checked against CasADi's.
@@ -47,7 +48,6 @@ import inspect
 import json
 import os
 import platform
-import shutil
 import statistics
 import subprocess
 import sys
@@ -209,7 +209,7 @@ class Row:
 
     label: str
     cmd: list[str]
-    cache: str = ""  # "warm", "cold", "new system" (cold but for the loop library) or "" (none)
+    cache: str = ""  # "warm", "cold" or "" (none)
     system: str = ""
     csv_out: Path | None = None  # where the command writes its trajectory (the CLI)
     reference: str = "casadi"  # "casadi" (the system's CasADi Adams script) or "help"
@@ -224,11 +224,7 @@ def run(row: Row, warm_dir: Path) -> tuple[float, str]:
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPATH"] = os.pathsep.join([str(SRC), *filter(None, [env.get("PYTHONPATH")])])
     with tempfile.TemporaryDirectory() as fresh:
-        env["CHAPLYGIN_CACHE"] = fresh if row.cache in ("cold", "new system") else str(warm_dir)
-        if row.cache == "new system":  # what is built once per installation: the DOP853 loop library
-            (Path(fresh) / "kernels").mkdir()
-            for built in (warm_dir / "kernels").glob("dop853_*"):
-                shutil.copy2(built, Path(fresh) / "kernels" / built.name)
+        env["CHAPLYGIN_CACHE"] = fresh if row.cache == "cold" else str(warm_dir)
         start = time.perf_counter()
         done = subprocess.run(row.cmd, env=env, capture_output=True, text=True, cwd=ROOT)
         wall = time.perf_counter() - start
@@ -293,7 +289,7 @@ def process_rows(systems: Sequence[str], models: Sequence[str], work: Path) -> l
                 script = work / f"chaplygin_{system}_{model}_{int(loaded_file)}.py"
                 script.write_text(chaplygin_script(path, model, loaded_file, names))
                 form = "simulate(f, …)" if loaded_file else "simulate(f.system, …)"
-                for cache, goal in (("warm", 1.5), ("cold", 4.0), ("new system", 4.0)):
+                for cache, goal in (("warm", 1.5), ("cold", 4.0)):
                     rows.append(
                         Row(
                             f"{system}: load + {form} {model}, {cache}",
