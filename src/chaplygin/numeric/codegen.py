@@ -43,12 +43,12 @@ from chaplygin.core._native import chetaev_matrices
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
-from chaplygin.numeric import _cfill, _modelcache
+from chaplygin.numeric import _cfill, _modelcache, targets
 from chaplygin.numeric._ckernel import CompiledModel, Layout
 from chaplygin.numeric._layout import state_symbols
 from chaplygin.numeric._loop import _k_pivot, _k_solve
 from chaplygin.numeric._printing import code
-from chaplygin.numeric.cache import cache_dir, import_source
+from chaplygin.numeric.cache import cache_dir
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -66,7 +66,8 @@ __all__ = [
     "reduces_numerically",
 ]
 
-BACKENDS = ("numpy", "numba", "jax", "c")
+#: what ``compile_model(backend=…)`` accepts: the targets that compile models (:mod:`chaplygin.numeric.targets`)
+BACKENDS = targets.offered("compile")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
 CODE_FORMAT = 8
 
@@ -657,15 +658,14 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
     _check_backend(backend)
     cache = eqs.__dict__.setdefault("_compiled", {})  # one compilation per equations and backend
     if backend not in cache:
-        cache[backend] = _compile(eqs, backend)
+        cache[backend] = targets.get(backend).compile(eqs)
     return cache[backend]
 
 
 def _check_backend(backend: str) -> None:
-    if backend not in BACKENDS:
-        raise ChaplyginError(
-            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
-        )
+    names = targets.offered("compile")  # (the table as it is now: BACKENDS is it at import)
+    if backend not in names:
+        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, names))}.")
 
 
 #: the numba backend builds ``fill`` with a C compiler from this many generated lines on
@@ -745,7 +745,7 @@ def reduces_numerically(
     return (
         entry.reduced
         and entry.is_true_motion
-        and backend != "jax"
+        and (backend not in targets.TARGETS or targets.get(backend).numeric_reduction)  # ("auto" too)
         and (
             reduction == "numeric"
             or (
@@ -775,8 +775,8 @@ def _compile_model(
 ) -> CompiledModel:
     """:func:`compile_model` without the disk cache: derive (once per system) and generate."""
     entry = registry.get(model, form)
-    if backend == "c":
-        _build_loop_beside()
+    target = targets.get(backend)
+    target.prepare()
     if not numeric:
         kwargs = {} if constants is None else {"constants": constants}
         return compile_equations(system.equations(model, form, **kwargs), backend)
@@ -785,7 +785,7 @@ def _compile_model(
     cache = system.__dict__.setdefault("_compiled_numeric", {})
     key = (backend, model)
     if key not in cache:
-        cache[key] = _load_model(_numeric_reduction_parts(system, model), backend)
+        cache[key] = target.build(_numeric_reduction_parts(system, model))
     return cache[key]
 
 
@@ -796,7 +796,7 @@ _BESIDE: list[threading.Thread] = []
 def _build_loop_beside() -> None:
     """Start building the C loop library (once per kernel cache, ~0.2 s of the C compiler) in
     a thread, so that the compiler runs while this process derives and generates the model;
-    :func:`_load_model` waits for it before it loads the loop.  Nothing is started where the
+    the C target's build (:meth:`chaplygin.numeric.targets.c.C.build`) waits for it before it loads the loop.  Nothing is started where the
     loop is loaded, being built or in the cache already (a library of another source there is
     built by the load as before); a failure is left to the load, which raises it again."""
     from chaplygin.numeric import _ckernel
@@ -817,47 +817,6 @@ def _build_loop_beside() -> None:
 
     _BESIDE[:] = [threading.Thread(target=build, name="chaplygin-loop-build")]
     _BESIDE[0].start()
-
-
-def _compile(eqs: Equations, backend: str) -> CompiledModel:
-    if backend == "jax":
-        from chaplygin.numeric.jaxbackend import compile_jax
-
-        return compile_jax(eqs)
-    if backend == "numba":
-        try:
-            import numba  # noqa: F401
-        except ImportError as exc:  # pragma: no cover - numba is a dependency
-            raise ChaplyginError("backend 'numba' needs numba: pip install numba") from exc
-    return _load_model(_parts(eqs), backend)
-
-
-def _load_model(parts: _Parts, backend: str) -> CompiledModel:
-    """The generated module (numpy, numba) or C kernel (c) of ``parts``, loaded."""
-    if backend == "c":
-        from chaplygin.numeric._ckernel import CKernel
-
-        for thread in _BESIDE:  # the loop library, built beside the derivation
-            thread.join()
-        s, layout = parts.system, parts.layout
-        try:
-            kernel = CKernel(
-                _cfill.source(
-                    parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"
-                ),
-                parts.dim,
-                s.n,
-                parts.k,
-                1 + s.g + len(layout.reactions) + s.n,
-                len(layout.reactions),
-            )
-        except _cfill.Unavailable as exc:
-            raise BackendUnavailable(f"backend 'c' cannot be used: {exc}") from None
-        return CompiledModel(layout, kernel, "c")
-    module = import_source(
-        _module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend), backend
-    )
-    return CompiledModel(parts.layout, module, backend)
 
 
 def parameter_vector(layout: Layout, values: dict[str, float]) -> np.ndarray:

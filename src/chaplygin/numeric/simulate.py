@@ -43,6 +43,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
+from chaplygin.numeric import targets
 from chaplygin.numeric._dop853 import StepFailure as _StepFailure
 
 if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
@@ -68,7 +69,7 @@ __all__ = [
 SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
 METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA", *SYMMETRIC_METHODS)
 #: what ``backend=`` accepts: "auto" chooses one of the others (:func:`choose_backend`)
-BACKENDS = ("auto", "numpy", "numba", "c", "jax")
+BACKENDS = ("auto", *targets.offered("simulate"))
 
 
 def choose_backend(backend: str, method: str = "DOP853") -> str:
@@ -82,20 +83,13 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     never chosen: its first compile of a model takes seconds, and importing it
     half a second more; ``backend="numba"`` still asks for it.
     """
-    if backend not in BACKENDS:
-        raise ChaplyginError(
-            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
-        )
+    names = ("auto", *targets.offered("simulate"))  # (the table as it is now: BACKENDS is it at import)
+    if backend not in names:
+        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, names))}.")
     if backend != "auto":
         return backend
-    if method == "DOP853":
-        from chaplygin.numeric._ckernel import Unavailable, compiler
-
-        try:
-            compiler()
-            return "c"
-        except Unavailable:
-            pass
+    if method == "DOP853" and targets.get("c").unavailable() is None:
+        return "c"
     return "numpy"
 
 
@@ -1258,10 +1252,7 @@ def simulate(
         if not auto:
             raise
         compiled = compile_model(system, model, form, "numpy", constants=family_c, reduction=reduction)
-    if compiled.backend == "numba" and method == "DOP853":
-        from chaplygin.numeric._loop import loop_model
-
-        compiled = loop_model(compiled)  # the shared loop's model (see _lost_definiteness)
+    compiled = targets.get(compiled.backend).looped(compiled, method)  # (numba: see _lost_definiteness)
     layout = compiled.layout
 
     p = parameter_vector(layout, params)
@@ -1348,7 +1339,7 @@ def _simulate_symmetric(
             f"{', '.join(map(repr, TRUE_MODELS))}, not {model!r}; use DOP853 for the other models."
         )
     _vakonomic_setup(system, model, constants, multipliers)  # refuses constants/multipliers
-    if backend not in ("numpy", "numba"):
+    if not targets.get(backend).symmetric:
         raise ChaplyginError(
             f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
             f"Python), not {backend!r}."
@@ -2029,30 +2020,10 @@ def _samples(
     """:func:`integrate` before anything is observed: ``(model, t, y, status, message, n_rhs)``,
     the model being the one that integrated (the shared loop's, for numba)."""
     times = np.linspace(t_span[0], t_span[1], samples)
-    if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
-        from chaplygin.numeric.jaxbackend import solve
-
-        res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
-        if progress is not None and len(res.t):
-            progress(float(res.t[-1]))
-        return compiled, res.t, res.y, res.status, res.message, res.n_rhs
-    told = _budget(progress, t_span[1], time_limit)  # (the last call below: not checked)
-    if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
-        if compiled.backend == "numba":
-            from chaplygin.numeric._loop import loop_model
-
-            compiled = loop_model(compiled)
-        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, told)
-    elif method == "DOP853" and hasattr(compiled.module, "rhs_list"):
-        # the numpy backend's generated code on lists, stepped in plain Python: no SciPy at all
-        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, told)
-    else:  # the other methods, and a model without a list right-hand side (code of other origin)
-        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, told)
-    ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
-    if progress is not None:
-        progress(float(ts[-1]) if len(ts) else t_span[0])
-    status = "failed" if message else "success"
-    return compiled, ts, ys, status, message or f"reached t = {t_span[1]:g}", n_rhs
+    return targets.get(compiled.backend).integrate(
+        compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step,
+        progress=progress, time_limit=time_limit,
+    )  # fmt: skip
 
 
 def _pinned(
@@ -2295,12 +2266,7 @@ def _trajectory(
 ) -> Trajectory:
     layout = compiled.layout
     n = len(layout.coordinates)
-    if compiled.backend == "c":  # every sample in one call
-        obs = compiled.module.observe_many(times, ys, p)
-    else:
-        obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(
-            len(times), compiled.n_observed
-        )
+    obs = targets.get(compiled.backend).observe_run(compiled, times, ys, p)
     n_react = len(layout.reactions)
     velocities = obs[:, obs.shape[1] - n :] if len(times) else np.empty((0, n))
     residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g and len(times) else np.zeros(len(times))
