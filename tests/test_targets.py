@@ -68,3 +68,41 @@ def test_a_fifth_target_is_one_module_and_one_row(monkeypatch) -> None:
     assert np.max(np.abs(run["y"] + v / omega * (np.cos(phi) - np.cos(phi0)))) < 1e-9
     with pytest.raises(ChaplyginError, match="ensembles run on 'auto', 'numba', 'c', 'jax', 'cuda'"):
         ensemble.simulate_ensemble(knife, "chaplygin", 1.0, [start], {"m": 1.0, "J": 0.5}, backend="traced")
+
+
+def test_the_model_is_looked_up_by_name_once_per_entry_point(monkeypatch) -> None:
+    """simulate(), simulate_ensemble() and compare() resolve each model's name into the registry's
+    entry at the front door and hand the entry down (on 4672eb7 a compiled knife edge's simulate
+    looked 'chaplygin' up 4 times, its ensemble 5 times, compare of two models 16 times: again in
+    _vakonomic_setup, _model_key, reduces_numerically, _states, motion_notes, _takes_constants)."""
+    from chaplygin import compare
+    from chaplygin.models import registry
+    from chaplygin.numeric._ckernel import Unavailable, compiler
+
+    knife, params = examples.knife_edge(), {"m": 1.0, "J": 0.5}
+    start = {"x": 0.0, "y": 0.0, "phi": 0.3, "x'": 1.0, "phi'": 0.2}
+    backend = "numpy"
+    try:
+        compiler()
+        backend = "c"  # (ensembles run on the compiled loops)
+    except Unavailable:  # pragma: no cover - every CI machine has a C compiler
+        pytest.skip("no C compiler for the ensemble")
+    for model in ("chaplygin", "chetaev"):  # compiled and derived before counting
+        simulate.simulate(knife, model, 0.5, start, params, samples=3, backend=backend)
+    names: list[str] = []
+    get = registry.get
+
+    def counted(name, *args, **kwargs):
+        if isinstance(name, str):
+            names.append(name)
+        return get(name, *args, **kwargs)
+
+    monkeypatch.setattr(registry, "get", counted)
+    simulate.simulate(knife, "chaplygin", 0.5, start, params, samples=3, backend=backend)
+    assert names == ["chaplygin"]
+    names.clear()
+    ensemble.simulate_ensemble(knife, "chaplygin", 0.5, [start, start], params, backend=backend)
+    assert names == ["chaplygin"]
+    names.clear()
+    compare(knife, ["chaplygin", "chetaev"], 0.5, start, params, samples=3, backend=backend)
+    assert names == ["chaplygin", "chetaev", "chaplygin", "chetaev"]  # compare's, then simulate's

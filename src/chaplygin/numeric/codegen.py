@@ -53,6 +53,7 @@ from chaplygin.numeric.cache import cache_dir
 if TYPE_CHECKING:
     from chaplygin.core.system import System
     from chaplygin.models.equations import Equations
+    from chaplygin.models.registry import Model
 
 __all__ = [
     "BACKENDS",
@@ -686,7 +687,7 @@ REDUCTIONS = ("auto", "symbolic", "numeric")
 
 def compile_model(
     system: System,
-    model: str,
+    model: str | Model,
     form: str = "classic",
     backend: str = "numpy",
     *,
@@ -697,6 +698,9 @@ def compile_model(
 
     Parameters
     ----------
+    model : str or Model
+        The model's name, or its entry of the registry (:func:`chaplygin.models.registry.get`),
+        which an entry point resolved once.
     reduction : {"auto", "symbolic", "numeric"}
         How Chaplygin's and Voronets' equations are computed.  ``"symbolic"``
         compiles the derived equations (15)/(40); ``"numeric"`` compiles the
@@ -713,17 +717,17 @@ def compile_model(
     What is compiled is also stored on disk (:mod:`chaplygin.numeric._modelcache`), so another
     process that compiles the same model of an equal system loads it and derives nothing.
     """
-    key, numeric = _model_key(system, model, form, backend, constants, reduction)
+    key, numeric, entry = _model_key(system, model, form, backend, constants, reduction)
     found = _modelcache.load_model(key)
     if found is None:
-        found = _compile_model(system, model, form, backend, constants, numeric)
+        found = _compile_model(system, entry, form, backend, constants, numeric)
         _modelcache.store_model(key, found)
     return found
 
 
 def is_compiled(
     system: System,
-    model: str,
+    model: str | Model,
     form: str = "classic",
     backend: str = "numpy",
     *,
@@ -732,12 +736,12 @@ def is_compiled(
 ) -> bool:
     """Whether :func:`compile_model` would load this model from the disk cache (derive and
     compile nothing); False where the cache is off or cannot hold it."""
-    key, _ = _model_key(system, model, form, backend, constants, reduction)
+    key, _, _ = _model_key(system, model, form, backend, constants, reduction)
     return _modelcache.load_model(key) is not None
 
 
 def reduces_numerically(
-    system: System, model: str, form: str = "classic", backend: str = "auto", reduction: str = "auto"
+    system: System, model: str | Model, form: str = "classic", backend: str = "auto", reduction: str = "auto"
 ) -> bool:
     """Whether :func:`compile_model` compiles ``model`` by the numeric reduction, from the
     Chetaev matrices, so that the model's symbolic equations are never needed to run it."""
@@ -757,24 +761,25 @@ def reduces_numerically(
 
 
 def _model_key(
-    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
-) -> tuple[str | None, bool]:
-    """The disk-cache key of a compiled model (None: not cached), and whether it is the numeric
-    reduction; an unknown model, form, backend or reduction is refused here."""
+    system: System, model: str | Model, form: str, backend: str, constants: Any, reduction: str
+) -> tuple[str | None, bool, Model]:
+    """The disk-cache key of a compiled model (None: not cached), whether it is the numeric
+    reduction, and the model's entry; an unknown model, form, backend or reduction is refused here."""
     if reduction not in REDUCTIONS:
         raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
-    registry.get(model, form)  # refuses an unknown model or form before anything is looked up
+    entry = registry.get(model, form)  # refuses an unknown model or form before anything is looked up
     _check_backend(backend)
-    numeric = reduces_numerically(system, model, form, backend, reduction)
+    numeric = reduces_numerically(system, entry, form, backend, reduction)
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
-    return _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT), numeric
+    key = _modelcache.model_key(system, entry.name, form, backend, constants, variant, CODE_FORMAT)
+    return key, numeric, entry
 
 
 def _compile_model(
-    system: System, model: str, form: str, backend: str, constants: Any, numeric: bool
+    system: System, entry: Model, form: str, backend: str, constants: Any, numeric: bool
 ) -> CompiledModel:
     """:func:`compile_model` without the disk cache: derive (once per system) and generate."""
-    entry = registry.get(model, form)
+    model = entry.name
     target = targets.get(backend)
     target.prepare()
     if not numeric:

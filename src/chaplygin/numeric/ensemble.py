@@ -67,6 +67,7 @@ from chaplygin.numeric.simulate import (
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
+    from chaplygin.models.registry import Model
 
 __all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 
@@ -298,7 +299,7 @@ def _parameter_matrix(
 
 def _states(
     system: System,
-    model: str,
+    entry: Model,
     layout: Layout,
     initial_states: Any,
     P: np.ndarray | None,
@@ -345,7 +346,6 @@ def _states(
         notes.append(f"{len(changed)} member(s) solved from the holonomic constraints at the start ({shown})")
     if system.g:
         _dependent_velocities(system, Q, QD, params, t0)
-    entry = registry.get(model)
     columns = [Q, QD if not entry.reduced else QD[:, list(system._ind)]]
     if entry.multipliers_in_state:
         columns.append(_multipliers(system, vak or {}, Q, QD, params, t0))
@@ -608,7 +608,8 @@ def simulate_ensemble(
             )
         )
     times = _keep_times(keep, t0, t1)
-    family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    entry = registry.get(model)  # the model, looked up once: what follows takes the entry
+    family_c, vak = _vakonomic_setup(system, entry, constants, multipliers)
     if isinstance(family_c, str):  # "match": c_β = ∂T/∂q̇_dep at each member's own start
         raise ChaplyginError(
             f"constants='match': for {model!r} the constants follow from each member's start, and "
@@ -618,7 +619,7 @@ def simulate_ensemble(
     n = len(initial_states)
     if n == 0:
         raise ChaplyginError("initial_states: no initial states given.")
-    compiled = _compile(system, model, form, backend, family_c, reduction, n)
+    compiled = _compile(system, entry, form, backend, family_c, reduction, n)
     backend = compiled.backend
     target = targets.get(backend)
     compiled = target.looped(compiled, method)  # (numba: its observe compiled and cached with the loop)
@@ -626,7 +627,7 @@ def simulate_ensemble(
 
     P, param_columns = _parameter_matrix(system, layout, parameters, n)
     notes: list[str] = []
-    Y0 = _states(system, model, layout, initial_states, P, vak, t0, notes)
+    Y0 = _states(system, entry, layout, initial_states, P, vak, t0, notes)
 
     g = system.g
     n_coords = len(layout.coordinates)
@@ -653,7 +654,7 @@ def simulate_ensemble(
 
     start = time.perf_counter()
     # a reduced model's solved constraints may meet a pole (pole_free: not where A_dep is fixed)
-    watch = registry.get(layout.model).reduced and not pole_free(system)
+    watch = entry.reduced and not pole_free(system)
     if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
 
         def checked(members: np.ndarray, points: int) -> dict[str, np.ndarray]:
@@ -861,7 +862,7 @@ def _check_time(
 
 
 def _compile(
-    system: System, model: str, form: str, backend: str, constants: Any, reduction: str, members: int
+    system: System, model: Model, form: str, backend: str, constants: Any, reduction: str, members: int
 ) -> CompiledModel:
     """The compiled model for ``backend``; ``"auto"``: the GPU for :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS`
     members or more where CuPy sees a device, else the C backend, else numba.  ``"cuda"`` is the

@@ -49,6 +49,7 @@ from chaplygin.numeric._dop853 import StepFailure as _StepFailure
 if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
     # warm run of the command line (chaplygin.numeric._plan) needs none of them
     from chaplygin.core.system import System
+    from chaplygin.models.registry import Model
     from chaplygin.numeric._ckernel import CompiledModel
     from chaplygin.numeric._plan import LoadedFile
 
@@ -899,13 +900,13 @@ def _start_function(system: System, matrix: Any) -> tuple[Any, Any]:
 
 
 def _vakonomic_setup(
-    system: System, model: str, constants: Any, multipliers: Any
+    system: System, entry: Model, constants: Any, multipliers: Any
 ) -> tuple[Any, dict[str, Any] | None]:
     """Constants of the family, or the initial multipliers of the multiplier form, checked: each
     a finite number, one per constraint (a sequence, a mapping, or a number where g = 1), or
     ``constants="match"`` (:data:`MATCH`) or ``"zero"`` (every c_β = 0, as ``None``); anything
-    else is refused with an :class:`InputError`."""
-    entry = registry.get(model)
+    else is refused with an :class:`InputError`.  ``entry``: the model (``registry.get``)."""
+    model = entry.name
     if not (entry.constants or entry.multipliers_in_state):
         if constants is not None or multipliers is not None:
             raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
@@ -1224,10 +1225,10 @@ def simulate(
             f"step: a fixed step size is for the symmetric methods ({', '.join(SYMMETRIC_METHODS)}); "
             f"method {method!r} adapts its steps to rtol/atol (bounded by max_step)."
         )
-    family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    entry = registry.get(model)  # the model, looked up once: what follows takes the entry
+    family_c, vak = _vakonomic_setup(system, entry, constants, multipliers)
     if isinstance(family_c, str) and family_c == "match":
         family_c = _matching_constants(system, q, qd, params, t0)
-    entry = registry.get(model)
     y0 = list(q) + ([*qd] if not entry.reduced else [qd[i] for i in system._ind])
     if entry.multipliers_in_state:
         y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
@@ -1247,11 +1248,11 @@ def simulate(
     )
 
     try:
-        compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+        compiled = compile_model(system, entry, form, backend, constants=family_c, reduction=reduction)
     except BackendUnavailable:
         if not auto:
             raise
-        compiled = compile_model(system, model, form, "numpy", constants=family_c, reduction=reduction)
+        compiled = compile_model(system, entry, form, "numpy", constants=family_c, reduction=reduction)
     compiled = targets.get(compiled.backend).looped(compiled, method)  # (numba: see _lost_definiteness)
     layout = compiled.layout
 
@@ -1338,7 +1339,8 @@ def _simulate_symmetric(
             f"method {method!r} integrates the true (Chetaev) motion: model "
             f"{', '.join(map(repr, TRUE_MODELS))}, not {model!r}; use DOP853 for the other models."
         )
-    _vakonomic_setup(system, model, constants, multipliers)  # refuses constants/multipliers
+    entry = registry.get(model)  # the model, looked up once
+    _vakonomic_setup(system, entry, constants, multipliers)  # refuses constants/multipliers
     if not targets.get(backend).symmetric:
         raise ChaplyginError(
             f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
@@ -1348,7 +1350,7 @@ def _simulate_symmetric(
     h, _ = grid((t0, t1), samples, step)  # refuses a bad step before any work
     params = _parameters(system, parameters)
     q, qd = initial_state(system, initial, params, t0)
-    with_multipliers = not registry.get(model).reduced
+    with_multipliers = not entry.reduced
     reduced_model, reduced_form = ("voronets", "classic") if with_multipliers else (model, form)
     stepper = compile_model(system, reduced_model, reduced_form, backend)
     p = parameter_vector(stepper.layout, params)
@@ -1942,7 +1944,7 @@ def vakonomic_constants(
     motion on a Chaplygin system), values themselves; ``multipliers`` (μ(0)) the c they give.
     Checked as by :func:`simulate`.
     """
-    _, vak = _vakonomic_setup(system, "vakonomic", constants, multipliers)
+    _, vak = _vakonomic_setup(system, registry.MODELS["vakonomic"], constants, multipliers)
     assert vak is not None
     params = _parameters(system, parameters)
     q, qd = initial_state(system, initial, params, t0)

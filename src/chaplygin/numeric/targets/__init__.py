@@ -44,6 +44,7 @@ if TYPE_CHECKING:
 
     from chaplygin.core.system import System
     from chaplygin.models.equations import Equations
+    from chaplygin.models.registry import Model
     from chaplygin.numeric._ckernel import CompiledModel, Layout
     from chaplygin.numeric.codegen import _Parts
 
@@ -134,9 +135,10 @@ class Target:
         return CompiledModel(parts.layout, import_source(source, self.name), self.name)
 
     def compile_model(
-        self, system: System, model: str, form: str, constants: Any, reduction: str
+        self, system: System, model: Model, form: str, constants: Any, reduction: str
     ) -> CompiledModel:
-        """:func:`~chaplygin.numeric.codegen.compile_model` for this target."""
+        """:func:`~chaplygin.numeric.codegen.compile_model` for this target (``model``: the
+        registry's entry, resolved by the entry point)."""
         from chaplygin.numeric.codegen import compile_model
 
         return compile_model(system, model, form, self.name, constants=constants, reduction=reduction)

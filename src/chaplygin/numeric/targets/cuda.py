@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from chaplygin.core.system import System
+    from chaplygin.models.registry import Model
     from chaplygin.numeric._ckernel import CompiledModel
 
 
@@ -29,7 +30,7 @@ class Cuda(Target):
         return _cuda.device_problem()
 
     def compile_model(
-        self, system: System, model: str, form: str, constants: Any, reduction: str
+        self, system: System, model: Model, form: str, constants: Any, reduction: str
     ) -> CompiledModel:
         from chaplygin.numeric import _cuda
         from chaplygin.numeric.codegen import BackendUnavailable
