@@ -329,14 +329,16 @@ def test_ensemble_dict_states_equal_array_states(disk):
     # all velocities integrated: the dependent ones (x', y') follow from the constraints (the
     # preparation itself, chaplygin.numeric.ensemble._states: the same for every backend, and it spares
     # two more models compiled by numba)
+    from chaplygin.models import registry
     from chaplygin.numeric.ensemble import _parameter_matrix, _states
     from chaplygin.numeric.simulate import _vakonomic_setup
 
     def prepared(system, model, states, params, constants=None):
-        family_c, vak = _vakonomic_setup(system, model, constants, None)
-        layout = compile_model(system, model, "classic", "numpy", constants=family_c).layout
+        entry = registry.get(model)  # (the inner functions take the registry's entry)
+        family_c, vak = _vakonomic_setup(system, entry, constants, None)
+        layout = compile_model(system, entry, "classic", "numpy", constants=family_c).layout
         P, _ = _parameter_matrix(system, layout, params, len(states))
-        return _states(system, model, layout, states, P, vak, 0.0)
+        return _states(system, entry, layout, states, P, vak, 0.0)
 
     chetaev = prepared(disk, "chetaev", starts, DISK_P)
     for k, start in enumerate(starts):

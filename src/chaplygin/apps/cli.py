@@ -36,6 +36,7 @@ from chaplygin.apps import _replay
 from chaplygin.apps._wording import cli_wording
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
+from chaplygin.numeric import targets
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -196,12 +197,9 @@ class CheckFormat(str, Enum):
     json = "json"
 
 
-class Backend(str, Enum):
-    auto = "auto"
-    numpy = "numpy"
-    numba = "numba"
-    c = "c"
-    jax = "jax"
+#: ``--backend``: "auto" and the code targets that run one trajectory (a row of
+#: :data:`chaplygin.numeric.targets.TARGETS` each)
+Backend = Enum("Backend", {name: name for name in ("auto", *targets.offered("simulate"))}, type=str)  # type: ignore[misc]
 
 
 BACKEND_HELP = (
@@ -1063,7 +1061,7 @@ def simulate(
     ),
     form: Form = typer.Option(Form.classic, "--form", help="Form of a reduced model."),
     samples: int = typer.Option(1001, "--samples", "-n", min=2, help="Number of equally spaced samples."),
-    backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
+    backend: Backend = typer.Option(Backend["auto"], "--backend", "-b", help=BACKEND_HELP),
     constants: str | None = typer.Option(None, "--constants", help=SIMULATE_CONSTANTS_HELP),
     param: list[str] | None = _param_option(),
     initial: list[str] | None = _initial_option(),
@@ -1174,7 +1172,7 @@ def simulate(
             created = _created(out)
             (tr.to_csv if suffix == ".csv" else tr.to_npz)(out)
         label = named(model)
-        _emit(f"{_summary_line(label, tr, backend is Backend.auto)} -> {out}")
+        _emit(f"{_summary_line(label, tr, backend is Backend['auto'])} -> {out}")
         for note in tr.notes:
             _emit(f"  note: {note}")
         if created is not None:
@@ -1287,7 +1285,7 @@ def compare(
         None, "--constants", help=CONSTANTS_HELP.replace("match (μ(0) = 0)", "match (the default: μ(0) = 0)")
     ),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of equally spaced samples."),
-    backend: Backend = typer.Option(Backend.auto, "--backend", "-b", help=BACKEND_HELP),
+    backend: Backend = typer.Option(Backend["auto"], "--backend", "-b", help=BACKEND_HELP),
     figure_format: FigureFormat = typer.Option(
         FigureFormat.svg, "--figure-format", help="Format of the figures."
     ),
@@ -1812,7 +1810,7 @@ def report(
     ),
     t_end: float = typer.Option(20.0, "--t-end", "-t", help="End time of the simulations."),
     samples: int = typer.Option(401, "--samples", "-n", min=2, help="Number of samples."),
-    backend: Backend = typer.Option(Backend.numpy, "--backend", "-b", help="Generated-code backend."),
+    backend: Backend = typer.Option(Backend["numpy"], "--backend", "-b", help="Generated-code backend."),
     param: list[str] | None = _param_option(),
     initial: list[str] | None = _initial_option(),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing report."),

@@ -1518,7 +1518,7 @@ def _first_compile(system: System, plan: _Plan) -> str | None:
     from chaplygin.numeric.simulate import _vakonomic_setup
 
     try:
-        constants, _ = _vakonomic_setup(system, plan.model, plan.constants, None)
+        constants, _ = _vakonomic_setup(system, registry.get(plan.model), plan.constants, None)
     except ChaplyginError:  # each run says what is wrong
         return None
     if isinstance(constants, str) or is_compiled(

@@ -208,18 +208,20 @@ def get(name: Any, form: str | None = None, *, constants: Any = None) -> Model:
     """The model called ``name``; a :class:`ModelError` naming what exists otherwise.
 
     With ``form``, the form is checked too; with ``constants``, that the model takes them.
+    ``name`` may be a :class:`Model` already (resolved by an entry point): it is checked in
+    the same way and returned, with no look-up by name.
     """
-    model = MODELS.get(name) if isinstance(name, str) else None
+    model = name if isinstance(name, Model) else MODELS.get(name) if isinstance(name, str) else None
     if model is None:
         raise ModelError(f"unknown model {name!r}; the models are {', '.join(repr(m) for m in MODELS)}.")
     if form is not None and form not in model.titles:
         raise ModelError(
-            f"model {name!r} has no form {form!r}; its forms are {', '.join(repr(f) for f in model.forms)}."
+            f"model {model.name!r} has no form {form!r}; its forms are {', '.join(repr(f) for f in model.forms)}."
         )
     if constants is not None and not model.constants:
         with_constants = [m.name for m in MODELS.values() if m.constants]
         raise ModelError(
-            f"constants c_β belong to model {' or '.join(map(repr, with_constants))}, not to {name!r}."
+            f"constants c_β belong to model {' or '.join(map(repr, with_constants))}, not to {model.name!r}."
         )
     return model
 

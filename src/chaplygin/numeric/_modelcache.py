@@ -29,10 +29,9 @@ import hashlib
 import json
 import os
 from collections.abc import Mapping
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from chaplygin.numeric import cache
+from chaplygin.numeric import cache, targets
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
@@ -44,8 +43,6 @@ __all__ = ["ENVIRONMENT", "definition", "enabled", "load_model", "load_source", 
 FORMAT = 1
 #: the environment variable that switches the disk cache of compiled models off
 ENVIRONMENT = "CHAPLYGIN_MODEL_CACHE"
-#: the backends whose models are stored (jax's are traced functions, not source)
-STORED = ("c", "numpy", "numba")
 
 
 def enabled() -> bool:
@@ -135,25 +132,18 @@ def model_key(
     """The key of a compiled model; None where there is none (switched off, not keyable).
 
     ``variant`` names the choices of the code generator that the rest does not fix (the
-    reduction, the size from which numba's ``fill`` is C).  The C compiler is part of the key
-    of the ``c`` backend (none: no key) and of ``numba`` (whose large ``fill`` it builds).
+    reduction, the size from which numba's ``fill`` is C).  What builds the target's code
+    (:meth:`~chaplygin.numeric.targets.Target.toolchain`: the C compiler of the ``c`` and
+    ``numba`` targets) is part of the key; a target without one (jax: traced functions, not
+    source) has no key.
     """
-    if not enabled() or backend not in STORED:
+    built = targets.get(backend).toolchain() if enabled() else None
+    if built is None:
         return None
     given = _constants(constants)
     digest = definition(system)
     if given is None or digest is None:
         return None
-    built = ""
-    if backend in ("c", "numba"):
-        from chaplygin.numeric._ckernel import FLAGS, Unavailable, compiler
-
-        try:
-            built = "\0".join([*compiler(), *FLAGS])
-        except Unavailable:
-            if backend == "c":
-                return None
-            built = "no C compiler"
     parts = ("compiled-model", str(FORMAT), str(code_format), digest, model, form, backend)
     return cache.key(*parts, given, variant, built)
 
@@ -200,31 +190,25 @@ def load_model(key: str | None) -> CompiledModel | None:
 
 
 def _build(value: dict[str, Any]) -> CompiledModel | None:
-    from chaplygin.numeric._ckernel import CKernel, CompiledModel, Layout, Unavailable
+    from chaplygin.numeric._ckernel import Layout
 
     lay = value["layout"]
     fields = ("coordinates", "velocities", "multipliers", "parameters", "reactions")
     layout = Layout(str(lay["model"]), str(lay["form"]), *(tuple(map(str, lay[f])) for f in fields))
     backend = value["backend"]
-    if backend == "c":
-        try:
-            kernel = CKernel(
-                str(value["fill"]), *(int(value[k]) for k in ("dim", "n", "k", "n_observed", "n_react"))
-            )
-        except Unavailable:
-            return None
-        return CompiledModel(layout, kernel, "c")
-    if backend not in STORED:
+    if backend not in targets.TARGETS:
         return None
-    module = cache.import_source(str(value["module"]), backend)
-    return CompiledModel(layout, module, backend)
+    return targets.get(backend).restore(value, layout)
 
 
 def store_model(key: str | None, compiled: CompiledModel) -> None:
     """Store ``compiled`` under ``key`` (nothing where ``key`` is None or it is not source)."""
-    if key is None or compiled.backend not in STORED:
+    if key is None:
         return
-    layout, module = compiled.layout, compiled.module
+    code = targets.get(compiled.backend).code(compiled)
+    if code is None or "load_library_permanently" in code.get("module", ""):
+        return  # (numba calling a C fill by its library's path, which the cache may lose)
+    layout = compiled.layout
     value: dict[str, Any] = {
         "layout": {
             f: list(getattr(layout, f))
@@ -233,15 +217,7 @@ def store_model(key: str | None, compiled: CompiledModel) -> None:
         | {"model": layout.model, "form": layout.form},
         "backend": compiled.backend,
     }
-    if compiled.backend == "c":
-        value |= {"fill": module.fill_source, "dim": module.DIM, "n": module.N, "k": module.K}
-        value |= {"n_observed": module.N_OBSERVED, "n_react": module.n_react}
-    else:
-        source = Path(module.__file__).read_text(encoding="utf-8")
-        if "load_library_permanently" in source:
-            return  # numba calling a C fill by its library's path, which the cache may lose
-        value["module"] = source
-    cache.store(key, value)
+    cache.store(key, value | code)
     _LOADED[key] = compiled
 
 

@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from chaplygin.models import registry
-from chaplygin.numeric import _modelcache, cache
+from chaplygin.numeric import _modelcache, cache, targets
 
 if TYPE_CHECKING:
     from chaplygin.numeric.simulate import Trajectory
@@ -149,12 +149,9 @@ def remember(definition: bytes | None, asked: str, form: str, loaded: Any, tr: T
 
     # the run's model (cached on the system)
     compiled = compile_model(system, tr.model, form, tr.backend)
-    kernel, layout = compiled.module, compiled.layout
-    if tr.backend == "c":
-        code = {"fill": kernel.fill_source, "dim": kernel.DIM, "n": kernel.N, "k": kernel.K}
-        code |= {"n_observed": kernel.N_OBSERVED, "n_react": kernel.n_react}
-    else:
-        code = {"module": Path(kernel.__file__).read_text(encoding="utf-8")}
+    layout, code = compiled.layout, targets.get(tr.backend).code(compiled)
+    if code is None:
+        return
     watch = _watch_of(system) if reduced else None
     if reduced and watch is None:
         return  # pole functions not printable as a module: the watch needs SymPy
@@ -488,25 +485,11 @@ def _run(
 
 
 def _compiled(found: dict[str, Any], layout: Any, backend: str) -> Any:
-    """The plan's compiled model on ``backend`` (built from its stored source where needed), or None."""
-    from chaplygin.numeric._ckernel import CKernel, CompiledModel, Unavailable
-
-    if backend == "c":
-        try:
-            kernel = CKernel(
-                found["fill"],
-                *(int(found[k]) for k in ("dim", "n", "k", "n_observed", "n_react")),
-            )
-        except Unavailable:
-            return None
-        return CompiledModel(layout, kernel, "c")
-    module = cache.import_source(str(found["module"]), backend)
-    compiled = CompiledModel(layout, module, backend)
-    if backend == "numba":  # the module with the DOP853 loop, as the run integrates it
-        from chaplygin.numeric._loop import loop_model
-
-        compiled = loop_model(compiled)
-    return compiled
+    """The plan's compiled model on ``backend`` (built from its stored source where needed), or
+    None; the model that integrates DOP853 (numba's: the module with the loop)."""
+    target = targets.get(backend)
+    compiled = target.restore(found, layout)
+    return None if compiled is None else target.looped(compiled, "DOP853")
 
 
 def simulate_file(

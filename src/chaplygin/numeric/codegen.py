@@ -43,16 +43,17 @@ from chaplygin.core._native import chetaev_matrices
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
-from chaplygin.numeric import _cfill, _modelcache
+from chaplygin.numeric import _cfill, _modelcache, targets
 from chaplygin.numeric._ckernel import CompiledModel, Layout
 from chaplygin.numeric._layout import state_symbols
 from chaplygin.numeric._loop import _k_pivot, _k_solve
 from chaplygin.numeric._printing import code
-from chaplygin.numeric.cache import cache_dir, import_source
+from chaplygin.numeric.cache import cache_dir
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
     from chaplygin.models.equations import Equations
+    from chaplygin.models.registry import Model
 
 __all__ = [
     "BACKENDS",
@@ -66,7 +67,8 @@ __all__ = [
     "reduces_numerically",
 ]
 
-BACKENDS = ("numpy", "numba", "jax", "c")
+#: what ``compile_model(backend=…)`` accepts: the targets that compile models (:mod:`chaplygin.numeric.targets`)
+BACKENDS = targets.offered("compile")
 #: bumped whenever the generated code changes shape, so that no stale cache is reused
 CODE_FORMAT = 8
 
@@ -657,15 +659,14 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
     _check_backend(backend)
     cache = eqs.__dict__.setdefault("_compiled", {})  # one compilation per equations and backend
     if backend not in cache:
-        cache[backend] = _compile(eqs, backend)
+        cache[backend] = targets.get(backend).compile(eqs)
     return cache[backend]
 
 
 def _check_backend(backend: str) -> None:
-    if backend not in BACKENDS:
-        raise ChaplyginError(
-            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
-        )
+    names = targets.offered("compile")  # (the table as it is now: BACKENDS is it at import)
+    if backend not in names:
+        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, names))}.")
 
 
 #: the numba backend builds ``fill`` with a C compiler from this many generated lines on
@@ -686,7 +687,7 @@ REDUCTIONS = ("auto", "symbolic", "numeric")
 
 def compile_model(
     system: System,
-    model: str,
+    model: str | Model,
     form: str = "classic",
     backend: str = "numpy",
     *,
@@ -697,6 +698,9 @@ def compile_model(
 
     Parameters
     ----------
+    model : str or Model
+        The model's name, or its entry of the registry (:func:`chaplygin.models.registry.get`),
+        which an entry point resolved once.
     reduction : {"auto", "symbolic", "numeric"}
         How Chaplygin's and Voronets' equations are computed.  ``"symbolic"``
         compiles the derived equations (15)/(40); ``"numeric"`` compiles the
@@ -713,17 +717,17 @@ def compile_model(
     What is compiled is also stored on disk (:mod:`chaplygin.numeric._modelcache`), so another
     process that compiles the same model of an equal system loads it and derives nothing.
     """
-    key, numeric = _model_key(system, model, form, backend, constants, reduction)
+    key, numeric, entry = _model_key(system, model, form, backend, constants, reduction)
     found = _modelcache.load_model(key)
     if found is None:
-        found = _compile_model(system, model, form, backend, constants, numeric)
+        found = _compile_model(system, entry, form, backend, constants, numeric)
         _modelcache.store_model(key, found)
     return found
 
 
 def is_compiled(
     system: System,
-    model: str,
+    model: str | Model,
     form: str = "classic",
     backend: str = "numpy",
     *,
@@ -732,12 +736,12 @@ def is_compiled(
 ) -> bool:
     """Whether :func:`compile_model` would load this model from the disk cache (derive and
     compile nothing); False where the cache is off or cannot hold it."""
-    key, _ = _model_key(system, model, form, backend, constants, reduction)
+    key, _, _ = _model_key(system, model, form, backend, constants, reduction)
     return _modelcache.load_model(key) is not None
 
 
 def reduces_numerically(
-    system: System, model: str, form: str = "classic", backend: str = "auto", reduction: str = "auto"
+    system: System, model: str | Model, form: str = "classic", backend: str = "auto", reduction: str = "auto"
 ) -> bool:
     """Whether :func:`compile_model` compiles ``model`` by the numeric reduction, from the
     Chetaev matrices, so that the model's symbolic equations are never needed to run it."""
@@ -745,7 +749,7 @@ def reduces_numerically(
     return (
         entry.reduced
         and entry.is_true_motion
-        and backend != "jax"
+        and (backend not in targets.TARGETS or targets.get(backend).numeric_reduction)  # ("auto" too)
         and (
             reduction == "numeric"
             or (
@@ -757,26 +761,27 @@ def reduces_numerically(
 
 
 def _model_key(
-    system: System, model: str, form: str, backend: str, constants: Any, reduction: str
-) -> tuple[str | None, bool]:
-    """The disk-cache key of a compiled model (None: not cached), and whether it is the numeric
-    reduction; an unknown model, form, backend or reduction is refused here."""
+    system: System, model: str | Model, form: str, backend: str, constants: Any, reduction: str
+) -> tuple[str | None, bool, Model]:
+    """The disk-cache key of a compiled model (None: not cached), whether it is the numeric
+    reduction, and the model's entry; an unknown model, form, backend or reduction is refused here."""
     if reduction not in REDUCTIONS:
         raise ChaplyginError(f"reduction {reduction!r} is not one of {', '.join(map(repr, REDUCTIONS))}.")
-    registry.get(model, form)  # refuses an unknown model or form before anything is looked up
+    entry = registry.get(model, form)  # refuses an unknown model or form before anything is looked up
     _check_backend(backend)
-    numeric = reduces_numerically(system, model, form, backend, reduction)
+    numeric = reduces_numerically(system, entry, form, backend, reduction)
     variant = f"numeric reduction {numeric}, C fill from {C_FILL_FROM_LINES} lines"
-    return _modelcache.model_key(system, model, form, backend, constants, variant, CODE_FORMAT), numeric
+    key = _modelcache.model_key(system, entry.name, form, backend, constants, variant, CODE_FORMAT)
+    return key, numeric, entry
 
 
 def _compile_model(
-    system: System, model: str, form: str, backend: str, constants: Any, numeric: bool
+    system: System, entry: Model, form: str, backend: str, constants: Any, numeric: bool
 ) -> CompiledModel:
     """:func:`compile_model` without the disk cache: derive (once per system) and generate."""
-    entry = registry.get(model, form)
-    if backend == "c":
-        _build_loop_beside()
+    model = entry.name
+    target = targets.get(backend)
+    target.prepare()
     if not numeric:
         kwargs = {} if constants is None else {"constants": constants}
         return compile_equations(system.equations(model, form, **kwargs), backend)
@@ -785,7 +790,7 @@ def _compile_model(
     cache = system.__dict__.setdefault("_compiled_numeric", {})
     key = (backend, model)
     if key not in cache:
-        cache[key] = _load_model(_numeric_reduction_parts(system, model), backend)
+        cache[key] = target.build(_numeric_reduction_parts(system, model))
     return cache[key]
 
 
@@ -797,7 +802,7 @@ def _build_loop_beside() -> None:
     """Start building the C loop library (once per kernel cache where the installation did not
     build it, ~0.2 s of the C compiler) in
     a thread, so that the compiler runs while this process derives and generates the model;
-    :func:`_load_model` waits for it before it loads the loop.  Nothing is started where the
+    the C target's build (:meth:`chaplygin.numeric.targets.c.C.build`) waits for it before it loads the loop.  Nothing is started where the
     loop is loaded, being built or in the cache already (a library of another source there is
     built by the load as before); a failure is left to the load, which raises it again."""
     from chaplygin.numeric import _ckernel
@@ -820,47 +825,6 @@ def _build_loop_beside() -> None:
 
     _BESIDE[:] = [threading.Thread(target=build, name="chaplygin-loop-build")]
     _BESIDE[0].start()
-
-
-def _compile(eqs: Equations, backend: str) -> CompiledModel:
-    if backend == "jax":
-        from chaplygin.numeric.jaxbackend import compile_jax
-
-        return compile_jax(eqs)
-    if backend == "numba":
-        try:
-            import numba  # noqa: F401
-        except ImportError as exc:  # pragma: no cover - numba is a dependency
-            raise ChaplyginError("backend 'numba' needs numba: pip install numba") from exc
-    return _load_model(_parts(eqs), backend)
-
-
-def _load_model(parts: _Parts, backend: str) -> CompiledModel:
-    """The generated module (numpy, numba) or C kernel (c) of ``parts``, loaded."""
-    if backend == "c":
-        from chaplygin.numeric._ckernel import CKernel
-
-        for thread in _BESIDE:  # the loop library, built beside the derivation
-            thread.join()
-        s, layout = parts.system, parts.layout
-        try:
-            kernel = CKernel(
-                _cfill.source(
-                    parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"
-                ),
-                parts.dim,
-                s.n,
-                parts.k,
-                1 + s.g + len(layout.reactions) + s.n,
-                len(layout.reactions),
-            )
-        except _cfill.Unavailable as exc:
-            raise BackendUnavailable(f"backend 'c' cannot be used: {exc}") from None
-        return CompiledModel(layout, kernel, "c")
-    module = import_source(
-        _module(parts.system, parts.layout, parts.fill, parts.dim, parts.k, backend), backend
-    )
-    return CompiledModel(parts.layout, module, backend)
 
 
 def parameter_vector(layout: Layout, values: dict[str, float]) -> np.ndarray:

@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from chaplygin.core.system import System
+    from chaplygin.models.registry import Model
 
 __all__ = ["Comparison", "coincide", "compare", "default_models", "motion_notes"]
 
@@ -322,8 +323,9 @@ def default_models(system: System) -> list[str]:
     return [*models, "lindelof"] if registry.MODELS["lindelof"].obstruction(system) is None else models
 
 
-def _takes_constants(name: str) -> bool:
-    entry = registry.get(name)
+def _takes_constants(model: str | Model) -> bool:
+    """Whether ``model`` (a name, or the registry's entry) takes the constants c_β or μ(0)."""
+    entry = registry.get(model)
     return entry.constants or entry.multipliers_in_state
 
 
@@ -349,11 +351,24 @@ def motion_notes(
     with every c_β = 0) — their distance in the table is integration error, not a difference of
     models.
     """
-    labels = {_parse(m)[2]: _parse(m)[0] for m in models}
+    entries = {_parse(m)[2]: registry.get(_parse(m)[0]) for m in models}  # each looked up once
+    return _notes(system, entries, t_span, initial, parameters, constants, multipliers)
+
+
+def _notes(
+    system: System,
+    entries: dict[str, Model],
+    t_span: tuple[float, float] | float,
+    initial: Mapping[Any, float],
+    parameters: Mapping[Any, float] | None,
+    constants: Any,
+    multipliers: Any,
+) -> list[str]:
+    """:func:`motion_notes` of the models ``entries`` (label → the registry's entry)."""
     motions: dict[str, list[str]] = {}
     notes: list[str] = []
     c: list[float] | None = None
-    if any(_takes_constants(name) for name in labels.values()):
+    if any(_takes_constants(entry) for entry in entries.values()):
         c = vakonomic_constants(system, constants, multipliers, initial, parameters, time_span(t_span)[0])
         what = (
             "from the given μ(0)"
@@ -370,15 +385,15 @@ def motion_notes(
             if not registry.family_obstructions(system)
             else f"not conserved on {system.name}: these are their values at t = {time_span(t_span)[0]:g}"
         )
-        taking = [label for label, name in labels.items() if _takes_constants(name)]
+        taking = [label for label, entry in entries.items() if _takes_constants(entry)]
         notes.append(
             f"{', '.join(taking)}: {_numbers(c)} ({what}); c_β are the momenta ∂L_v/∂q̇ of the "
             f"dependent coordinates {dependent}, {kept}"
         )
-    for label, name in labels.items():
-        if registry.get(name).is_true_motion:
+    for label, entry in entries.items():
+        if entry.is_true_motion:
             motion = "the true motion"
-        elif name == "lindelof" or (c is not None and np.allclose(c, 0.0, rtol=0.0, atol=1e-12)):
+        elif entry.name == "lindelof" or (c is not None and np.allclose(c, 0.0, rtol=0.0, atol=1e-12)):
             motion = "the vakonomic motion with every c_β = 0"
         else:
             motion = "the vakonomic motion with these constants"
@@ -497,24 +512,23 @@ def compare(
     if path is not None and any(c not in names for c in path):
         raise ChaplyginError(f"path: {path} are not both coordinates of {system.name} ({', '.join(names)}).")
     parsed = [_parse(model) for model in models]
-    for name, form, _ in parsed:
-        registry.get(name, form)
+    entries = [registry.get(name, form) for name, form, _ in parsed]  # each model looked up once
     labels = [label for _, _, label in parsed]
     twice = next((label for k, label in enumerate(labels) if label in labels[:k]), None)
     if twice is not None:
         raise ChaplyginError(f"models: {twice!r} is listed twice; name each model (and form) once.")
     given = constants is not None or multipliers is not None
-    if given and not any(_takes_constants(name) for name, _, _ in parsed):
+    if given and not any(_takes_constants(entry) for entry in entries):
         raise ChaplyginError(
             f"constants/multipliers: none of the models {', '.join(label for _, _, label in parsed)} "
             "takes them; they are for the vakonomic models 'vakonomic' and 'vakonomic_family' "
             "(Lindelöf's equations are the member with every c_β = 0)."
         )
     vakonomic = {"constants": "match" if not given else constants, "multipliers": multipliers}
-    notes = motion_notes(system, models, t_span, initial, parameters, **vakonomic)
+    notes = _notes(system, dict(zip(labels, entries)), t_span, initial, parameters, **vakonomic)
     trajectories: dict[str, Trajectory] = {}
-    for name, form, label in parsed:
-        own = {**options, **vakonomic} if _takes_constants(name) else options
+    for (name, form, label), entry in zip(parsed, entries):
+        own = {**options, **vakonomic} if _takes_constants(entry) else options
         try:
             tr = simulate(system, name, t_span, initial, parameters, form=form, **own)
         except Degenerate as exc:
@@ -526,7 +540,7 @@ def compare(
             notes.append(note)
             continue
         if tr.failure == "pole":
-            fallback = registry.get(name).fallback
+            fallback = entry.fallback
             if fallback is None:
                 note = (
                     f"{label} stops at {tr.message.split(';')[0]} (these equations have no multiplier form)"

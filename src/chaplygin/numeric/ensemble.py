@@ -46,9 +46,9 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
-from chaplygin.numeric import _cuda
+from chaplygin.numeric import _cuda, targets
 from chaplygin.numeric._loop import STATUS
-from chaplygin.numeric.codegen import CompiledModel, Layout, compile_model
+from chaplygin.numeric.codegen import CompiledModel, Layout
 from chaplygin.numeric.simulate import (
     ESTIMATE_AFTER,
     POLE_CHECK_POINTS,
@@ -67,13 +67,14 @@ from chaplygin.numeric.simulate import (
 
 if TYPE_CHECKING:
     from chaplygin.core.system import System
+    from chaplygin.models.registry import Model
 
 __all__ = ["ENSEMBLE_BACKENDS", "Ensemble", "simulate_ensemble"]
 
 #: what ``backend=`` accepts; "auto" is "cuda" for an ensemble of at least
 #: :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS` members where CuPy sees a GPU, else "c" where a
 #: C compiler is found, else "numba"
-ENSEMBLE_BACKENDS = ("auto", "c", "numba", "jax", "cuda")
+ENSEMBLE_BACKENDS = ("auto", *targets.offered("ensemble"))
 #: the status code of a member that met a pole of its solved constraints (:data:`STATUS`)
 POLE = 9
 #: a reduced model's members are checked for a pole of the solved constraints at this many
@@ -298,7 +299,7 @@ def _parameter_matrix(
 
 def _states(
     system: System,
-    model: str,
+    entry: Model,
     layout: Layout,
     initial_states: Any,
     P: np.ndarray | None,
@@ -345,7 +346,6 @@ def _states(
         notes.append(f"{len(changed)} member(s) solved from the holonomic constraints at the start ({shown})")
     if system.g:
         _dependent_velocities(system, Q, QD, params, t0)
-    entry = registry.get(model)
     columns = [Q, QD if not entry.reduced else QD[:, list(system._ind)]]
     if entry.multipliers_in_state:
         columns.append(_multipliers(system, vak or {}, Q, QD, params, t0))
@@ -510,30 +510,8 @@ def _row_max_abs(a: np.ndarray) -> np.ndarray:
 
 
 def _observe_all(compiled: CompiledModel, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
-    if isinstance(compiled, _cuda.CudaModel):
-        return compiled.device.observe(t, Y, P)
-    if compiled.backend == "jax":
-        import jax
-
-        solvers = compiled._solvers  # type: ignore[attr-defined]  # jitted functions of this model
-        if "observe_vmap" not in solvers:
-            solvers["observe_vmap"] = jax.jit(jax.vmap(compiled.module.observe_jax))
-        return np.asarray(solvers["observe_vmap"](t, Y, P))
-    observe_many = getattr(compiled.module, "observe_many", None)  # the C kernel's: many states, one p
-    if observe_many is not None and len(t):
-        # one call per distinct parameter vector (one for an ensemble over initial states only)
-        if np.array_equal(P, np.broadcast_to(P[0], P.shape)):  # (np.unique's row sort costs 30 times more)
-            return np.asarray(observe_many(t, Y, P[0]))
-        distinct, inverse = np.unique(P, axis=0, return_inverse=True)
-        if len(distinct) <= max(1, len(t) // 4):
-            order = np.argsort(inverse.ravel(), kind="stable")
-            ends = np.cumsum(np.bincount(inverse.ravel(), minlength=len(distinct)))
-            rows = np.empty((len(t), compiled.n_observed))
-            for k, members in enumerate(np.split(order, ends[:-1])):
-                rows[members] = observe_many(t[members], Y[members], distinct[k])
-            return rows
-    observe = compiled.module.observe
-    return np.array([observe(ti, yi, pi) for ti, yi, pi in zip(t, Y, P)]).reshape(len(t), -1)
+    """``observe`` of every member (row ``k``: ``t[k]``, ``Y[k]``, ``P[k]``), by its target."""
+    return targets.get(compiled.backend).observe_members(compiled, t, Y, P)
 
 
 # ------------------------------------------------------------------ driver
@@ -615,17 +593,23 @@ def simulate_ensemble(
         raise InputError(
             f"threads = {threads!r}: give a whole number of threads, 1 or more (None: every core)."
         )
-    if backend not in ENSEMBLE_BACKENDS:
+    # the table as it is now (ENSEMBLE_BACKENDS is it at import)
+    names = ("auto", *targets.offered("ensemble"))
+    if backend not in names:
+        raise ChaplyginError(f"backend {backend!r}: ensembles run on {', '.join(map(repr, names))}.")
+    methods = ("DOP853",) if backend == "auto" else targets.get(backend).ensemble_methods
+    if method not in methods:
         raise ChaplyginError(
-            f"backend {backend!r}: ensembles run on {', '.join(map(repr, ENSEMBLE_BACKENDS))}."
-        )
-    if backend != "jax" and method != "DOP853":
-        raise ChaplyginError(
-            f"method {method!r}: backend {backend!r} integrates ensembles with 'DOP853' only "
-            "(backend='jax' has 'RK45' and 'RK23')."
+            f"method {method!r}: backend {backend!r} integrates ensembles with "
+            + (
+                f"{methods[0]!r} only (backend='jax' has 'RK45' and 'RK23')."
+                if len(methods) == 1
+                else f"{', '.join(map(repr, methods))}."
+            )
         )
     times = _keep_times(keep, t0, t1)
-    family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    entry = registry.get(model)  # the model, looked up once: what follows takes the entry
+    family_c, vak = _vakonomic_setup(system, entry, constants, multipliers)
     if isinstance(family_c, str):  # "match": c_β = ∂T/∂q̇_dep at each member's own start
         raise ChaplyginError(
             f"constants='match': for {model!r} the constants follow from each member's start, and "
@@ -635,17 +619,15 @@ def simulate_ensemble(
     n = len(initial_states)
     if n == 0:
         raise ChaplyginError("initial_states: no initial states given.")
-    compiled = _compile(system, model, form, backend, family_c, reduction, n)
+    compiled = _compile(system, entry, form, backend, family_c, reduction, n)
     backend = compiled.backend
-    if backend == "numba":
-        from chaplygin.numeric._loop import loop_model
-
-        compiled = loop_model(compiled)  # its observe is compiled (and cached) with the loop
+    target = targets.get(backend)
+    compiled = target.looped(compiled, method)  # (numba: its observe compiled and cached with the loop)
     layout = compiled.layout
 
     P, param_columns = _parameter_matrix(system, layout, parameters, n)
     notes: list[str] = []
-    Y0 = _states(system, model, layout, initial_states, P, vak, t0, notes)
+    Y0 = _states(system, entry, layout, initial_states, P, vak, t0, notes)
 
     g = system.g
     n_coords = len(layout.coordinates)
@@ -661,48 +643,18 @@ def simulate_ensemble(
             )
 
     _check_memory(n, 0 if times is None else len(times), len(layout.state))
-    if backend not in ("jax", "cuda") and time_limit is not None:
+    if target.paced and time_limit is not None:
         _check_time(compiled, (t0, t1), Y0[0], P[0], rtol, atol, max_step, max_steps, n, threads, time_limit)
 
     def integrate(rows: slice | np.ndarray, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
-        if isinstance(compiled, _cuda.CudaModel):
-            return compiled.device.run(
-                (t0, t1), Y0[rows], P[rows], times=sample_times, rtol=rtol, atol=atol,
-                max_step=max_step, max_steps=max_steps,
-            )  # fmt: skip
-        if backend != "jax":
-            from chaplygin.numeric._loop import ensemble_dop853
-
-            return ensemble_dop853(
-                compiled,
-                (t0, t1),
-                Y0[rows],
-                P[rows],
-                times=sample_times,
-                rtol=rtol,
-                atol=atol,
-                max_step=max_step,
-                max_steps=max_steps,
-                threads=threads,
-            )
-        from chaplygin.numeric.jaxbackend import solve_ensemble
-
-        return solve_ensemble(
-            compiled,
-            (t0, t1),
-            Y0[rows],
-            P[rows],
-            times=sample_times,
-            rtol=rtol,
-            atol=atol,
-            method=method,
-            max_step=max_step,
-            max_steps=max_steps or 1_000_000,
-        )
+        return target.ensemble(
+            compiled, (t0, t1), Y0[rows], P[rows], times=sample_times, rtol=rtol, atol=atol,
+            method=method, max_step=max_step, max_steps=max_steps, threads=threads,
+        )  # fmt: skip
 
     start = time.perf_counter()
     # a reduced model's solved constraints may meet a pole (pole_free: not where A_dep is fixed)
-    watch = registry.get(layout.model).reduced and not pole_free(system)
+    watch = entry.reduced and not pole_free(system)
     if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
 
         def checked(members: np.ndarray, points: int) -> dict[str, np.ndarray]:
@@ -910,36 +862,24 @@ def _check_time(
 
 
 def _compile(
-    system: System, model: str, form: str, backend: str, constants: Any, reduction: str, members: int
+    system: System, model: Model, form: str, backend: str, constants: Any, reduction: str, members: int
 ) -> CompiledModel:
     """The compiled model for ``backend``; ``"auto"``: the GPU for :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS`
     members or more where CuPy sees a device, else the C backend, else numba.  ``"cuda"`` is the
     ``c`` backend's model (its C ``fill`` goes into the GPU kernel) with the GPU kernel built."""
     from chaplygin.numeric.codegen import BackendUnavailable
 
-    if backend == "cuda" or (
-        backend == "auto" and members >= _cuda.AUTO_MEMBERS and _cuda.device_problem() is None
-    ):
-        try:
-            problem = _cuda.device_problem()
-            if problem is not None:
-                raise BackendUnavailable(f"backend 'cuda' cannot be used: {problem}; {_cuda.INSTALL}.")
-            try:
-                c = compile_model(system, model, form, "c", constants=constants, reduction=reduction)
-            except BackendUnavailable as exc:
-                raise BackendUnavailable(f"backend 'cuda' builds on the C backend: {exc}") from None
-            cuda = _cuda.CudaModel(c)
-            cuda.device  # noqa: B018  # NVRTC compiles here, before any member is prepared
-            return cuda
-        except ChaplyginError as exc:
-            if backend == "cuda":
-                raise
-            warnings.warn(f"backend 'auto' runs on the CPU: the GPU failed ({exc})", stacklevel=3)
     if backend != "auto":
-        return compile_model(system, model, form, backend, constants=constants, reduction=reduction)
+        return targets.get(backend).compile_model(system, model, form, constants, reduction)
+    cuda = targets.get("cuda")
+    if members >= _cuda.AUTO_MEMBERS and cuda.unavailable() is None:
+        try:
+            return cuda.compile_model(system, model, form, constants, reduction)
+        except ChaplyginError as exc:
+            warnings.warn(f"backend 'auto' runs on the CPU: the GPU failed ({exc})", stacklevel=3)
     with suppress(BackendUnavailable):
-        return compile_model(system, model, form, "c", constants=constants, reduction=reduction)
-    return compile_model(system, model, form, "numba", constants=constants, reduction=reduction)
+        return targets.get("c").compile_model(system, model, form, constants, reduction)
+    return targets.get("numba").compile_model(system, model, form, constants, reduction)
 
 
 def _keep_times(keep: Any, t0: float, t1: float) -> np.ndarray | None:

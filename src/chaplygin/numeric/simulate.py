@@ -43,11 +43,13 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
+from chaplygin.numeric import targets
 from chaplygin.numeric._dop853 import StepFailure as _StepFailure
 
 if TYPE_CHECKING:  # SymPy, code generation and SciPy are imported where they are used: a
     # warm run of the command line (chaplygin.numeric._plan) needs none of them
     from chaplygin.core.system import System
+    from chaplygin.models.registry import Model
     from chaplygin.numeric._ckernel import CompiledModel
     from chaplygin.numeric._plan import LoadedFile
 
@@ -68,7 +70,7 @@ __all__ = [
 SYMMETRIC_METHODS = ("midpoint", "gauss4", "gauss6")
 METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA", *SYMMETRIC_METHODS)
 #: what ``backend=`` accepts: "auto" chooses one of the others (:func:`choose_backend`)
-BACKENDS = ("auto", "numpy", "numba", "c", "jax")
+BACKENDS = ("auto", *targets.offered("simulate"))
 
 
 def choose_backend(backend: str, method: str = "DOP853") -> str:
@@ -82,20 +84,13 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     never chosen: its first compile of a model takes seconds, and importing it
     half a second more; ``backend="numba"`` still asks for it.
     """
-    if backend not in BACKENDS:
-        raise ChaplyginError(
-            f"unknown backend {backend!r}; the backends are {', '.join(map(repr, BACKENDS))}."
-        )
+    names = ("auto", *targets.offered("simulate"))  # (the table as it is now: BACKENDS is it at import)
+    if backend not in names:
+        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, names))}.")
     if backend != "auto":
         return backend
-    if method == "DOP853":
-        from chaplygin.numeric._ckernel import Unavailable, compiler
-
-        try:
-            compiler()
-            return "c"
-        except Unavailable:
-            pass
+    if method == "DOP853" and targets.get("c").unavailable() is None:
+        return "c"
     return "numpy"
 
 
@@ -905,13 +900,13 @@ def _start_function(system: System, matrix: Any) -> tuple[Any, Any]:
 
 
 def _vakonomic_setup(
-    system: System, model: str, constants: Any, multipliers: Any
+    system: System, entry: Model, constants: Any, multipliers: Any
 ) -> tuple[Any, dict[str, Any] | None]:
     """Constants of the family, or the initial multipliers of the multiplier form, checked: each
     a finite number, one per constraint (a sequence, a mapping, or a number where g = 1), or
     ``constants="match"`` (:data:`MATCH`) or ``"zero"`` (every c_β = 0, as ``None``); anything
-    else is refused with an :class:`InputError`."""
-    entry = registry.get(model)
+    else is refused with an :class:`InputError`.  ``entry``: the model (``registry.get``)."""
+    model = entry.name
     if not (entry.constants or entry.multipliers_in_state):
         if constants is not None or multipliers is not None:
             raise ChaplyginError(f"constants/multipliers are for the vakonomic models, not for {model!r}.")
@@ -1230,10 +1225,10 @@ def simulate(
             f"step: a fixed step size is for the symmetric methods ({', '.join(SYMMETRIC_METHODS)}); "
             f"method {method!r} adapts its steps to rtol/atol (bounded by max_step)."
         )
-    family_c, vak = _vakonomic_setup(system, model, constants, multipliers)
+    entry = registry.get(model)  # the model, looked up once: what follows takes the entry
+    family_c, vak = _vakonomic_setup(system, entry, constants, multipliers)
     if isinstance(family_c, str) and family_c == "match":
         family_c = _matching_constants(system, q, qd, params, t0)
-    entry = registry.get(model)
     y0 = list(q) + ([*qd] if not entry.reduced else [qd[i] for i in system._ind])
     if entry.multipliers_in_state:
         y0 += list(_initial_multipliers(system, vak or {}, q, qd, params, t0))
@@ -1253,15 +1248,12 @@ def simulate(
     )
 
     try:
-        compiled = compile_model(system, model, form, backend, constants=family_c, reduction=reduction)
+        compiled = compile_model(system, entry, form, backend, constants=family_c, reduction=reduction)
     except BackendUnavailable:
         if not auto:
             raise
-        compiled = compile_model(system, model, form, "numpy", constants=family_c, reduction=reduction)
-    if compiled.backend == "numba" and method == "DOP853":
-        from chaplygin.numeric._loop import loop_model
-
-        compiled = loop_model(compiled)  # the shared loop's model (see _lost_definiteness)
+        compiled = compile_model(system, entry, form, "numpy", constants=family_c, reduction=reduction)
+    compiled = targets.get(compiled.backend).looped(compiled, method)  # (numba: see _lost_definiteness)
     layout = compiled.layout
 
     p = parameter_vector(layout, params)
@@ -1347,8 +1339,9 @@ def _simulate_symmetric(
             f"method {method!r} integrates the true (Chetaev) motion: model "
             f"{', '.join(map(repr, TRUE_MODELS))}, not {model!r}; use DOP853 for the other models."
         )
-    _vakonomic_setup(system, model, constants, multipliers)  # refuses constants/multipliers
-    if backend not in ("numpy", "numba"):
+    entry = registry.get(model)  # the model, looked up once
+    _vakonomic_setup(system, entry, constants, multipliers)  # refuses constants/multipliers
+    if not targets.get(backend).symmetric:
         raise ChaplyginError(
             f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
             f"Python), not {backend!r}."
@@ -1357,7 +1350,7 @@ def _simulate_symmetric(
     h, _ = grid((t0, t1), samples, step)  # refuses a bad step before any work
     params = _parameters(system, parameters)
     q, qd = initial_state(system, initial, params, t0)
-    with_multipliers = not registry.get(model).reduced
+    with_multipliers = not entry.reduced
     reduced_model, reduced_form = ("voronets", "classic") if with_multipliers else (model, form)
     stepper = compile_model(system, reduced_model, reduced_form, backend)
     p = parameter_vector(stepper.layout, params)
@@ -1951,7 +1944,7 @@ def vakonomic_constants(
     motion on a Chaplygin system), values themselves; ``multipliers`` (μ(0)) the c they give.
     Checked as by :func:`simulate`.
     """
-    _, vak = _vakonomic_setup(system, "vakonomic", constants, multipliers)
+    _, vak = _vakonomic_setup(system, registry.MODELS["vakonomic"], constants, multipliers)
     assert vak is not None
     params = _parameters(system, parameters)
     q, qd = initial_state(system, initial, params, t0)
@@ -2029,30 +2022,10 @@ def _samples(
     """:func:`integrate` before anything is observed: ``(model, t, y, status, message, n_rhs)``,
     the model being the one that integrated (the shared loop's, for numba)."""
     times = np.linspace(t_span[0], t_span[1], samples)
-    if compiled.backend == "jax" and method in ("DOP853", "RK45", "RK23"):
-        from chaplygin.numeric.jaxbackend import solve
-
-        res = solve(compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step)
-        if progress is not None and len(res.t):
-            progress(float(res.t[-1]))
-        return compiled, res.t, res.y, res.status, res.message, res.n_rhs
-    told = _budget(progress, t_span[1], time_limit)  # (the last call below: not checked)
-    if compiled.backend in ("numba", "c") and method == "DOP853":  # the compiled loop (numba or C)
-        if compiled.backend == "numba":
-            from chaplygin.numeric._loop import loop_model
-
-            compiled = loop_model(compiled)
-        attempt = _loop_attempt(compiled, t_span[1], p, rtol, atol, told)
-    elif method == "DOP853" and hasattr(compiled.module, "rhs_list"):
-        # the numpy backend's generated code on lists, stepped in plain Python: no SciPy at all
-        attempt = _list_attempt(compiled, t_span[1], p, rtol, atol, told)
-    else:  # the other methods, and a model without a list right-hand side (code of other origin)
-        attempt = _scipy_attempt(compiled, t_span[1], p, rtol, atol, method, told)
-    ts, ys, message, n_rhs = _pinned(attempt, t_span[0], np.asarray(y0, dtype=float), times, max_step)
-    if progress is not None:
-        progress(float(ts[-1]) if len(ts) else t_span[0])
-    status = "failed" if message else "success"
-    return compiled, ts, ys, status, message or f"reached t = {t_span[1]:g}", n_rhs
+    return targets.get(compiled.backend).integrate(
+        compiled, t_span, y0, p, times, rtol=rtol, atol=atol, method=method, max_step=max_step,
+        progress=progress, time_limit=time_limit,
+    )  # fmt: skip
 
 
 def _pinned(
@@ -2295,12 +2268,7 @@ def _trajectory(
 ) -> Trajectory:
     layout = compiled.layout
     n = len(layout.coordinates)
-    if compiled.backend == "c":  # every sample in one call
-        obs = compiled.module.observe_many(times, ys, p)
-    else:
-        obs = np.array([compiled.observe(t, y, p) for t, y in zip(times, ys)]).reshape(
-            len(times), compiled.n_observed
-        )
+    obs = targets.get(compiled.backend).observe_run(compiled, times, ys, p)
     n_react = len(layout.reactions)
     velocities = obs[:, obs.shape[1] - n :] if len(times) else np.empty((0, n))
     residual = np.max(np.abs(obs[:, 1 : 1 + g]), axis=1) if g and len(times) else np.zeros(len(times))

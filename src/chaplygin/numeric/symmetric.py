@@ -94,6 +94,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
+from chaplygin.numeric import targets
 from chaplygin.numeric._loop import (
     EPS,
     _k_call,
@@ -535,7 +536,8 @@ def integrate_symmetric(
         Output times and states (fewer rows than ``samples`` after a failure),
         status, message and counts.
     """
-    if compiled.backend not in ("numpy", "numba"):
+    target = targets.get(compiled.backend)
+    if not target.symmetric:
         raise ChaplyginError(
             f"backend: the symmetric methods run with 'numba' (compiled) or 'numpy' (plain "
             f"Python), not {compiled.backend!r}."
@@ -543,7 +545,7 @@ def integrate_symmetric(
     A, b, c = tableau(method)
     t0, t1 = float(t_span[0]), float(t_span[1])
     h, per_sample = grid((t0, t1), samples, step)
-    if compiled.backend == "numba":
+    if target.flavour == "numba":  # numba's module: the shared loop's kernels step it
         module = loop_model(compiled).module
         kernels: Any = shared()
         m = module.MODEL
