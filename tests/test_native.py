@@ -389,3 +389,41 @@ def test_shown_nonzero_never_takes_an_identity_for_a_nonzero_value() -> None:
     nonzero = [x, se.Integer(10) ** -12 * x, se.sin(x) ** 2 + se.cos(x) ** 2 - 1 + y / 10**6, big]
     assert shown_nonzero(nonzero) == [True] * len(nonzero)
     assert shown_nonzero([1 / (x - x)]) == [False]
+
+
+def test_a_result_handed_back_to_symengine_is_not_converted_again(monkeypatch) -> None:
+    """The gradient's entries, handed to ``jacobian`` (as the derivation hands the momenta to the
+    mass matrix), are taken as the SymEngine values they were made from: none is converted a
+    second time; the Hessian is SymPy's own ``diff`` (simplified difference 0), its symbol ``a``
+    the positive one given."""
+    from chaplygin.core import _fast
+
+    a, (x, y) = sp.Symbol("a", positive=True), sp.symbols("x y")
+    f = a * sp.sin(x * y) ** 2 + sp.sqrt(a) * x**3 * y / (1 + a * y**2)
+    g = _fast.gradient(f, [x, y])
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(_fast, "_to_symengine", lambda e: (seen.append(e), convert(e))[1])
+    H = _fast.jacobian(g, [x, y])
+    assert not set(g) & set(seen), "jacobian converted the gradient again"
+    for i, u in enumerate((x, y)):
+        for j, v in enumerate((x, y)):
+            assert sp.simplify(H[i, j] - sp.diff(f, u, v)) == 0
+    assert a in H.free_symbols and sp.Symbol("a") not in H.free_symbols
+
+
+def test_same_named_symbols_with_other_assumptions_keep_their_own() -> None:
+    """A positive ``a`` and a plain ``a`` in one session (two systems, a body file's positive
+    r beside a plain r): each result, and each result of a result, has its own symbol back."""
+    from chaplygin.core import _fast
+
+    x = sp.Symbol("x")
+    for a, other in (
+        (sp.Symbol("a", positive=True), sp.Symbol("a")),
+        (sp.Symbol("a"), sp.Symbol("a", positive=True)),
+    ):
+        g = _fast.gradient(a * x**3 + sp.cos(a * x), [x])
+        H = _fast.jacobian(g, [x])
+        for e in (g[0], H[0]):
+            assert a in e.free_symbols and other not in e.free_symbols
+        assert sp.simplify(H[0] - (6 * a * x - a**2 * sp.cos(a * x))) == 0

@@ -3,7 +3,8 @@
 Everything the user sees stays SymPy; only derivatives and the common
 subexpressions of generated code are computed in SymEngine (about 30× faster
 than SymPy, whose assumption queries dominate). Each call
-converts its input once and its results once.  Symbols with assumptions (a
+converts its input once and its results once; an input that is itself a result (the next
+step of a derivation) is taken as the SymEngine value it was made from.  Symbols with assumptions (a
 ``positive=True`` mass, say) come back from SymEngine without them, so they
 are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
 """
@@ -53,18 +54,40 @@ def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
 _UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of their derivatives
 
 
+#: ``id(e)`` of an expression :func:`_back` made -> ``(e, the SymEngine value e was made from)``.
+#: A derivation hands its results straight back to the next step (Voronets' terms, the mass
+#: matrix to the code generator), whose conversion to SymEngine was most of its time; the
+#: expression itself is kept, so its id names it while the entry lives.  The value is a
+#: conversion of ``e`` (equal to it; SymEngine symbols carry no assumptions, here or in a
+#: conversion), computed from inputs that passed the ``_UNSAFE`` test and so free of those
+#: functions.  Bounded, so that a long session does not keep every tree alive.
+_MADE: dict[int, tuple[sp.Basic, Any]] = {}
+_MADE_MAX = 4096
+
+
 def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
-    if not HAVE_SYMENGINE or any(e.has(*_UNSAFE) for e in exprs):
+    if not HAVE_SYMENGINE:
+        return None
+    made = [_MADE.get(id(e)) for e in exprs]
+    known = [m[1] if m is not None and m[0] is e else None for m, e in zip(made, exprs)]
+    if any(k is None and e.has(*_UNSAFE) for k, e in zip(known, exprs)):
         return None
     try:
-        return [_to_symengine(e) for e in exprs]
+        return [_to_symengine(e) if k is None else k for k, e in zip(known, exprs)]
     except (RuntimeError, NotImplementedError, TypeError, AttributeError):
         return None
 
 
 def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp.Expr]:
     out = [v._sympy_() for v in values]
-    return [e.xreplace(restore) for e in out] if restore else out
+    if restore:
+        out = [e.xreplace(restore) for e in out]
+    if len(_MADE) + len(out) > _MADE_MAX:
+        _MADE.clear()
+    for v, e in zip(values, out):
+        if not isinstance(e, sp.Atom):
+            _MADE[id(e)] = (e, v)
+    return out
 
 
 def _real(exprs: Sequence[sp.Expr]) -> tuple[dict[sp.Symbol, sp.Symbol], dict[sp.Symbol, sp.Symbol]]:
