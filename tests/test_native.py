@@ -427,3 +427,20 @@ def test_same_named_symbols_with_other_assumptions_keep_their_own() -> None:
         for e in (g[0], H[0]):
             assert a in e.free_symbols and other not in e.free_symbols
         assert sp.simplify(H[0] - (6 * a * x - a**2 * sp.cos(a * x))) == 0
+
+
+def test_symbols_come_back_with_their_assumptions_without_a_sympy_substitution(monkeypatch) -> None:
+    """SymEngine drops assumptions; the way back gives the positive ``a`` and ``b`` (and the plain
+    ``x``) as they were given, built so at once: no SymPy ``xreplace`` pass rebuilding every node
+    above them. The values are SymPy's own derivatives (simplified difference 0)."""
+    from chaplygin.core import _fast
+
+    a, b, x = sp.Symbol("a", positive=True), sp.Symbol("b", positive=True), sp.Symbol("x")
+    f = a * b**2 * sp.sin(x) / sp.sqrt(a**2 + b**2 * x**2) + b * x**3
+    monkeypatch.setattr(sp.Basic, "xreplace", lambda *args, **kwargs: pytest.fail("xreplace called"))
+    (df,) = _fast.gradient(f, [x])
+    (d2f,) = _fast.jacobian([df], [x])
+    monkeypatch.undo()
+    for e, expected in ((df, f.diff(x)), (d2f, f.diff(x, 2))):
+        assert e.free_symbols == {a, b, x}
+        assert sp.simplify(e - expected) == 0

@@ -4,9 +4,10 @@ Everything the user sees stays SymPy; only derivatives and the common
 subexpressions of generated code are computed in SymEngine (about 30× faster
 than SymPy, whose assumption queries dominate). Each call
 converts its input once and its results once; an input that is itself a result (the next
-step of a derivation) is taken as the SymEngine value it was made from.  Symbols with assumptions (a
-``positive=True`` mass, say) come back from SymEngine without them, so they
-are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
+step of a derivation) is taken as the SymEngine value it was made from.  Symbols with
+assumptions (a ``positive=True`` mass, say) come back from SymEngine without them, so they are
+restored by name, in SymEngine, as the results are converted (:func:`_back`).  Anything
+SymEngine cannot represent falls back to SymPy.
 """
 
 from __future__ import annotations
@@ -78,10 +79,34 @@ def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
         return None
 
 
+if HAVE_SYMENGINE:
+
+    class _Kept(_se_symbol):
+        """A SymEngine symbol that converts back to ``original``, the SymPy symbol with
+        assumptions it stands for.  It lives only inside :func:`_back`, under a name of its
+        own: were it named as the plain symbol, SymEngine would take the two for equal and
+        keep the plain one in a node it finds unchanged by the substitution."""
+
+        def __init__(self, original: sp.Symbol) -> None:
+            self.original = original  # before SymEngine's init, which keeps this object
+            super().__init__(f"{original.name} (kept {id(original)})", store_pickle=True)
+
+        def __reduce__(self) -> tuple[Any, ...]:
+            return (_Kept, (self.original,))
+
+        def _sympy_(self) -> sp.Symbol:
+            return self.original
+
+
 def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp.Expr]:
-    out = [v._sympy_() for v in values]
+    """SymEngine's ``values`` as SymPy expressions, their symbols named in ``restore`` (plain ->
+    with assumptions) as given there: swapped in SymEngine for :class:`_Kept` stand-ins that
+    convert to them (a substitution in SymPy afterwards rebuilt every node above them)."""
+    shown = list(values)
     if restore:
-        out = [e.xreplace(restore) for e in out]
+        kept = {_se_symbol(plain.name): _Kept(original) for plain, original in restore.items()}
+        shown = list(_se_matrix(shown).xreplace(kept)) if len(shown) > 1 else [shown[0].xreplace(kept)]
+    out = [v._sympy_() for v in shown]
     if len(_MADE) + len(out) > _MADE_MAX:
         _MADE.clear()
     for v, e in zip(values, out):
