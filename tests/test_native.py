@@ -444,3 +444,24 @@ def test_symbols_come_back_with_their_assumptions_without_a_sympy_substitution(m
     for e, expected in ((df, f.diff(x)), (d2f, f.diff(x, 2))):
         assert e.free_symbols == {a, b, x}
         assert sp.simplify(e - expected) == 0
+
+
+def test_the_compiled_reduced_model_leaves_sympys_forcing_uncomputed() -> None:
+    """Chaplygin's equations of the rolling disk compiled from the derivation's SymEngine F: the
+    SymPy F (an xreplace of the whole residuals, and the exact zero test) is computed only when
+    asked for, and then ``M⁻¹F`` at a state is the compiled right-hand side's acceleration."""
+    from chaplygin.numeric.codegen import compile_equations
+
+    system = examples.rolling_disk()
+    eqs = system.equations("chaplygin")
+    model = compile_equations(eqs, "numpy")
+    assert "_F" not in eqs.__dict__, "the SymPy forcing was computed for the compiled model"
+    values = dict(zip(system.parameters, (1.3, 0.7, 9.81, 0.4, 0.9)))  # A, C, g, m, r
+    assert model.layout.parameters == tuple(str(s) for s in system.parameters)
+    v, n = system._vars, system.n
+    y = np.array([0.3, 0.4, 0.2, 0.1, -0.2, 1.1, -0.6, 0.8])  # ψ, θ, φ, x, y, ψ', θ', φ'
+    state = dict(zip(v.x, y[:n])) | dict(zip([v.xd[i] for i in system._ind], y[n:])) | values
+    M = np.array(eqs._M.xreplace(state).evalf(), dtype=float)
+    F = np.array(eqs._F.xreplace(state).evalf(), dtype=float).ravel()
+    rhs = model.rhs(0.0, y, np.array(list(values.values())))
+    np.testing.assert_allclose(rhs[n:], np.linalg.solve(M, F), rtol=1e-12)
