@@ -237,8 +237,9 @@ def shown_nonzero(exprs: Sequence[Any], seed: int = 31) -> list[bool]:
     return out
 
 
-def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None:
-    """A function of a sample ``(len(args),)`` returning the complex values of ``exprs``.
+def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr], *, real: bool = False) -> Any | None:
+    """A function of a sample ``(len(args),)`` returning the complex values of ``exprs`` (the
+    real ones with ``real``: NaN where a value is not real).
 
     SymEngine's ``Lambdify`` (no code generation, so it is cheap to build); None
     when SymEngine cannot represent the expressions.  Singular points give
@@ -248,6 +249,6 @@ def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None
     if fast is None:
         return None
     try:
-        return _se_lambdify(fast[: len(args)], fast[len(args) :], real=False)
+        return _se_lambdify(fast[: len(args)], fast[len(args) :], real=real)
     except (RuntimeError, NotImplementedError, TypeError):
         return None
