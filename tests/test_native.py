@@ -389,6 +389,18 @@ def test_shown_nonzero_never_takes_an_identity_for_a_nonzero_value() -> None:
     nonzero = [x, se.Integer(10) ** -12 * x, se.sin(x) ** 2 + se.cos(x) ** 2 - 1 + y / 10**6, big]
     assert shown_nonzero(nonzero) == [True] * len(nonzero)
     assert shown_nonzero([1 / (x - x)]) == [False]
+    # with a floating coefficient (a numeric parameter) and through exp, log and roots alike
+    c = se.RealDouble(0.37)
+    zero = [
+        c * (se.sin(x) ** 2 + se.cos(x) ** 2 - 1),
+        c * se.sqrt(a) ** 2 - c * a,
+        se.exp(x) * se.exp(-x) - 1,
+        se.log(x * y) - se.log(x) - se.log(y),
+        (se.sqrt(x) * se.sqrt(y)) ** 2 - x * y,
+    ]
+    assert shown_nonzero(zero) == [False] * len(zero)
+    nonzero = [c * x, c * (se.sin(x) ** 2 + se.cos(x) ** 2) - c + se.Integer(10) ** -9 * y, se.pi * x - 3 * x]
+    assert shown_nonzero(nonzero) == [True] * len(nonzero)
 
 
 def test_a_result_handed_back_to_symengine_is_not_converted_again(monkeypatch) -> None:
