@@ -477,3 +477,24 @@ def test_the_compiled_reduced_model_leaves_sympys_forcing_uncomputed() -> None:
     F = np.array(eqs._F.xreplace(state).evalf(), dtype=float).ravel()
     rhs = model.rhs(0.0, y, np.array(list(values.values())))
     np.testing.assert_allclose(rhs[n:], np.linalg.solve(M, F), rtol=1e-12)
+
+
+def test_a_derivation_converts_no_expression_twice(monkeypatch) -> None:
+    """Chaplygin's equations of the rolling disk: each SymPy expression is converted to SymEngine
+    at most once (D_σ differentiates each entry of B once per independent coordinate, and each
+    step takes the one before's results), and the equations are those derived without the
+    memory of conversions (printed alike: each system has its own internal symbols)."""
+    from chaplygin.core import _fast
+
+    with monkeypatch.context() as m:  # nothing remembered: every expression converted afresh
+        m.setattr(_fast, "_remember", lambda *args: None)
+        m.setattr(_fast, "_MADE", {})
+        reference = examples.rolling_disk().equations("chaplygin")._residuals
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(_fast, "_to_symengine", lambda e: (seen.append(e), convert(e))[1])
+    monkeypatch.setattr(_fast, "_MADE", {})
+    residuals = examples.rolling_disk().equations("chaplygin")._residuals
+    compound = [e for e in seen if isinstance(e, sp.Basic) and not e.is_Atom]
+    assert len({id(e) for e in compound}) == len(compound), "an expression was converted twice"
+    assert [str(r) for r in residuals] == [str(r) for r in reference]

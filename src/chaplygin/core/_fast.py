@@ -55,15 +55,25 @@ def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
 _UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of their derivatives
 
 
-#: ``id(e)`` of an expression :func:`_back` made -> ``(e, the SymEngine value e was made from)``.
+#: ``id(e)`` of a SymPy expression -> ``(e, its SymEngine value)``: the expressions
+#: :func:`_back` made (with the value they were made from) and those :func:`_convert` converted.
 #: A derivation hands its results straight back to the next step (Voronets' terms, the mass
-#: matrix to the code generator), whose conversion to SymEngine was most of its time; the
-#: expression itself is kept, so its id names it while the entry lives.  The value is a
-#: conversion of ``e`` (equal to it; SymEngine symbols carry no assumptions, here or in a
-#: conversion), computed from inputs that passed the ``_UNSAFE`` test and so free of those
-#: functions.  Bounded, so that a long session does not keep every tree alive.
+#: matrix to the code generator) and differentiates the same pieces again (each entry of B
+#: once per independent coordinate in D_σ): their conversions to SymEngine were most of its
+#: time.  The expression itself is kept, so its id names it while the entry lives; the value
+#: is a conversion of ``e`` (equal to it; SymEngine symbols carry no assumptions, here or in a
+#: conversion), free of the ``_UNSAFE`` functions (tested, or computed from inputs that were).
+#: Bounded, so that a long session does not keep every tree alive.
 _MADE: dict[int, tuple[sp.Basic, Any]] = {}
 _MADE_MAX = 4096
+
+
+def _remember(exprs: Sequence[sp.Basic], values: Sequence[Any]) -> None:
+    if len(_MADE) + len(exprs) > _MADE_MAX:
+        _MADE.clear()
+    for e, v in zip(exprs, values):
+        if not isinstance(e, sp.Atom):
+            _MADE[id(e)] = (e, v)
 
 
 def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
@@ -71,12 +81,16 @@ def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
         return None
     made = [_MADE.get(id(e)) for e in exprs]
     known = [m[1] if m is not None and m[0] is e else None for m, e in zip(made, exprs)]
-    if any(k is None and e.has(*_UNSAFE) for k, e in zip(known, exprs)):
+    new = [e for k, e in zip(known, exprs) if k is None]
+    if any(e.has(*_UNSAFE) for e in new):
         return None
     try:
-        return [_to_symengine(e) if k is None else k for k, e in zip(known, exprs)]
+        converted = [_to_symengine(e) for e in new]
     except (RuntimeError, NotImplementedError, TypeError, AttributeError):
         return None
+    _remember(new, converted)
+    it = iter(converted)
+    return [next(it) if k is None else k for k in known]
 
 
 if HAVE_SYMENGINE:
@@ -107,11 +121,7 @@ def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp
         kept = {_se_symbol(plain.name): _Kept(original) for plain, original in restore.items()}
         shown = list(_se_matrix(shown).xreplace(kept)) if len(shown) > 1 else [shown[0].xreplace(kept)]
     out = [v._sympy_() for v in shown]
-    if len(_MADE) + len(out) > _MADE_MAX:
-        _MADE.clear()
-    for v, e in zip(values, out):
-        if not isinstance(e, sp.Atom):
-            _MADE[id(e)] = (e, v)
+    _remember(out, values)
     return out
 
 
