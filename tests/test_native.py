@@ -487,13 +487,13 @@ def test_a_derivation_converts_no_expression_twice(monkeypatch) -> None:
     from chaplygin.core import _fast
 
     with monkeypatch.context() as m:  # nothing remembered: every expression converted afresh
-        m.setattr(_fast, "_remember", lambda *args: None)
-        m.setattr(_fast, "_MADE", {})
+        m.setattr(_fast, "_remember", lambda *args: None, raising=False)
+        m.setattr(_fast, "_MADE", {}, raising=False)
         reference = examples.rolling_disk().equations("chaplygin")._residuals
     seen: list[sp.Basic] = []
     convert = _fast._to_symengine
     monkeypatch.setattr(_fast, "_to_symengine", lambda e: (seen.append(e), convert(e))[1])
-    monkeypatch.setattr(_fast, "_MADE", {})
+    monkeypatch.setattr(_fast, "_MADE", {}, raising=False)
     residuals = examples.rolling_disk().equations("chaplygin")._residuals
     compound = [e for e in seen if isinstance(e, sp.Basic) and not e.is_Atom]
     assert len({id(e) for e in compound}) == len(compound), "an expression was converted twice"
