@@ -498,3 +498,27 @@ def test_a_derivation_converts_no_expression_twice(monkeypatch) -> None:
     compound = [e for e in seen if isinstance(e, sp.Basic) and not e.is_Atom]
     assert len({id(e) for e in compound}) == len(compound), "an expression was converted twice"
     assert [str(r) for r in residuals] == [str(r) for r in reference]
+
+
+def test_solved_constraints_are_split_without_factoring(monkeypatch) -> None:
+    """Constraints given solved (form B, a rolling body's ``ẋ = …, ẏ = …``): their coefficients
+    go to B and B_0 in normal form at once, without ``factor_terms`` first (a third of the
+    rattleback's System); B is ``∂(ẋ_dep)/∂(ẋ_ind)`` by SymPy's own ``diff``, B_0 the rest."""
+    from chaplygin.core import _symbols
+
+    x, y, th, ph = dynamicsymbols("x y theta phi")
+    a, b = sp.symbols("a b", positive=True)
+    vx = a * sp.cos(th) * ph.diff(t) / sp.sqrt(a**2 * sp.sin(th) ** 2 + b**2) + b * sp.sin(t) * th.diff(t)
+    vy = (a * sp.sin(th) + b) * ph.diff(t) * sp.cos(th) + sp.cos(th) ** 2 * th.diff(t) + a * b * sp.cos(t)
+    T = (x.diff(t) ** 2 + y.diff(t) ** 2 + th.diff(t) ** 2 + ph.diff(t) ** 2) / 2
+    monkeypatch.setattr(
+        _symbols.sp, "factor_terms", lambda *args, **kwargs: pytest.fail("factor_terms called")
+    )
+    system = System([x, y, th, ph], T, {x.diff(t): vx, y.diff(t): vy})
+    monkeypatch.undo()
+    to_fun = system._to_fun
+    speeds = [th.diff(t), ph.diff(t)]
+    for row, v in enumerate((vx, vy)):
+        for col, s in enumerate(speeds):
+            assert sp.simplify(system._B[row, col].xreplace(to_fun) - v.diff(s)) == 0
+        assert sp.simplify(system._B0[row].xreplace(to_fun) - v.xreplace({s: 0 for s in speeds})) == 0
