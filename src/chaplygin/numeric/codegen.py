@@ -835,16 +835,19 @@ def _compile(eqs: Equations, backend: str) -> CompiledModel:
 def _load_model(parts: _Parts, backend: str) -> CompiledModel:
     """The generated module (numpy, numba) or C kernel (c) of ``parts``, loaded."""
     if backend == "c":
-        from chaplygin.numeric._ckernel import CKernel
+        from chaplygin.numeric._ckernel import CKernel, library
 
-        for thread in _BESIDE:  # the loop library, built beside the derivation
-            thread.join()
         s, layout = parts.system, parts.layout
         try:
+            source = _cfill.source(
+                parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"
+            )
+            if any(t.is_alive() for t in _BESIDE):  # the loop library, built beside the derivation:
+                library(source, "fill")  # the fill is compiled meanwhile (CKernel then loads it)
+            for thread in _BESIDE:
+                thread.join()
             kernel = CKernel(
-                _cfill.source(
-                    parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"
-                ),
+                source,
                 parts.dim,
                 s.n,
                 parts.k,
