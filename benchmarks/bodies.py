@@ -25,7 +25,9 @@ the derivation, code generation and C compilation are timed). "build" is timed i
 process from after the imports to a loaded right-hand side; "20 s" is the integration;
 "process" is the whole child process from the parent (Python start-up and imports included).
 The cold cache is timed twice: empty (the C compiler also builds chaplygin's DOP853 loop
-library, ~0.2 s, once per installation; it runs in a thread beside the derivation) and
+library, ~0.2 s, once per installation; it runs in a thread beside the derivation, and the
+time it takes alone, measured in the process that builds the other cache's, is printed under
+the row: on a machine whose second core is busy it is that row's floor above the other) and
 holding only that library, which is what a user meets with a new system.
 Then the **warm** rows: the symbolic chaplygin script again in a new process with the
 cache the cold run left, and the command line ``python -m chaplygin simulate
@@ -190,10 +192,17 @@ def spawn(route: str, data: str, cache: str) -> dict[str, Any]:
     return json.loads(out.stdout.strip().splitlines()[-1]) | {"process": wall}
 
 
-def loop_only(cache: str) -> None:
-    """Build chaplygin's DOP853 loop library (and nothing else) into ``cache``."""
-    code = "from chaplygin.numeric import _ckernel; _ckernel.loop()"
-    subprocess.run([sys.executable, "-c", code], env=_env(cache), capture_output=True, check=True)
+def loop_only(cache: str) -> float:
+    """Build chaplygin's DOP853 loop library (and nothing else) into ``cache``; the seconds it
+    took (the C compiler, and loading it), timed in that process."""
+    code = (
+        "import time; from chaplygin.numeric import _ckernel; t0 = time.perf_counter(); _ckernel.loop(); "
+        "print(time.perf_counter() - t0)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=_env(cache), capture_output=True, text=True, check=True
+    )
+    return float(out.stdout.strip().splitlines()[-1])
 
 
 def cli(cache: str, csv: Path) -> dict[str, Any]:
@@ -230,12 +239,18 @@ def main() -> None:
         for kind in ("numeric", "symbolic"):
             print(f"-- parameters {kind}", flush=True)
             looped = tempfile.mkdtemp(dir=tmp)
-            loop_only(looped)
+            built = loop_only(looped)
             cl = spawn(f"chaplygin-{kind}", data, looped)
             print(row(f"chaplygin [{cl['backend']}], cold, loop built", cl), flush=True)
             cache = tempfile.mkdtemp(dir=tmp)
             c = spawn(f"chaplygin-{kind}", data, cache)
             print(row(f"chaplygin [{c['backend']}], cold cache", c), flush=True)
+            print(
+                f"   (the cold cache's build also holds the DOP853 loop library, {built:.3f} s alone, built "
+                "beside the derivation once per installation: a second core's work, on a busy machine "
+                "the row's floor above the loop-built one)",
+                flush=True,
+            )
             w = spawn(f"chaplygin-{kind}", data, cache) if kind == "symbolic" else None
             if w is not None:
                 print(row(f"chaplygin [{w['backend']}], warm cache", w), flush=True)

@@ -110,6 +110,35 @@ def test_the_loop_library_is_built_while_the_model_is_derived(tmp_path):
     assert second["stats"] == {"built": 1, "loaded": 1, "discarded": 0}
 
 
+# the same, with the loop's build held until the model's fill is in the kernel cache (at most
+# 10 s): the order in which the two libraries were finished
+HELD = PACKAGED + """
+import json, threading, time
+from chaplygin import examples
+from chaplygin.numeric import _ckernel
+from chaplygin.numeric.codegen import compile_model
+finished, build = [], _ckernel._compile
+def held(source, cmd, directory, so, record, digest):
+    if so.name.startswith("dop853_"):
+        deadline = time.monotonic() + 10
+        while not any(directory.glob("fill_*.so")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    build(source, cmd, directory, so, record, digest)
+    finished.append(so.name.split("_")[0])
+_ckernel._compile = held
+compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
+print(json.dumps({"finished": finished, "stats": _ckernel.STATS}))
+"""
+
+
+@needs_cc
+def test_the_fill_is_compiled_while_the_loop_library_is_still_building(tmp_path):
+    # the model's fill does not wait for the loop library built beside it: the compilers run at once
+    first = run_json(HELD, [], tmp_path)
+    assert first["finished"] == ["fill", "dop853"]
+    assert first["stats"] == {"built": 2, "loaded": 2, "discarded": 0}  # both then loaded from the cache
+
+
 @needs_cc
 @pytest.mark.parametrize("damage", ["library", "record"])
 def test_a_corrupt_kernel_is_discarded_and_rebuilt(tmp_path, damage):

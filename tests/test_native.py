@@ -389,3 +389,136 @@ def test_shown_nonzero_never_takes_an_identity_for_a_nonzero_value() -> None:
     nonzero = [x, se.Integer(10) ** -12 * x, se.sin(x) ** 2 + se.cos(x) ** 2 - 1 + y / 10**6, big]
     assert shown_nonzero(nonzero) == [True] * len(nonzero)
     assert shown_nonzero([1 / (x - x)]) == [False]
+    # with a floating coefficient (a numeric parameter) and through exp, log and roots alike
+    c = se.RealDouble(0.37)
+    zero = [
+        c * (se.sin(x) ** 2 + se.cos(x) ** 2 - 1),
+        c * se.sqrt(a) ** 2 - c * a,
+        se.exp(x) * se.exp(-x) - 1,
+        se.log(x * y) - se.log(x) - se.log(y),
+        (se.sqrt(x) * se.sqrt(y)) ** 2 - x * y,
+    ]
+    assert shown_nonzero(zero) == [False] * len(zero)
+    nonzero = [c * x, c * (se.sin(x) ** 2 + se.cos(x) ** 2) - c + se.Integer(10) ** -9 * y, se.pi * x - 3 * x]
+    assert shown_nonzero(nonzero) == [True] * len(nonzero)
+
+
+def test_a_result_handed_back_to_symengine_is_not_converted_again(monkeypatch) -> None:
+    """The gradient's entries, handed to ``jacobian`` (as the derivation hands the momenta to the
+    mass matrix), are taken as the SymEngine values they were made from: none is converted a
+    second time; the Hessian is SymPy's own ``diff`` (simplified difference 0), its symbol ``a``
+    the positive one given."""
+    from chaplygin.core import _fast
+
+    a, (x, y) = sp.Symbol("a", positive=True), sp.symbols("x y")
+    f = a * sp.sin(x * y) ** 2 + sp.sqrt(a) * x**3 * y / (1 + a * y**2)
+    g = _fast.gradient(f, [x, y])
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(_fast, "_to_symengine", lambda e: (seen.append(e), convert(e))[1])
+    H = _fast.jacobian(g, [x, y])
+    assert not set(g) & set(seen), "jacobian converted the gradient again"
+    for i, u in enumerate((x, y)):
+        for j, v in enumerate((x, y)):
+            assert sp.simplify(H[i, j] - sp.diff(f, u, v)) == 0
+    assert a in H.free_symbols and sp.Symbol("a") not in H.free_symbols
+
+
+def test_same_named_symbols_with_other_assumptions_keep_their_own() -> None:
+    """A positive ``a`` and a plain ``a`` in one session (two systems, a body file's positive
+    r beside a plain r): each result, and each result of a result, has its own symbol back."""
+    from chaplygin.core import _fast
+
+    x = sp.Symbol("x")
+    for a, other in (
+        (sp.Symbol("a", positive=True), sp.Symbol("a")),
+        (sp.Symbol("a"), sp.Symbol("a", positive=True)),
+    ):
+        g = _fast.gradient(a * x**3 + sp.cos(a * x), [x])
+        H = _fast.jacobian(g, [x])
+        for e in (g[0], H[0]):
+            assert a in e.free_symbols and other not in e.free_symbols
+        assert sp.simplify(H[0] - (6 * a * x - a**2 * sp.cos(a * x))) == 0
+
+
+def test_symbols_come_back_with_their_assumptions_without_a_sympy_substitution(monkeypatch) -> None:
+    """SymEngine drops assumptions; the way back gives the positive ``a`` and ``b`` (and the plain
+    ``x``) as they were given, built so at once: no SymPy ``xreplace`` pass rebuilding every node
+    above them. The values are SymPy's own derivatives (simplified difference 0)."""
+    from chaplygin.core import _fast
+
+    a, b, x = sp.Symbol("a", positive=True), sp.Symbol("b", positive=True), sp.Symbol("x")
+    f = a * b**2 * sp.sin(x) / sp.sqrt(a**2 + b**2 * x**2) + b * x**3
+    monkeypatch.setattr(sp.Basic, "xreplace", lambda *args, **kwargs: pytest.fail("xreplace called"))
+    (df,) = _fast.gradient(f, [x])
+    (d2f,) = _fast.jacobian([df], [x])
+    monkeypatch.undo()
+    for e, expected in ((df, f.diff(x)), (d2f, f.diff(x, 2))):
+        assert e.free_symbols == {a, b, x}
+        assert sp.simplify(e - expected) == 0
+
+
+def test_the_compiled_reduced_model_leaves_sympys_forcing_uncomputed() -> None:
+    """Chaplygin's equations of the rolling disk compiled from the derivation's SymEngine F: the
+    SymPy F (an xreplace of the whole residuals, and the exact zero test) is computed only when
+    asked for, and then ``M⁻¹F`` at a state is the compiled right-hand side's acceleration."""
+    from chaplygin.numeric.codegen import compile_equations
+
+    system = examples.rolling_disk()
+    eqs = system.equations("chaplygin")
+    model = compile_equations(eqs, "numpy")
+    assert "_F" not in eqs.__dict__, "the SymPy forcing was computed for the compiled model"
+    values = dict(zip(system.parameters, (1.3, 0.7, 9.81, 0.4, 0.9)))  # A, C, g, m, r
+    assert model.layout.parameters == tuple(str(s) for s in system.parameters)
+    v, n = system._vars, system.n
+    y = np.array([0.3, 0.4, 0.2, 0.1, -0.2, 1.1, -0.6, 0.8])  # ψ, θ, φ, x, y, ψ', θ', φ'
+    state = dict(zip(v.x, y[:n])) | dict(zip([v.xd[i] for i in system._ind], y[n:])) | values
+    M = np.array(eqs._M.xreplace(state).evalf(), dtype=float)
+    F = np.array(eqs._F.xreplace(state).evalf(), dtype=float).ravel()
+    rhs = model.rhs(0.0, y, np.array(list(values.values())))
+    np.testing.assert_allclose(rhs[n:], np.linalg.solve(M, F), rtol=1e-12)
+
+
+def test_a_derivation_converts_no_expression_twice(monkeypatch) -> None:
+    """Chaplygin's equations of the rolling disk: each SymPy expression is converted to SymEngine
+    at most once (D_σ differentiates each entry of B once per independent coordinate, and each
+    step takes the one before's results), and the equations are those derived without the
+    memory of conversions (printed alike: each system has its own internal symbols)."""
+    from chaplygin.core import _fast
+
+    with monkeypatch.context() as m:  # nothing remembered: every expression converted afresh
+        m.setattr(_fast, "_remember", lambda *args: None, raising=False)
+        m.setattr(_fast, "_MADE", {}, raising=False)
+        reference = examples.rolling_disk().equations("chaplygin")._residuals
+    seen: list[sp.Basic] = []
+    convert = _fast._to_symengine
+    monkeypatch.setattr(_fast, "_to_symengine", lambda e: (seen.append(e), convert(e))[1])
+    monkeypatch.setattr(_fast, "_MADE", {}, raising=False)
+    residuals = examples.rolling_disk().equations("chaplygin")._residuals
+    compound = [e for e in seen if isinstance(e, sp.Basic) and not e.is_Atom]
+    assert len({id(e) for e in compound}) == len(compound), "an expression was converted twice"
+    assert [str(r) for r in residuals] == [str(r) for r in reference]
+
+
+def test_solved_constraints_are_split_without_factoring(monkeypatch) -> None:
+    """Constraints given solved (form B, a rolling body's ``ẋ = …, ẏ = …``): their coefficients
+    go to B and B_0 in normal form at once, without ``factor_terms`` first (a third of the
+    rattleback's System); B is ``∂(ẋ_dep)/∂(ẋ_ind)`` by SymPy's own ``diff``, B_0 the rest."""
+    from chaplygin.core import _symbols
+
+    x, y, th, ph = dynamicsymbols("x y theta phi")
+    a, b = sp.symbols("a b", positive=True)
+    vx = a * sp.cos(th) * ph.diff(t) / sp.sqrt(a**2 * sp.sin(th) ** 2 + b**2) + b * sp.sin(t) * th.diff(t)
+    vy = (a * sp.sin(th) + b) * ph.diff(t) * sp.cos(th) + sp.cos(th) ** 2 * th.diff(t) + a * b * sp.cos(t)
+    T = (x.diff(t) ** 2 + y.diff(t) ** 2 + th.diff(t) ** 2 + ph.diff(t) ** 2) / 2
+    monkeypatch.setattr(
+        _symbols.sp, "factor_terms", lambda *args, **kwargs: pytest.fail("factor_terms called")
+    )
+    system = System([x, y, th, ph], T, {x.diff(t): vx, y.diff(t): vy})
+    monkeypatch.undo()
+    to_fun = system._to_fun
+    speeds = [th.diff(t), ph.diff(t)]
+    for row, v in enumerate((vx, vy)):
+        for col, s in enumerate(speeds):
+            assert sp.simplify(system._B[row, col].xreplace(to_fun) - v.diff(s)) == 0
+        assert sp.simplify(system._B0[row].xreplace(to_fun) - v.xreplace({s: 0 for s in speeds})) == 0

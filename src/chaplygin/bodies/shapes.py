@@ -20,6 +20,7 @@ from typing import Any, TypeAlias
 import numpy as np
 import sympy as sp
 
+from chaplygin.core._fast import evaluator
 from chaplygin.errors import SystemDefinitionError
 
 __all__ = [
@@ -108,6 +109,9 @@ class Shape:
         expr = self.support(sp.Matrix([a, b, c]))
         if expr.free_symbols - {a, b, c}:
             return None
+        fast = evaluator([a, b, c], [expr], real=True)  # SymEngine's: cheap to build, imports nothing
+        if fast is not None:
+            return lambda u: float(fast(u)[0])
         f = sp.lambdify((a, b, c), expr, "numpy")
         return lambda u: float(f(*u))
 

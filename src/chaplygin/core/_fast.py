@@ -3,9 +3,11 @@
 Everything the user sees stays SymPy; only derivatives and the common
 subexpressions of generated code are computed in SymEngine (about 30× faster
 than SymPy, whose assumption queries dominate). Each call
-converts its input once and its results once.  Symbols with assumptions (a
-``positive=True`` mass, say) come back from SymEngine without them, so they
-are restored by name.  Anything SymEngine cannot represent falls back to SymPy.
+converts its input once and its results once; an input that is itself a result (the next
+step of a derivation) is taken as the SymEngine value it was made from.  Symbols with
+assumptions (a ``positive=True`` mass, say) come back from SymEngine without them, so they are
+restored by name, in SymEngine, as the results are converted (:func:`_back`).  Anything
+SymEngine cannot represent falls back to SymPy.
 """
 
 from __future__ import annotations
@@ -53,18 +55,74 @@ def _restore_map(exprs: Sequence[sp.Expr]) -> dict[sp.Symbol, sp.Symbol]:
 _UNSAFE = (sp.Abs, sp.sign, sp.re, sp.im)  # symengine 0.15 crashes on some of their derivatives
 
 
+#: ``id(e)`` of a SymPy expression -> ``(e, its SymEngine value)``: the expressions
+#: :func:`_back` made (with the value they were made from) and those :func:`_convert` converted.
+#: A derivation hands its results straight back to the next step (Voronets' terms, the mass
+#: matrix to the code generator) and differentiates the same pieces again (each entry of B
+#: once per independent coordinate in D_σ): their conversions to SymEngine were most of its
+#: time.  The expression itself is kept, so its id names it while the entry lives; the value
+#: is a conversion of ``e`` (equal to it; SymEngine symbols carry no assumptions, here or in a
+#: conversion), free of the ``_UNSAFE`` functions (tested, or computed from inputs that were).
+#: Bounded, so that a long session does not keep every tree alive.
+_MADE: dict[int, tuple[sp.Basic, Any]] = {}
+_MADE_MAX = 4096
+
+
+def _remember(exprs: Sequence[sp.Basic], values: Sequence[Any]) -> None:
+    if len(_MADE) + len(exprs) > _MADE_MAX:
+        _MADE.clear()
+    for e, v in zip(exprs, values):
+        if not isinstance(e, sp.Atom):
+            _MADE[id(e)] = (e, v)
+
+
 def _convert(exprs: Sequence[sp.Expr]) -> list[Any] | None:
-    if not HAVE_SYMENGINE or any(e.has(*_UNSAFE) for e in exprs):
+    if not HAVE_SYMENGINE:
+        return None
+    made = [_MADE.get(id(e)) for e in exprs]
+    known = [m[1] if m is not None and m[0] is e else None for m, e in zip(made, exprs)]
+    new = [e for k, e in zip(known, exprs) if k is None]
+    if any(e.has(*_UNSAFE) for e in new):
         return None
     try:
-        return [_to_symengine(e) for e in exprs]
+        converted = [_to_symengine(e) for e in new]
     except (RuntimeError, NotImplementedError, TypeError, AttributeError):
         return None
+    _remember(new, converted)
+    it = iter(converted)
+    return [next(it) if k is None else k for k in known]
+
+
+if HAVE_SYMENGINE:
+
+    class _Kept(_se_symbol):
+        """A SymEngine symbol that converts back to ``original``, the SymPy symbol with
+        assumptions it stands for.  It lives only inside :func:`_back`, under a name of its
+        own: were it named as the plain symbol, SymEngine would take the two for equal and
+        keep the plain one in a node it finds unchanged by the substitution."""
+
+        def __init__(self, original: sp.Symbol) -> None:
+            self.original = original  # before SymEngine's init, which keeps this object
+            super().__init__(f"{original.name} (kept {id(original)})", store_pickle=True)
+
+        def __reduce__(self) -> tuple[Any, ...]:
+            return (_Kept, (self.original,))
+
+        def _sympy_(self) -> sp.Symbol:
+            return self.original
 
 
 def _back(values: Sequence[Any], restore: dict[sp.Symbol, sp.Symbol]) -> list[sp.Expr]:
-    out = [v._sympy_() for v in values]
-    return [e.xreplace(restore) for e in out] if restore else out
+    """SymEngine's ``values`` as SymPy expressions, their symbols named in ``restore`` (plain ->
+    with assumptions) as given there: swapped in SymEngine for :class:`_Kept` stand-ins that
+    convert to them (a substitution in SymPy afterwards rebuilt every node above them)."""
+    shown = list(values)
+    if restore:
+        kept = {_se_symbol(plain.name): _Kept(original) for plain, original in restore.items()}
+        shown = list(_se_matrix(shown).xreplace(kept)) if len(shown) > 1 else [shown[0].xreplace(kept)]
+    out = [v._sympy_() for v in shown]
+    _remember(out, values)
+    return out
 
 
 def _real(exprs: Sequence[sp.Expr]) -> tuple[dict[sp.Symbol, sp.Symbol], dict[sp.Symbol, sp.Symbol]]:
@@ -167,20 +225,25 @@ def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]]
 
 def shown_nonzero(exprs: Sequence[Any], seed: int = 31) -> list[bool]:
     """Whether each SymEngine expression is shown not to vanish identically by its value at one
-    random rational point, computed twice: in double precision and in 200 bits (MPFR).  A
-    nonzero value is the same number both times; an expression that is 0 gives rounding noise,
-    ~1e-16 and ~1e-60 of its terms, which never agree to six digits.  False (not shown) for
-    agreeing values only short of that, a pole, or anything not evaluated."""
+    random rational point, computed twice: in double precision and in 200 bits (MPFR), the point
+    rounded to each.  A nonzero value is the same number both times; an expression that is 0
+    gives rounding noise, ~1e-16 and ~1e-60 of its terms, which never agree to six digits.  False
+    (not shown) for agreeing values only short of that, a pole, or anything not evaluated.  The
+    point enters as floating numbers, so that each operation is one rounded number (the exact
+    rationals of an exact substitution grew with every operation: 0.04 s of the rattleback's
+    build)."""
     import random
 
     rng = random.Random(seed)
     symbols = sorted({x for e in exprs for x in e.free_symbols}, key=str)
     point = {x: _se_integer(rng.randint(50, 150)) / _se_integer(rng.randint(90, 110)) for x in symbols}
+    low_point = {x: v.n(53) for x, v in point.items()}
+    high_point = {x: v.n(200) for x, v in point.items()}
     out = []
     for e in exprs:
         try:
-            value = e.subs(point)
-            low, high = complex(value.n(53, real=False)), complex(value.n(200, real=False))
+            low = complex(e.subs(low_point).n(53, real=False))
+            high = complex(e.subs(high_point).n(200, real=False))
         except (ArithmeticError, RuntimeError, TypeError, ValueError):
             out.append(False)
             continue
@@ -189,8 +252,9 @@ def shown_nonzero(exprs: Sequence[Any], seed: int = 31) -> list[bool]:
     return out
 
 
-def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None:
-    """A function of a sample ``(len(args),)`` returning the complex values of ``exprs``.
+def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr], *, real: bool = False) -> Any | None:
+    """A function of a sample ``(len(args),)`` returning the complex values of ``exprs`` (the
+    real ones with ``real``: NaN where a value is not real).
 
     SymEngine's ``Lambdify`` (no code generation, so it is cheap to build); None
     when SymEngine cannot represent the expressions.  Singular points give
@@ -200,6 +264,6 @@ def evaluator(args: Sequence[sp.Symbol], exprs: Sequence[sp.Expr]) -> Any | None
     if fast is None:
         return None
     try:
-        return _se_lambdify(fast[: len(args)], fast[len(args) :], real=False)
+        return _se_lambdify(fast[: len(args)], fast[len(args) :], real=real)
     except (RuntimeError, NotImplementedError, TypeError):
         return None

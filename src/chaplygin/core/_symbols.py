@@ -73,9 +73,11 @@ def total_derivative(
 
 
 def linear_coefficients(
-    expr: sp.Expr, variables: Sequence[sp.Symbol]
+    expr: sp.Expr, variables: Sequence[sp.Symbol], *, factored: bool = True
 ) -> tuple[list[sp.Expr], sp.Expr] | None:
-    """Split ``expr = Σ c_i v_i + c_0`` with the ``c`` free of ``variables``.
+    """Split ``expr = Σ c_i v_i + c_0`` with the ``c`` free of ``variables``, each with its
+    common factors taken out (``sympy.factor_terms``) unless not ``factored`` (for a caller that
+    puts them in normal form at once).
 
     Returns ``None`` when ``expr`` is not affine in ``variables``.
     """
@@ -88,6 +90,8 @@ def linear_coefficients(
         if any(c.has(*variables) for c in coeffs):
             return None
     rest = expr.xreplace({v: 0 for v in variables})
+    if not factored:
+        return list(coeffs), rest
     return [sp.factor_terms(c) for c in coeffs], sp.factor_terms(rest)
 
 

@@ -349,7 +349,8 @@ class System:
                         "form B expresses dependent velocities through independent ones only."
                     )
                 internal.append(e)
-                splits.append(linear_coefficients(e, ind_xd))
+                # (unfactored: B and B_0 are put in normal form below, whatever form they come in)
+                splits.append(linear_coefficients(e, ind_xd, factored=False))
             if any(split is None for split in splits):  # nonlinear in the velocities: φ given (every row)
                 self._set_nonlinear(internal, solved=True)
                 return

@@ -53,7 +53,7 @@ class Equations:
         residuals: Sequence[sp.Expr],
         unknowns: Sequence[sp.Symbol],
         mass_matrix: sp.Matrix,
-        forcing: sp.Matrix,
+        forcing: sp.Matrix | Callable[[], sp.Matrix],
         solve: Callable[[], dict[sp.Symbol, sp.Expr]],
         *,
         multipliers: Sequence[sp.Symbol] = (),
@@ -67,7 +67,8 @@ class Equations:
         self._residuals = list(residuals)
         self._unknowns = list(unknowns)
         self._M = mass_matrix
-        self._F = forcing
+        #: F, or the function that computes it when first needed (:attr:`_F`)
+        self._forcing = forcing
         self._solve = solve
         self._multipliers = list(multipliers)
         self._reactions = None if reactions is None else list(reactions)
@@ -82,6 +83,13 @@ class Equations:
         #: ``F`` as SymEngine expressions where the derivation has them (the code generator's
         #: input, spared a conversion), else None
         self._native_F: list[Any] | None = None
+
+    @cached_property
+    def _F(self) -> sp.Matrix:
+        """``F`` of ``M·x = F`` (internal symbols); a derivation may leave it to be computed here,
+        on first use: the compiled right-hand side takes :attr:`_native_F` where it is given."""
+        forcing = self._forcing
+        return forcing if isinstance(forcing, sp.MatrixBase) else forcing()
 
     @property
     def title(self) -> str:

@@ -24,6 +24,7 @@ it is the multiplier system (6) with λ eliminated through (10).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 import sympy as sp
@@ -195,8 +196,10 @@ def reduced_equations(system: System, model: str, form: str) -> Equations:
     # value shows it nonzero, the exact test for a cancelling sum (zero_if_vanishing) is spared
     rule = dict(zip(native(r.ind_xdd) or [], [0] * r.eps))
     forcing = [-e.xreplace(rule) for e in fast]
-    eqs = reduced_system(system, model, form, residuals, r, mass=mass, shown=shown_nonzero(forcing))
-    eqs._native_F = [0 if f == 0 else e for f, e in zip(eqs._F, forcing)]
+    shown = shown_nonzero(forcing)
+    eqs = reduced_system(system, model, form, residuals, r, mass=mass, shown=shown)
+    # (a term shown nonzero is F's as it stands; the others are 0 where SymPy's F is 0)
+    eqs._native_F = forcing if all(shown) else [0 if f == 0 else e for f, e in zip(eqs._F, forcing)]
     return eqs
 
 
@@ -232,13 +235,17 @@ def reduced_system(
     """
     res = sp.Matrix(residuals)
     M = jacobian(res, r.ind_xdd) if mass is None else mass
-    # a forcing term that vanishes identically is 0, not a sum that cancels only exactly: the
-    # compiled right-hand sides solve M·x = F numerically (the snakeboard's classic φ row)
-    F = -res.xreplace({a: 0 for a in r.ind_xdd})
-    shown = shown or [False] * F.rows
-    F = sp.Matrix(F.rows, 1, [f if seen else zero_if_vanishing(f) for f, seen in zip(F, shown)])
+    seen = shown or [False] * res.rows
+
+    @cache
+    def forcing() -> sp.Matrix:
+        """F when first needed (the compiled right-hand side may take the derivation's SymEngine F)."""
+        # a forcing term that vanishes identically is 0, not a sum that cancels only exactly: the
+        # compiled right-hand sides solve M·x = F numerically (the snakeboard's classic φ row)
+        F = -res.xreplace({a: 0 for a in r.ind_xdd})
+        return sp.Matrix(F.rows, 1, [f if s else zero_if_vanishing(f) for f, s in zip(F, seen)])
 
     def solve() -> dict[sp.Symbol, sp.Expr]:
-        return dict(zip(r.ind_xdd, solve_linear(M, F, f"the {model} equations")))
+        return dict(zip(r.ind_xdd, solve_linear(M, forcing(), f"the {model} equations")))
 
-    return Equations(system, model, form, residuals, r.ind_xdd, M, F, solve, **extra)  # type: ignore[arg-type]
+    return Equations(system, model, form, residuals, r.ind_xdd, M, forcing, solve, **extra)  # type: ignore[arg-type]

@@ -40,17 +40,20 @@ class C(LoopTarget):
 
     def build(self, parts: _Parts) -> CompiledModel:
         from chaplygin.numeric import _cfill
-        from chaplygin.numeric._ckernel import CKernel, CompiledModel
+        from chaplygin.numeric._ckernel import CKernel, CompiledModel, library
         from chaplygin.numeric.codegen import _BESIDE, BackendUnavailable, _assignments
 
-        for thread in _BESIDE:  # the loop library, built beside the derivation
-            thread.join()
         s, layout = parts.system, parts.layout
         try:
+            source = _cfill.source(
+                parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"
+            )
+            if any(t.is_alive() for t in _BESIDE):  # the loop library, built beside the derivation:
+                library(source, "fill")  # the fill is compiled meanwhile (CKernel then loads it)
+            for thread in _BESIDE:
+                thread.join()
             kernel = CKernel(
-                _cfill.source(
-                    parts.fill, [_assignments(b) for b in parts.fill.blocks()], "chaplygin_fill_@DIGEST@"
-                ),
+                source,
                 parts.dim,
                 s.n,
                 parts.k,
