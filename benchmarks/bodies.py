@@ -24,11 +24,10 @@ cache or imports left by another); chaplygin's with a fresh, empty ``$CHAPLYGIN_
 the derivation, code generation and C compilation are timed). "build" is timed inside the
 process from after the imports to a loaded right-hand side; "20 s" is the integration;
 "process" is the whole child process from the parent (Python start-up and imports included).
-The cold cache is timed twice: empty (the C compiler also builds chaplygin's DOP853 loop
-library, ~0.2 s, once per installation; it runs in a thread beside the derivation, and the
-time it takes alone, measured in the process that builds the other cache's, is printed under
-the row: on a machine whose second core is busy it is that row's floor above the other) and
-holding only that library, which is what a user meets with a new system.
+The cold cache is empty: a first run after installation. chaplygin's DOP853 loop library is
+part of the installation (built by ``setup.py`` when the checkout is installed with ``make`` or
+``pip install -e``); where it is not, the cold run builds it too, in a thread beside the
+derivation (~0.2 s of a second core): the script says which.
 Then the **warm** rows: the symbolic chaplygin script again in a new process with the
 cache the cold run left, and the command line ``python -m chaplygin simulate
 example:rattleback`` (the same symbolic rattleback, its default numbers) cold, then warm.
@@ -192,17 +191,13 @@ def spawn(route: str, data: str, cache: str) -> dict[str, Any]:
     return json.loads(out.stdout.strip().splitlines()[-1]) | {"process": wall}
 
 
-def loop_only(cache: str) -> float:
-    """Build chaplygin's DOP853 loop library (and nothing else) into ``cache``; the seconds it
-    took (the C compiler, and loading it), timed in that process."""
-    code = (
-        "import time; from chaplygin.numeric import _ckernel; t0 = time.perf_counter(); _ckernel.loop(); "
-        "print(time.perf_counter() - t0)"
-    )
+def installed_loop() -> bool:
+    """Whether the chaplygin under test has the DOP853 loop library its installation built."""
+    code = "from chaplygin.numeric import _ckernel; print(bool(_ckernel.packaged_loop()))"
     out = subprocess.run(
-        [sys.executable, "-c", code], env=_env(cache), capture_output=True, text=True, check=True
+        [sys.executable, "-c", code], env=_env(""), capture_output=True, text=True, check=True
     )
-    return float(out.stdout.strip().splitlines()[-1])
+    return out.stdout.strip().splitlines()[-1] == "True"
 
 
 def cli(cache: str, csv: Path) -> dict[str, Any]:
@@ -235,32 +230,21 @@ def main() -> None:
     data = json.dumps({"P": P, "start": start})
     load = os.getloadavg()
     print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}", flush=True)
+    if installed_loop():
+        print("DOP853 loop library: built when chaplygin was installed (setup.py)", flush=True)
+    else:
+        print("DOP853 loop library: not installed; every cold chaplygin row also builds it", flush=True)
     with tempfile.TemporaryDirectory(prefix="chaplygin-bench-bodies-") as tmp:
         for kind in ("numeric", "symbolic"):
             print(f"-- parameters {kind}", flush=True)
-            looped = tempfile.mkdtemp(dir=tmp)
-            built = loop_only(looped)
-            cl = spawn(f"chaplygin-{kind}", data, looped)
-            print(row(f"chaplygin [{cl['backend']}], cold, loop built", cl), flush=True)
             cache = tempfile.mkdtemp(dir=tmp)
             c = spawn(f"chaplygin-{kind}", data, cache)
             print(row(f"chaplygin [{c['backend']}], cold cache", c), flush=True)
-            print(
-                f"   (the cold cache's build also holds the DOP853 loop library, {built:.3f} s alone, built "
-                "beside the derivation once per installation: a second core's work, on a busy machine "
-                "the row's floor above the loop-built one)",
-                flush=True,
-            )
             w = spawn(f"chaplygin-{kind}", data, cache) if kind == "symbolic" else None
             if w is not None:
                 print(row(f"chaplygin [{w['backend']}], warm cache", w), flush=True)
             k = spawn(f"kane-{kind}", data, cache)
             print(row("KanesMethod + lambdify + solve_ivp", k), flush=True)
-            print(
-                f"   cold speed-up, loop library built: build {k['build'] / cl['build']:.2f}x, "
-                f"process {k['process'] / cl['process']:.2f}x",
-                flush=True,
-            )
             print(
                 f"   cold speed-up: build {k['build'] / c['build']:.2f}x, 20 s {k['sim'] / c['sim']:.1f}x, "
                 f"process {k['process'] / c['process']:.2f}x; largest difference of the final states "
