@@ -8,8 +8,9 @@ of the repeats, cold and warm, and warm / cold of the best; the load average at 
 The goal of issue 31: warm at most a third of cold (ratio ≤ 0.33).  ``--cli`` compares
 installations (before and after a change) in the same run, interleaved: each repeat runs
 every command with each of them in turn.  ``chaplygin --help`` is timed beside them: the
-command line's own start-up, the floor of every warm run; beside ``sweep``, the floor of a
-warm sweep (a process that imports the command line and pyarrow.parquet).
+command line's own start-up, and the floor of a warm command that runs a model (a process that
+imports the command line, typer's coercion of options and NumPy); beside ``sweep``, the floor of
+a warm sweep (the same and pyarrow.parquet).
 
     .venv/bin/python benchmarks/commands.py
     .venv/bin/python benchmarks/commands.py --systems snakeboard --commands check report --repeats 5
@@ -37,9 +38,13 @@ SYSTEMS = {
 }
 
 
-#: what a warm sweep cannot avoid: the command line's start-up and writing Parquet (it reads the
-#: system file's names and run plan from the cache: no SymPy)
-FLOOR = "import sys, pyarrow.parquet, chaplygin.apps.cli"
+#: what every warm command that runs a model imports: the command line, typer's coercion of the
+#: command's options (pydantic, imported only when a command runs; --help does not) and NumPy
+COMMAND_FLOOR = "import numpy, typer._adapters, chaplygin.apps.cli"
+#: what a warm sweep cannot avoid: the command line's start-up, typer's coercion of the command's
+#: options (through pydantic, imported only when a command runs), NumPy (the runs' arrays) and
+#: writing Parquet (it reads the system file's names and run plan from the cache: no SymPy)
+FLOOR = "import sys, pyarrow.parquet, numpy, typer._adapters, chaplygin.apps.cli"
 
 
 def commands(file: str, at: str, grid: str, out: Path) -> dict[str, list[str]]:
@@ -54,6 +59,11 @@ def commands(file: str, at: str, grid: str, out: Path) -> dict[str, list[str]]:
         "sweep": ["sweep", file, "-g", grid, "-t", "5", "-o", str(out / "sweep.parquet"), "--force"],
         "stability": ["stability", file, "--at", at],
     }
+
+
+#: the processes' environment: bytecode written and reused as for a user, whatever
+#: ``PYTHONDONTWRITEBYTECODE`` says here (else a module without bytecode is compiled in every run)
+USER = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
 def wall(cli: str, args: list[str], env: dict[str, str]) -> float:
@@ -80,8 +90,14 @@ def main() -> None:
     clis = [str(Path(c).absolute()) for c in args.cli]
     print(f"load average at start: {os.getloadavg()[0]:.2f} (1 min), {os.cpu_count()} cores")
     for cli in clis:
-        helps = [wall(cli, ["--help"], dict(os.environ)) for _ in range(args.repeats)]
+        helps = [wall(cli, ["--help"], USER) for _ in range(args.repeats)]
         print(f"{cli}: chaplygin --help best {min(helps):.3f} s, median {statistics.median(helps):.3f} s")
+    python = str(Path(clis[-1]).with_name("python"))
+    floor = [wall(python, ["-c", COMMAND_FLOOR], USER) for _ in range(args.repeats)]
+    print(
+        f"floor of a warm command (a process importing {COMMAND_FLOOR[7:]}): best {min(floor):.3f} s, "
+        f"median {statistics.median(floor):.3f} s"
+    )
     print(
         f"{'system / command / cli':40} {'cold best/median [s]':>17} {'warm best/median [s]':>17} {'warm/cold':>10}"
     )
@@ -103,7 +119,7 @@ def main() -> None:
             for r in range(args.repeats):
                 for c in chosen:
                     for i, cli in enumerate(clis):
-                        env = os.environ | {"CHAPLYGIN_CACHE": str(work / f"cache-{name}-{c}-{i}-{r}")}
+                        env = USER | {"CHAPLYGIN_CACHE": str(work / f"cache-{name}-{c}-{i}-{r}")}
                         times[c, i][0].append(wall(cli, lines[c], env))
                         times[c, i][1].append(wall(cli, lines[c], env))
             for c in chosen:
@@ -111,12 +127,9 @@ def main() -> None:
                     label = f"{name} {c}" + (f" [{i}]" if len(clis) > 1 else "")
                     print(row(label, *times[c, i]), flush=True)
             if "sweep" in chosen:  # a warm sweep starts the command line and writes Parquet: its floor
-                python = str(Path(clis[-1]).with_name("python"))
-                floor = [
-                    wall(python, ["-c", FLOOR, str(path)], dict(os.environ)) for _ in range(args.repeats)
-                ]
+                floor = [wall(python, ["-c", FLOOR, str(path)], USER) for _ in range(args.repeats)]
                 print(
-                    f"{name + ' sweep floor (cli + pyarrow)':40} {'':17} "
+                    f"{name + ' sweep floor (imports)':40} {'':17} "
                     f"{min(floor):8.2f} / {statistics.median(floor):6.2f}",
                     flush=True,
                 )
