@@ -112,7 +112,9 @@ def test_the_loop_library_is_built_while_the_model_is_derived(tmp_path):
 
 # the same, with the loop's build held until the model's fill is in the kernel cache (at most
 # 10 s): the order in which the two libraries were finished
-HELD = PACKAGED + """
+HELD = (
+    PACKAGED
+    + """
 import json, threading, time
 from chaplygin import examples
 from chaplygin.numeric import _ckernel
@@ -129,6 +131,7 @@ _ckernel._compile = held
 compile_model(examples.rolling_disk(), "chaplygin", "classic", "c")
 print(json.dumps({"finished": finished, "stats": _ckernel.STATS}))
 """
+)
 
 
 @needs_cc
