@@ -522,3 +522,24 @@ def test_solved_constraints_are_split_without_factoring(monkeypatch) -> None:
         for col, s in enumerate(speeds):
             assert sp.simplify(system._B[row, col].xreplace(to_fun) - v.diff(s)) == 0
         assert sp.simplify(system._B0[row].xreplace(to_fun) - v.xreplace({s: 0 for s in speeds})) == 0
+
+
+def test_cse_keeps_a_shared_condition_in_its_piecewise() -> None:
+    # SymEngine's elimination makes a condition two Piecewise share a temporary and each
+    # condition "x0 == True": printed as C, a number compared with C99's undeclared `true`
+    from symengine.lib.symengine_wrapper import Boolean
+
+    from chaplygin.core._fast import cse
+
+    t, a, y = se.symbols("t a y")
+    step = se.Piecewise((1, t < a), (0, True))
+    exprs = [step * y, se.Piecewise((y**2, t < a), (0, True)) + step]
+    pairs, reduced = cse(exprs)
+    assert not any(isinstance(v, Boolean) for _, v in pairs)
+    assert "True ==" not in str(reduced) and "== True" not in str(reduced)
+    values = {t: 0.5, a: 1.25, y: 3.0}
+    for later in (values, {**values, t: 2.0}):
+        subs = dict(later)
+        for s, v in pairs:
+            subs[s] = v.subs(subs)
+        assert [float(r.subs(subs)) for r in reduced] == [float(e.subs(later)) for e in exprs]

@@ -20,11 +20,13 @@ import sympy as sp
 
 try:  # the import line names the converter; no user text ever reaches it
     from symengine import DenseMatrix as _se_matrix
+    from symengine import Eq as _se_eq
     from symengine import Integer as _se_integer
     from symengine import Lambdify as _se_lambdify
     from symengine import Symbol as _se_symbol
     from symengine import cse as _se_cse
     from symengine import sympify as _to_symengine
+    from symengine.lib.symengine_wrapper import Boolean as _se_boolean
 
     HAVE_SYMENGINE = True
 except ImportError:  # pragma: no cover - symengine is a dependency
@@ -215,12 +217,34 @@ def cse(exprs: Sequence[Any], prefix: str = "c_") -> tuple[list[tuple[Any, Any]]
             [to_sympy(e) for e in exprs], symbols=sp.numbered_symbols(prefix), optimizations="basic"
         )
     pairs, reduced = _se_cse(fast)
+    pairs, reduced = _numbers_only(pairs, reduced)
     rename = {s: _se_symbol(f"{prefix}{k}") for k, (s, _) in enumerate(pairs)}
     # one substitution of the whole list (a matrix): per expression, the map is converted each time
     done = (
         list(_se_matrix([v for _, v in pairs] + list(reduced)).xreplace(rename)) if rename else list(reduced)
     )
     return list(zip(rename.values(), done[: len(pairs)])), done[len(pairs) :]
+
+
+def _numbers_only(
+    pairs: list[tuple[Any, Any]], reduced: list[Any]
+) -> tuple[list[tuple[Any, Any]], list[Any]]:
+    """SymEngine's elimination without its truth-valued subexpressions.  A condition that two
+    ``Piecewise`` share (``t < a``) becomes a symbol ``x0`` and each condition ``x0 == True``,
+    which the code printed from it would have to hold as a number and compare with ``true`` (not
+    C99).  Each such condition is put back where it was used."""
+    back: dict[Any, Any] = {}
+    kept = []
+    for s, v in pairs:  # in order: a later one may use an earlier condition
+        v = v.xreplace(back) if back else v
+        if isinstance(v, _se_boolean):
+            back[_se_eq(s, True)] = v  # (the node that uses it; matched before its symbol)
+            back[s] = v
+        else:
+            kept.append((s, v))
+    if not back:
+        return pairs, reduced
+    return kept, [r.xreplace(back) for r in reduced]
 
 
 def shown_nonzero(exprs: Sequence[Any], seed: int = 31) -> list[bool]:
