@@ -23,11 +23,14 @@ class BuildLoop(build_ext):
     Python extension's: the library is loaded by :mod:`ctypes`, never imported)."""
 
     def build_extension(self, ext: Extension) -> None:
+        out = Path(self.get_ext_fullpath(ext.name))
+        for old in out.parent.glob("_dop853_loop.*"):  # (a failed build ships no earlier one)
+            old.unlink()
         sys.path.insert(0, str(Path(__file__).resolve().parent / "src"))
         try:
             from chaplygin.numeric import _ckernel
 
-            _ckernel.install_loop(Path(self.get_ext_fullpath(ext.name)))
+            _ckernel.install_loop(out)
         except Exception as exc:  # no compiler, or it failed: the loop is built on first use
             print(
                 f"chaplygin: the C loop library was not built at install time ({exc}); "
@@ -36,6 +39,23 @@ class BuildLoop(build_ext):
             )
         finally:
             sys.path.pop(0)
+
+    def get_outputs(self) -> list[str]:
+        """The library and its record (``_dop853_loop.json``: the key and bytes it was built with)."""
+        outputs = super().get_outputs()
+        return outputs + [str(Path(o).with_name("_dop853_loop.json")) for o in outputs]
+
+    def copy_extensions_to_source(self) -> None:
+        """An editable install's copy into the source tree: the record too, if it was built."""
+        super().copy_extensions_to_source()
+        build_py = self.get_finalized_command("build_py")
+        for ext in self.extensions:
+            built = Path(self.build_lib, self.get_ext_filename(self.get_ext_fullname(ext.name)))
+            record = built.with_name("_dop853_loop.json")
+            target = Path(build_py.get_package_dir(ext.name.rpartition(".")[0]), record.name)
+            target.unlink(missing_ok=True)
+            if record.exists():
+                self.copy_file(str(record), str(target), level=self.verbose)
 
 
 setup(

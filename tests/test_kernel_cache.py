@@ -174,16 +174,19 @@ def test_the_loop_library_built_at_install_is_used(tmp_path):
 
 
 @needs_cc
-@pytest.mark.parametrize("kind", ["another source", "not a library"])
+@pytest.mark.parametrize("kind", ["another source", "not a library", "truncated"])
 def test_a_packaged_loop_library_of_another_build_is_ignored(tmp_path, monkeypatch, kind):
-    # an installation of other sources (an edited checkout), or a damaged file: the kernel cache
-    # builds this run's loop, and the run succeeds
+    # an installation of other sources (an edited checkout), or a damaged file (which the loader
+    # could crash on: a truncated library gave SIGBUS): the kernel cache builds this run's loop
     package = tmp_path / "package"
     library = package / "_dop853_loop.so"
     if kind == "another source":
         source = _ckernel.loop_source()
         monkeypatch.setattr(_ckernel, "loop_source", lambda: source + "\n/* another */\n")
         _ckernel.install_loop(library)
+    elif kind == "truncated":
+        _ckernel.install_loop(library)
+        library.write_bytes(library.read_bytes()[:10000])
     else:
         package.mkdir()
         library.write_bytes(b"\x7fELF not a library")

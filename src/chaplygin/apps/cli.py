@@ -1412,11 +1412,9 @@ def _write_comparison(comparison: Comparison, directory: Path) -> None:
 
 
 # ====================================================================== sweep
-class SweepBackend(str, Enum):
-    auto = "auto"
-    c = "c"
-    numba = "numba"
-    numpy = "numpy"
+#: ``sweep --backend``: "auto" and the code targets that sweeps run on (a row of
+#: :data:`~chaplygin.numeric.targets.TARGETS` with ``sweep=True``)
+SweepBackend = Enum("SweepBackend", {name: name for name in ("auto", *targets.offered("sweep"))}, type=str)  # type: ignore[misc]
 
 
 def _bar(console: Any, *extra: Any) -> Any:
@@ -1482,7 +1480,7 @@ def sweep(
         help="Samples per run, where the energy drift and the constraint residual are measured.",
     ),
     backend: SweepBackend = typer.Option(
-        SweepBackend.auto,
+        SweepBackend["auto"],
         "--backend",
         "-b",
         help=BACKEND_HELP,
@@ -1575,7 +1573,7 @@ def sweep(
                 markup=False,
             )
             raise typer.Exit(130) from None
-        auto = "auto: " if backend is SweepBackend.auto else ""
+        auto = "auto: " if backend is SweepBackend["auto"] else ""
         _emit(f"{named(result.model)} [{auto}{result.backend}], t = 0 … {t_end:g}: {result.summary()}")
         if result.failed:
             table = read_results(out, ["status", "message"]).to_pylist()

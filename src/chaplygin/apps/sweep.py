@@ -60,6 +60,7 @@ import numpy as np
 
 from chaplygin.errors import ChaplyginError
 from chaplygin.models import registry
+from chaplygin.numeric import targets
 from chaplygin.numeric.simulate import TIME_LIMIT
 
 if TYPE_CHECKING:
@@ -84,7 +85,7 @@ __all__ = [
 SCHEMA = "chaplygin.apps.sweep/1"
 #: what ``backend=`` accepts: "auto" (the default) is what :func:`chaplygin.numeric.simulate`
 #: runs: "c" where a C compiler is found, else "numpy" (:func:`~chaplygin.numeric.simulate.choose_backend`)
-SWEEP_BACKENDS = ("auto", "c", "numba", "numpy")
+SWEEP_BACKENDS = ("auto", *targets.offered("sweep"))
 #: what a backend compiles before the first run of a model, and about how long that takes when
 #: nothing is cached (2 busy cores: the C loop and a model's fill 1-2 s, numba's about 19 s);
 #: ``notice`` of :func:`sweep` is told so then, and not when the compiled model is cached

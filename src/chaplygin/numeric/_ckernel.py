@@ -712,33 +712,43 @@ _LOOP: list[_Loop] = []
 #: where an installation keeps the loop library it built (``setup.py``: :func:`install_loop`)
 PACKAGED = Path(__file__).resolve().parent
 _PACKAGED_STEM = "_dop853_loop"
+#: :func:`packaged_loop`'s answer, by folder and key
+_PACKAGED_FOUND: dict[tuple[Path, str], tuple[str, ctypes.CDLL] | None] = {}
 
 
 def install_loop(path: Path) -> None:
-    """Build the loop library into ``path`` (``setup.py`` calls it when the package is installed).
+    """Build the loop library into ``path`` (``setup.py`` calls it when the package is installed),
+    recorded as the kernel cache records its libraries, in ``_dop853_loop.json`` beside it.
 
-    Its symbols carry the key :func:`library` would give it (source, compiler command,
-    :data:`FLAGS`), so that :func:`packaged_loop` uses it only while all three are unchanged.
+    Its key (and its symbols') is the one :func:`library` would give it (source, compiler
+    command, :data:`FLAGS`), so that :func:`packaged_loop` uses it only while all three are
+    unchanged, and only while its bytes are the ones recorded.
     """
     cmd = compiler()
+    digest = _key(loop_source(), cmd)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _compile(loop_source().replace("@DIGEST@", _key(loop_source(), cmd)), cmd, path.parent, path, None, "")
+    record = path.parent / f"{_PACKAGED_STEM}.json"
+    _compile(loop_source().replace("@DIGEST@", digest), cmd, path.parent, path, record, digest)
 
 
 def packaged_loop() -> tuple[str, ctypes.CDLL] | None:
-    """The loop library built when the package was installed, if it is there and is the one
-    this process would build (same source, compiler command and flags); else None."""
+    """The loop library built when the package was installed, if it is there, its bytes are the
+    ones recorded then (not a truncated or edited file, which the loader could crash on) and it
+    is the one this process would build (same source, compiler command and flags); else None."""
     digest = _key(loop_source(), compiler())
-    for path in sorted(PACKAGED.glob(_PACKAGED_STEM + ".*")):
-        if path.suffix not in (".so", ".dylib"):
-            continue
-        try:
-            lib = ctypes.CDLL(str(path))
-        except OSError:  # not a library this system loads: the kernel cache builds one
-            continue
-        if hasattr(lib, f"chaplygin_dop853_{digest}"):
-            return digest, lib
-    return None
+    if (PACKAGED, digest) not in _PACKAGED_FOUND:
+        found = None
+        record = PACKAGED / f"{_PACKAGED_STEM}.json"
+        for path in sorted(PACKAGED.glob(_PACKAGED_STEM + ".*")):
+            if path.suffix not in (".so", ".dylib") or not _verified(path, record, digest):
+                continue
+            try:
+                found = digest, ctypes.CDLL(str(path))
+                break
+            except OSError:  # not a library this system loads: the kernel cache builds one
+                continue
+        _PACKAGED_FOUND[PACKAGED, digest] = found
+    return _PACKAGED_FOUND[PACKAGED, digest]
 
 
 def loop() -> _Loop:

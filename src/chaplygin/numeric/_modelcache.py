@@ -206,8 +206,8 @@ def store_model(key: str | None, compiled: CompiledModel) -> None:
     if key is None:
         return
     code = targets.get(compiled.backend).code(compiled)
-    if code is None or "load_library_permanently" in code.get("module", ""):
-        return  # (numba calling a C fill by its library's path, which the cache may lose)
+    if code is None:
+        return
     layout = compiled.layout
     value: dict[str, Any] = {
         "layout": {

@@ -98,9 +98,9 @@ def summary_key(definition: bytes, stem: str) -> str:
 
 def key(definition: bytes, model: str, form: str, backend: str) -> str:
     """The cache key of the plan for ``model``/``form`` of the system ``definition`` on ``backend``."""
-    from chaplygin.numeric._ckernel import FLAGS, compiler
+    from chaplygin.numeric import targets
 
-    built = "\0".join([*compiler(), *FLAGS]) if backend == "c" else ""
+    built = (targets.get(backend).toolchain() or "") if backend in targets.TARGETS else ""
     return cache.key("simulate-plan", str(FORMAT), definition, model, form, backend, built)
 
 

@@ -17,8 +17,8 @@ residual there.  Four engines:
 * ``backend="jax"``: diffrax's ``Dopri8`` under ``jax.jit(jax.vmap(...))``,
   on a GPU when JAX sees one (optional extra ``chaplygin[jax]``);
 * ``backend="cuda"`` (what ``"auto"`` picks from :data:`~chaplygin.numeric._cuda.AUTO_MEMBERS`
-  members on where CuPy sees a GPU): the C backend's ``fill`` and a port of its loop compiled
-  into one GPU kernel, one thread per member with its own steps
+  members on where CuPy sees a GPU): the C backend's ``fill`` and its loop (the same C source)
+  compiled into one GPU kernel, one thread per member with its own steps
   (:mod:`chaplygin.numeric._cuda`; optional extra ``chaplygin[cuda]``): the C loop's steps,
   statuses and, up to the last bits of the device's ``sin``, ``pow``, …, numbers.
 

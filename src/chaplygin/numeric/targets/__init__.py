@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from chaplygin.numeric._ckernel import CompiledModel, Layout
     from chaplygin.numeric.codegen import _Parts
 
-__all__ = ["TARGETS", "Row", "Target", "get", "offered"]
+__all__ = ["TARGETS", "Row", "Target", "c_toolchain", "get", "offered"]
 
 
 class Row(NamedTuple):
@@ -61,13 +61,16 @@ class Row(NamedTuple):
     simulate: bool
     #: ``simulate_ensemble(backend=…)`` runs ensembles on it
     ensemble: bool
+    #: sweeps (``chaplygin sweep``, :func:`chaplygin.apps.sweep.sweep`) run on it: one trajectory
+    #: per run, in worker processes that take the compiled model from the disk cache
+    sweep: bool = False
 
 
 #: every target, by the name ``backend=`` gives it
 TARGETS: dict[str, Row] = {
-    "numpy": Row("chaplygin.numeric.targets.numpy", compile=True, simulate=True, ensemble=False),
-    "numba": Row("chaplygin.numeric.targets.numba", compile=True, simulate=True, ensemble=True),
-    "c": Row("chaplygin.numeric.targets.c", compile=True, simulate=True, ensemble=True),
+    "numpy": Row("chaplygin.numeric.targets.numpy", compile=True, simulate=True, ensemble=False, sweep=True),
+    "numba": Row("chaplygin.numeric.targets.numba", compile=True, simulate=True, ensemble=True, sweep=True),
+    "c": Row("chaplygin.numeric.targets.c", compile=True, simulate=True, ensemble=True, sweep=True),
     "jax": Row("chaplygin.numeric.targets.jax", compile=True, simulate=True, ensemble=True),
     "cuda": Row("chaplygin.numeric.targets.cuda", compile=False, simulate=False, ensemble=True),
 }
@@ -84,6 +87,17 @@ def get(name: str) -> Target:
             )
         _LOADED[name] = importlib.import_module(TARGETS[name].module).TARGET
     return _LOADED[name]
+
+
+def c_toolchain() -> str | None:
+    """The C compiler's command and flags as text, for the keys of what the targets that build C
+    store (:meth:`Target.toolchain`); None where no C compiler is found."""
+    from chaplygin.numeric._ckernel import FLAGS, Unavailable, compiler
+
+    try:
+        return "\0".join([*compiler(), *FLAGS])
+    except Unavailable:
+        return None
 
 
 def offered(entry: str) -> tuple[str, ...]:

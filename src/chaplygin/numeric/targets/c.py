@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from chaplygin.numeric.targets import LoopTarget
+from chaplygin.numeric.targets import LoopTarget, c_toolchain
 
 if TYPE_CHECKING:
     import numpy as np
@@ -65,12 +65,7 @@ class C(LoopTarget):
         return CompiledModel(layout, kernel, "c")
 
     def toolchain(self) -> str | None:
-        from chaplygin.numeric._ckernel import FLAGS, Unavailable, compiler
-
-        try:
-            return "\0".join([*compiler(), *FLAGS])
-        except Unavailable:
-            return None
+        return c_toolchain()
 
     def code(self, compiled: CompiledModel) -> dict[str, Any] | None:
         kernel = compiled.module

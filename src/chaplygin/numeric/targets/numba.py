@@ -7,10 +7,10 @@ numba is imported when a model is built or loaded, never before.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from chaplygin.errors import ChaplyginError
-from chaplygin.numeric.targets import LoopTarget
+from chaplygin.numeric.targets import LoopTarget, c_toolchain
 
 if TYPE_CHECKING:
     from chaplygin.models.equations import Equations
@@ -32,12 +32,13 @@ class Numba(LoopTarget):
         return super().compile(eqs)
 
     def toolchain(self) -> str | None:
-        from chaplygin.numeric._ckernel import FLAGS, Unavailable, compiler
+        return c_toolchain() or "no C compiler"  # (the C compiler builds a large fill)
 
-        try:  # the C compiler builds a large fill
-            return "\0".join([*compiler(), *FLAGS])
-        except Unavailable:
-            return "no C compiler"
+    def code(self, compiled: CompiledModel) -> dict[str, Any] | None:
+        code = super().code(compiled)
+        if code is not None and "load_library_permanently" in code["module"]:
+            return None  # a module calling a C fill by its library's path, which the cache may lose
+        return code
 
     def looped(self, compiled: CompiledModel, method: str) -> CompiledModel:
         if method != "DOP853":
