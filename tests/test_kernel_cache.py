@@ -283,6 +283,16 @@ def test_auto_says_which_backend_ran(tmp_path):
         assert max(float(np.max(np.abs(a[k] - b[k]))) for k in a.files) < 1e-8
 
 
+def test_auto_says_why_it_integrated_in_numpy(tmp_path):
+    # a C compiler that is there but fails: "auto" takes the numpy backend, and says why
+    run = run_json(CLI, [*RUN, "-o", str(tmp_path / "a.npz")], tmp_path, CHAPLYGIN_CC="false")
+    assert "chaplygin [auto: numpy]: success" in run["stdout"]
+    assert (
+        "note: integrated by the numpy backend: backend 'c' cannot be used: the C compiler 'false'"
+        in run["stdout"]
+    )
+
+
 def test_auto_in_the_api():
     disk = examples.rolling_disk()
     start = {

@@ -1249,10 +1249,11 @@ def simulate(
 
     try:
         compiled = compile_model(system, entry, form, backend, constants=family_c, reduction=reduction)
-    except BackendUnavailable:
+    except BackendUnavailable as exc:
         if not auto:
             raise
         compiled = compile_model(system, entry, form, "numpy", constants=family_c, reduction=reduction)
+        notes.append(f"integrated by the numpy backend: {exc}")  # (auto's choice could not be built)
     compiled = targets.get(compiled.backend).looped(compiled, method)  # (numba: see _lost_definiteness)
     layout = compiled.layout
 
