@@ -26,6 +26,22 @@ def test_every_row_is_a_module_with_its_target() -> None:
         targets.get("fortran")
 
 
+def test_a_target_of_another_entry_point_is_named_as_such() -> None:
+    """backend='cuda' (ensembles only) given to simulate or compile_model: the message says where
+    it serves and what the entry point takes, not that 'cuda' is unknown."""
+    for call, entry in (
+        (lambda: simulate.choose_backend("cuda"), "simulate"),
+        (lambda: codegen._check_backend("cuda"), "compile_model"),
+    ):
+        with pytest.raises(
+            ChaplyginError,
+            match=f"backend 'cuda' serves simulate_ensemble, not {entry}; {entry}'s backends are",
+        ):
+            call()
+    with pytest.raises(ChaplyginError, match="unknown backend 'fortran'; the backends are 'auto', 'numpy'"):
+        simulate.choose_backend("fortran")
+
+
 def test_a_target_is_imported_when_first_asked_for() -> None:
     """Choosing a backend imports its target's module only: no other target, and none of numba,
     JAX or CuPy (which the C target does not use)."""

@@ -664,9 +664,7 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
 
 
 def _check_backend(backend: str) -> None:
-    names = targets.offered("compile")  # (the table as it is now: BACKENDS is it at import)
-    if backend not in names:
-        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, names))}.")
+    targets.require(backend, "compile", auto=False)  # (the table as it is now: BACKENDS is it at import)
 
 
 #: the numba backend builds ``fill`` with a C compiler from this many generated lines on

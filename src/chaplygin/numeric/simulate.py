@@ -84,9 +84,7 @@ def choose_backend(backend: str, method: str = "DOP853") -> str:
     never chosen: its first compile of a model takes seconds, and importing it
     half a second more; ``backend="numba"`` still asks for it.
     """
-    names = ("auto", *targets.offered("simulate"))  # (the table as it is now: BACKENDS is it at import)
-    if backend not in names:
-        raise ChaplyginError(f"unknown backend {backend!r}; the backends are {', '.join(map(repr, names))}.")
+    targets.require(backend, "simulate")  # (the table as it is now: BACKENDS is it at import)
     if backend != "auto":
         return backend
     if method == "DOP853" and targets.get("c").unavailable() is None:

@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from chaplygin.numeric._ckernel import CompiledModel, Layout
     from chaplygin.numeric.codegen import _Parts
 
-__all__ = ["TARGETS", "Row", "Target", "c_toolchain", "get", "offered"]
+__all__ = ["TARGETS", "Row", "Target", "c_toolchain", "get", "offered", "require"]
 
 
 class Row(NamedTuple):
@@ -87,6 +87,26 @@ def get(name: str) -> Target:
             )
         _LOADED[name] = importlib.import_module(TARGETS[name].module).TARGET
     return _LOADED[name]
+
+
+#: the entry points of :class:`Row`'s fields, as a user calls them
+_ENTRY = {"compile": "compile_model", "simulate": "simulate", "ensemble": "simulate_ensemble", "sweep": "sweeps"}
+
+
+def require(name: str, entry: str, *, auto: bool = True) -> None:
+    """Refuse ``name`` unless the entry point ``entry`` (a field of :class:`Row`) offers it
+    (``"auto"`` too where ``auto``): an unknown name, or a target that serves other entry points,
+    which the message names."""
+    names = (("auto",) if auto else ()) + offered(entry)
+    if name in names:
+        return
+    if name in TARGETS:
+        serves = [_ENTRY[e] for e in _ENTRY if getattr(TARGETS[name], e)]
+        raise ChaplyginError(
+            f"backend {name!r} serves {' and '.join(serves) or 'no entry point'}, not {_ENTRY[entry]}; "
+            f"{_ENTRY[entry]}'s backends are {', '.join(map(repr, names))}."
+        )
+    raise ChaplyginError(f"unknown backend {name!r}; the backends are {', '.join(map(repr, names))}.")
 
 
 def c_toolchain() -> str | None:
