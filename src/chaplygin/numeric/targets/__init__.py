@@ -90,7 +90,12 @@ def get(name: str) -> Target:
 
 
 #: the entry points of :class:`Row`'s fields, as a user calls them
-_ENTRY = {"compile": "compile_model", "simulate": "simulate", "ensemble": "simulate_ensemble", "sweep": "sweeps"}
+_ENTRY = {
+    "compile": "compile_model",
+    "simulate": "simulate",
+    "ensemble": "simulate_ensemble",
+    "sweep": "sweeps",
+}
 
 
 def require(name: str, entry: str, *, auto: bool = True) -> None:
