@@ -270,6 +270,11 @@ def process_rows(systems: Sequence[str], models: Sequence[str], work: Path) -> l
         ),
         Row("floor: python -c 'import numpy'", [PYTHON, "-c", "import numpy"]),
         Row("floor: python -c 'import sympy, numpy'", [PYTHON, "-c", "import sympy, numpy"]),
+        # SymPy's first sum imports sympy.tensor (Add.flatten does, each call): what any use pays
+        Row(
+            "floor: the same and SymPy's first sum",
+            [PYTHON, "-c", "import sympy, numpy; sympy.Symbol('x') + 1"],
+        ),
         Row("floor: python -c 'import casadi, numpy'", [PYTHON, "-c", "import casadi, numpy"]),
     ]
     why_not = takes_loaded_file(models[0])
