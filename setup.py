@@ -17,6 +17,9 @@ from pathlib import Path
 from setuptools import Extension, setup
 from setuptools.command.build_ext import build_ext
 
+#: the loop library's module name in the package; its record (key and SHA-256) is LOOP.json beside it
+LOOP = "_dop853_loop"
+
 
 class BuildLoop(build_ext):
     """Builds the loop library with chaplygin's own compiler command and flags (not the
@@ -24,7 +27,7 @@ class BuildLoop(build_ext):
 
     def build_extension(self, ext: Extension) -> None:
         out = Path(self.get_ext_fullpath(ext.name))
-        for old in out.parent.glob("_dop853_loop.*"):  # (a failed build ships no earlier one)
+        for old in out.parent.glob(f"{LOOP}.*"):  # (a failed build ships no earlier one)
             old.unlink()
         sys.path.insert(0, str(Path(__file__).resolve().parent / "src"))
         try:
@@ -41,9 +44,9 @@ class BuildLoop(build_ext):
             sys.path.pop(0)
 
     def get_outputs(self) -> list[str]:
-        """The library and its record (``_dop853_loop.json``: the key and bytes it was built with)."""
+        """The library and its record (``LOOP.json``: the key and bytes it was built with)."""
         outputs = super().get_outputs()
-        return outputs + [str(Path(o).with_name("_dop853_loop.json")) for o in outputs]
+        return outputs + [str(Path(o).with_name(f"{LOOP}.json")) for o in outputs]
 
     def copy_extensions_to_source(self) -> None:
         """An editable install's copy into the source tree: the record too, if it was built."""
@@ -51,7 +54,7 @@ class BuildLoop(build_ext):
         build_py = self.get_finalized_command("build_py")
         for ext in self.extensions:
             built = Path(self.build_lib, self.get_ext_filename(self.get_ext_fullname(ext.name)))
-            record = built.with_name("_dop853_loop.json")
+            record = built.with_name(f"{LOOP}.json")
             target = Path(build_py.get_package_dir(ext.name.rpartition(".")[0]), record.name)
             target.unlink(missing_ok=True)
             if record.exists():
@@ -59,6 +62,6 @@ class BuildLoop(build_ext):
 
 
 setup(
-    ext_modules=[Extension("chaplygin.numeric._dop853_loop", sources=[], optional=True)],
+    ext_modules=[Extension(f"chaplygin.numeric.{LOOP}", sources=[], optional=True)],
     cmdclass={"build_ext": BuildLoop},
 )

@@ -44,7 +44,7 @@ COMMAND_FLOOR = "import numpy, typer._adapters, chaplygin.apps.cli"
 #: what a warm sweep cannot avoid: the command line's start-up, typer's coercion of the command's
 #: options (through pydantic, imported only when a command runs), NumPy (the runs' arrays) and
 #: writing Parquet (it reads the system file's names and run plan from the cache: no SymPy)
-FLOOR = "import sys, pyarrow.parquet, numpy, typer._adapters, chaplygin.apps.cli"
+FLOOR = COMMAND_FLOOR + ", pyarrow.parquet"
 
 
 def commands(file: str, at: str, grid: str, out: Path) -> dict[str, list[str]]:

@@ -217,23 +217,20 @@ def test_warm_command_line_run_needs_no_sympy_and_no_compiler(tmp_path):
     for override in (["-i", "theta=0.2"], ["-p", "m=2"]):
         moved = run_json(CLI, [*RUN, "-o", out[2], "--force", *override], tmp_path / "cache")
         assert moved["code"] == 0 and not moved["sympy"], override
-    refused = subprocess.run(
-        [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "e.npz"), "-p", "m=-1"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-        env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC},
-    )
+
+    def full_path(out: str, *override: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / out), *override],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            check=False,
+            env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC},
+        )
+
+    refused = full_path("e.npz", "-p", "m=-1")
     assert refused.returncode == 1 and "not positive definite at the initial state" in refused.stderr
-    bad = subprocess.run(
-        [sys.executable, "-m", "chaplygin", *RUN, "-o", str(tmp_path / "d.npz"), "-i", "x'=5"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-        env={**os.environ, "CHAPLYGIN_CACHE": str(tmp_path / "cache"), "PYTHONPATH": SRC},
-    )
+    bad = full_path("d.npz", "-i", "x'=5")
     assert bad.returncode == 1 and "violates the constraints" in bad.stderr
 
 

@@ -724,11 +724,11 @@ def install_loop(path: Path) -> None:
     command, :data:`FLAGS`), so that :func:`packaged_loop` uses it only while all three are
     unchanged, and only while its bytes are the ones recorded.
     """
-    cmd = compiler()
-    digest = _key(loop_source(), cmd)
+    cmd, source = compiler(), loop_source()
+    digest = _key(source, cmd)
     path.parent.mkdir(parents=True, exist_ok=True)
     record = path.parent / f"{_PACKAGED_STEM}.json"
-    _compile(loop_source().replace("@DIGEST@", digest), cmd, path.parent, path, record, digest)
+    _compile(source.replace("@DIGEST@", digest), cmd, path.parent, path, record, digest)
 
 
 def packaged_loop() -> tuple[str, ctypes.CDLL] | None:
