@@ -15,7 +15,7 @@ and ``t = 10``, and the rattleback (``examples.get("rattleback")``, its true mot
 untimed warm-up of the backend on 256 members: compilation, NVRTC); a size is skipped
 when the last size's pace (for the C loop: the warm-up's) says it would take longer than
 ``--max-seconds``.  The rattleback is costly: some 9·10⁴ right-hand sides per member to t = 10
-(its spin reverses), 0.15 s per member on one CPU core.  JAX recompiles for
+(its spin reverses), 0.02 s per member on one CPU core.  JAX recompiles for
 every new number of members, so each of its cells runs twice and the second is reported; it
 starts at 10⁴ members.
 

@@ -130,3 +130,56 @@ def test_a_pole_crossed_and_back_between_checked_times_stops_the_member(backend:
     for k, first in enumerate((math.pi / 2 - 0.3, math.pi / 2 + 0.3)):
         assert ens.t[k] < first <= ens.t_pole[k] < first + 1.0  # (not past a second pole)
     assert ens.t[2] == pytest.approx(200 * math.pi)
+
+
+def sleigh_with_a_slip(denominator: sp.Expr) -> System:
+    """A knife edge whose constraint ẏ = sin θ ẋ / √d has a denominator d of x (A_dep = 1)."""
+    t = sp.Symbol("t")
+    x, y, th = dynamicsymbols("x y theta")
+    m, inertia = sp.symbols("m I", positive=True)
+    xd, yd, thd = x.diff(t), y.diff(t), th.diff(t)
+    d = denominator.subs(sp.Symbol("x"), x)
+    T = m / 2 * (xd**2 + yd**2) + inertia / 2 * thd**2
+    return System([x, y, th], T, [yd - sp.sin(th) * xd / sp.sqrt(d)], dependent=[y], name="slipping sleigh")
+
+
+def test_a_denominator_of_one_sign_is_not_watched_for_poles(monkeypatch) -> None:
+    """ẏ = sin θ ẋ / √(1 + x²) (as the rattleback's √(a² sin²φ cos²θ + b² sin²θ + c² cos²φ cos²θ)):
+    1 + x² keeps its sign, so no change of sign can show a pole between samples, and neither
+    simulate nor the ensemble integrates again to look for one, nor tests the samples (on
+    5d469ee both did: the rattleback's ensemble of 64 members to t = 10 took 5.5 s instead of
+    1.4 s). A denominator that changes sign (4 − x²) or whose sign SymPy cannot tell (a² + x²
+    with a of unknown sign) is still watched; every run is the multiplier model's motion."""
+    from chaplygin.numeric import simulate as simulate_module
+    from chaplygin.numeric import targets
+
+    a = sp.Symbol("a")
+    X = sp.Symbol("x")
+    start = {"x": 0.1, "y": 0.0, "theta": 0.3, "x'": 1.0, "theta'": 0.7}
+    params = {"m": 1.0, "I": 0.5, "a": 1.5}
+    runs, members = [], []
+    real_samples, real_ensemble = simulate_module._samples, targets.LoopTarget.ensemble
+
+    def samples(*args, **kwargs):
+        runs.append(kwargs["samples"])
+        return real_samples(*args, **kwargs)
+
+    def ensemble(self, *args, **kwargs):
+        members.append(kwargs["times"] is not None)  # (checked: integrated with times to test)
+        return real_ensemble(self, *args, **kwargs)
+
+    monkeypatch.setattr(simulate_module, "_samples", samples)
+    monkeypatch.setattr(targets.LoopTarget, "ensemble", ensemble)
+    for d, watched in ((1 + X**2, False), (4 - X**2, True), (a**2 + X**2, True)):
+        system = sleigh_with_a_slip(d)
+        p = {k: v for k, v in params.items() if k in {s.name for s in system.parameters}}
+        runs.clear()
+        members.clear()
+        tr = simulate(system, "chaplygin", 1.0, start, p, samples=3, backend=BACKENDS[0])
+        assert tr.success and runs[0] == 3 and len(runs) == (2 if watched else 1), (d, runs)
+        ens = simulate_ensemble(system, "chaplygin", 1.0, [start], p, backend=BACKENDS[0])
+        assert list(ens.code) == [0] and members == [watched] * len(members) and members, (d, members)
+        # the same motion as the multiplier model's, which solves nothing and has no pole
+        true = simulate(system, "chetaev", 1.0, start, p, samples=3, backend=BACKENDS[0])
+        for c in ("x", "y", "theta"):
+            assert abs(ens[c][0] - tr[c][-1]) < 1e-9 and abs(tr[c][-1] - true[c][-1]) < 1e-8, (d, c)

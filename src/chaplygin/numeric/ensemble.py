@@ -653,7 +653,7 @@ def simulate_ensemble(
         )  # fmt: skip
 
     start = time.perf_counter()
-    # a reduced model's solved constraints may meet a pole (pole_free: not where A_dep is fixed)
+    # a reduced model's solved constraints may cross a pole (pole_free: not where the test cannot change)
     watch = entry.reduced and not pole_free(system)
     if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
 

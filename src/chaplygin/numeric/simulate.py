@@ -1703,14 +1703,22 @@ def _pole_functions(system: System) -> tuple[Any, int, bool]:
 
 
 def pole_free(system: System) -> bool:
-    """Whether no motion can meet a pole of the solved constraints: the dependent block of ``A``
-    and the denominators of ``[A | A_0]`` depend on neither t nor the coordinates (e.g. the
-    rolling bodies' ``ẋ = …, ẏ = …``), so what the start satisfies holds all along."""
+    """Whether no motion can cross a pole of the solved constraints, so that a run is not
+    checked for one at its samples (:func:`pole_marks`) nor integrated again to look between
+    them: the dependent block of ``A`` is free of t and the coordinates (e.g. the rolling
+    bodies' ``ẋ = …, ẏ = …``), and each factor of the denominators of ``[A | A_0]`` is free of
+    them too or keeps one sign for every real t and q (a sum of squares: the rattleback's).
+
+    Such a factor can only touch zero, never change sign, and a change of sign is all that the
+    samples' test sees between two of them: a motion that meets its zero shows it as velocities
+    that are not finite (the loop stops at a pole) or as steps that shrink to nothing (a step
+    underflow), with the test or without.
+    """
     return not system.g or _pole_functions(system)[2]
 
 
 #: bumped whenever :func:`_pole_source` writes other code
-POLE_FORMAT = 2
+POLE_FORMAT = 3
 
 
 def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
@@ -1745,14 +1753,31 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
 
 
 def _fixed(system: System, exprs: list[Any]) -> bool:
-    """Whether the dependent block of ``A`` and the factors (:func:`_pole_expressions`'s
-    ``exprs``) are free of t and the coordinates."""
+    """Whether the tests of :func:`pole_marks` cannot change along a motion (:func:`pole_free`):
+    the dependent block of ``A`` is free of t and the coordinates, and each factor
+    (:func:`_pole_expressions`'s ``exprs``) either is too or, for constraints linear in the
+    velocities, keeps one sign at every real t and q (SymPy shows it nonnegative or nonpositive:
+    the rattleback's ``a² sin²φ cos²θ + b² sin²θ + c² cos²φ cos²θ``, say)."""
+    import sympy as sp
+
     from chaplygin.core._symbols import TIME
 
     moving = {TIME, *system._vars.x, *(system._vars.xd if system.is_nonlinear else ())}
     g, n = system.g, system.n
     block = [exprs[b * n + j] for b in range(g) for j in system._dep]
-    return not any(moving & e.free_symbols for e in [*block, *exprs[g * n :]])
+    if any(moving & e.free_symbols for e in block):
+        return False
+    real = {s: sp.Dummy(s.name, real=True) for s in moving}
+
+    def one_sign(e: Any) -> bool:
+        if not moving & e.free_symbols:
+            return True
+        if system.is_nonlinear:  # (their factors are the branch points of the solved form)
+            return False
+        e = e.xreplace(real)
+        return bool(e.is_nonnegative or e.is_nonpositive)
+
+    return all(one_sign(e) for e in exprs[g * n :])
 
 
 def _pole_source(system: System) -> tuple[str, int, bool] | None:
