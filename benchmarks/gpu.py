@@ -269,6 +269,22 @@ def resident(kernel: Any, block: int = _cuda.BLOCK) -> tuple[int | None, str]:
     return sms * warps * 32, text + f"; {warps} warps per SM resident, a wave = {sms * warps * 32} members"
 
 
+def cpu_quota() -> str:
+    """The CPU time this process's control group may use, in cores ("no quota" where unlimited)."""
+    for path, read in (
+        ("/sys/fs/cgroup/cpu.max", lambda text: text.split()),  # cgroup v2: "quota period"
+        ("/sys/fs/cgroup/cpu/cpu.cfs_quota_us", lambda text: [text.strip(), "100000"]),  # v1
+    ):
+        try:
+            quota, period = read(Path(path).read_text())
+        except (OSError, ValueError):
+            continue
+        if quota in ("max", "-1"):
+            return "no quota"
+        return f"a quota of {int(quota) / int(period):g} cores"
+    return "quota unknown"
+
+
 def bench(args: argparse.Namespace) -> None:
     sizes = [int(float(s)) for s in args.sizes.split(",")]
     backends = args.backends.split(",")
@@ -290,7 +306,7 @@ def bench(args: argparse.Namespace) -> None:
         peak = peak or found
         print(f"device: {name}; FP64 peak {peak / 1e12:.1f} TFLOP/s" if peak else f"device: {name}")
     cores = len(os.sched_getaffinity(0))
-    print(f"CPU cores: {cores}; load average {os.getloadavg()[0]:.2f}", flush=True)
+    print(f"CPU cores: {cores} ({cpu_quota()}); load average {os.getloadavg()[0]:.2f}", flush=True)
     rows = []
     head = f"{'case':13s} {'backend':12s} {'members':>9s} {'wall s':>8s} {'loop s':>8s} {'traj/s':>10s} "
     head += f"{'RHS/s':>9s} {'GFLOP/s':>8s} {'% peak':>7s} failed"
@@ -337,6 +353,11 @@ def bench(args: argparse.Namespace) -> None:
                     guess = guess / WARM
                 print(f"  ({label} warm-up, {WARM} members to t = {short:g}: {first:.2f} s with compilation, "
                       f"then {warm:.3f} s)", flush=True)  # fmt: skip
+                if backend == "c":  # what the cores add: the same run on one thread
+                    t = time.perf_counter()
+                    prob.run(backend, prob.states(WARM), t_end=short, threads=1)
+                    one = time.perf_counter() - t
+                    print(f"  (c on 1 thread: {one:.3f} s; on {cores}: {one / warm:.1f}x that)", flush=True)
             base = None  # (members, wall, loop, rhs) of the C loop's measured subset
             for members in sizes:
                 if backend == "jax" and members < JAX_FROM:
