@@ -231,15 +231,20 @@ WARM_SHARE = 0.02
 
 
 def variant(label: str) -> dict[str, Any]:
-    """DeviceKernel options of a backend label: ``cuda`` {}, ``cuda:r128+call`` {registers: 128, inline: False}."""
+    """DeviceKernel options of a backend label: ``cuda`` {}, ``cuda:r128+call`` {registers: 128,
+    inline: False}, ``cuda:w4`` {resident: 128} (4 warps per multiprocessor)."""
     options: dict[str, Any] = {}
     for token in label.partition(":")[2].split("+") if ":" in label else []:
         if token.startswith("r") and token[1:].isdigit():
             options["registers"] = int(token[1:])
+        elif token.startswith("w") and token[1:].isdigit() and int(token[1:]) > 0:
+            options["resident"] = 32 * int(token[1:])
         elif token in VARIANTS:
             options.update(VARIANTS[token])
         else:
-            sys.exit(f"gpu.py: backend {label!r}: unknown cuda variant {token!r} (rN, {', '.join(VARIANTS)})")
+            sys.exit(
+                f"gpu.py: backend {label!r}: unknown cuda variant {token!r} (rN, wN, {', '.join(VARIANTS)})"
+            )
     return options
 
 
@@ -266,6 +271,8 @@ def resident(kernel: Any, block: int = _cuda.BLOCK) -> tuple[int | None, str]:
         return None, text
     per_warp = -(-regs // 8) * 8 * 32  # registers are allocated per warp, 8 per thread at a time
     warps = min(64, 65536 // per_warp // (block // 32) * (block // 32))  # whole blocks per SM
+    if getattr(kernel, "resident", None):  # (capped: wN)
+        warps = min(warps, max(1, kernel.resident // 32))
     return sms * warps * 32, text + f"; {warps} warps per SM resident, a wave = {sms * warps * 32} members"
 
 

@@ -269,7 +269,7 @@ using std::fabs; using std::sqrt; using std::pow; using std::nextafter;
 #define __global__
 #define __noinline__
 struct ch_dim3 { unsigned x; };
-static ch_dim3 blockIdx, blockDim, threadIdx;
+static ch_dim3 blockIdx, blockDim, threadIdx, gridDim;
 static inline double __longlong_as_double(long long v) { double d; std::memcpy(&d, &v, 8); return d; }
 """
 
@@ -307,6 +307,85 @@ def test_the_device_source_is_valid_cuda_cpp(disk_both, tmp_path):
         assert " 0 bytes spill stores" in usage.splitlines()[1], usage[:400]
 
 
+# the launch of a grid on the host: every block's every thread in turn (the device branch, shimmed)
+_GRID_DRIVER = r"""
+extern "C" void ch_grid(unsigned grid, unsigned block, long members, CH_MEMBER_ARGS)
+{
+    gridDim.x = grid; blockDim.x = block;
+    for (unsigned b = 0; b < grid; ++b)
+        for (unsigned i = 0; i < block; ++i) {
+            blockIdx.x = b; threadIdx.x = i;
+            chaplygin_members(members, CH_MEMBER_CALL);
+        }
+}
+"""
+
+
+def test_the_device_entry_covers_every_member_once_in_any_grid(disk_c, tmp_path):
+    """The GPU entry itself (the ``__CUDACC__`` branch, compiled by the host's C++ compiler with
+    the flags of the C loop and a stand-in for the launch): grids of a thread per member (some
+    idle), and of fewer threads each taking members in turn (``DeviceKernel(resident=...)``
+    compiles the entry with ``CH_STRIDED``) give the host build's results bit for bit, which are
+    the C loop's."""
+    import ctypes
+
+    cxx = shutil.which("c++") or shutil.which("g++") or shutil.which("clang++")
+    if cxx is None:  # pragma: no cover - CI has g++
+        pytest.skip("no C++ compiler")
+    Y0, P = _disk_members(disk_c)
+    m, n = Y0.shape
+    source = _cuda.kernel_source(disk_c.module, n, P.shape[1])
+    (tmp_path / "shim.h").write_text(_NVRTC_SHIM)
+    (tmp_path / "kernel.cu").write_text(source + _GRID_DRIVER)
+    flags = [f for f in _ckernel.FLAGS if f not in ("-std=c99", "-pedantic-errors")]
+    for strided in ("", "-DCH_STRIDED"):
+        subprocess.run(
+            [cxx, "-x", "c++", "-D__CUDACC__", "-include", str(tmp_path / "shim.h"), *flags,
+             *([strided] if strided else []), str(tmp_path / "kernel.cu"), "-o", str(tmp_path / f"grid{strided}.so")],
+            check=True, capture_output=True, timeout=300,
+        )  # fmt: skip
+    reference = _cuda.HostKernel(disk_c.module, n, P.shape[1]).run((0.0, 2.0), Y0, P)
+    assert list(reference["code"]) == [0, 0, 0, 5] + [0] * 8
+    atol, none = np.full(n, 1e-12), np.empty(0)
+
+    def ptr(a: np.ndarray) -> Any:
+        return a.ctypes.data_as(ctypes.c_void_p)
+
+    # a thread per member (12; 15, three idle), and, DeviceKernel(resident=...)'s, fewer (6, 5)
+    for strided, blocks, block in (
+        ("", 4, 3),
+        ("", 5, 3),
+        ("-DCH_STRIDED", 2, 3),
+        ("-DCH_STRIDED", 1, 5),
+        ("-DCH_STRIDED", 5, 3),
+    ):
+        grid = ctypes.CDLL(str(tmp_path / f"grid{strided}.so")).ch_grid
+        y0, p = np.ascontiguousarray(Y0.T), np.ascontiguousarray(P.T)
+        last, obs = np.full((n, m), np.nan), np.full((disk_c.module.N_OBSERVED, m), np.nan)
+        t_last, code, n_rhs = np.full(m, np.nan), np.full(m, -1), np.full(m, -1)
+        grid(
+            ctypes.c_uint(blocks), ctypes.c_uint(block), ctypes.c_long(m), ctypes.c_double(0.0),
+            ctypes.c_double(2.0), ptr(y0), ptr(p), ptr(none), ctypes.c_long(0), ctypes.c_double(1e-10),
+            ptr(atol), ctypes.c_double(np.inf), ctypes.c_long(0), ptr(none), ptr(last), ptr(t_last),
+            ptr(obs), ptr(code), ptr(n_rhs),
+        )  # fmt: skip
+        got = {"t": t_last, "y": last.T, "observed": obs.T, "code": code, "n_rhs": n_rhs}
+        _assert_same(got, reference)
+
+
+def test_a_capped_launch_keeps_whole_warps_on_every_multiprocessor():
+    """``launch``: a thread per member (blocks of :func:`block_size`), or with ``resident`` at
+    most that many threads per multiprocessor, in whole warps: 10⁶ members on 132 of them at
+    128 per multiprocessor are 132 blocks of 128 threads, each thread taking ~59 members."""
+    assert _cuda.launch(10**6, 132) == (128, math.ceil(10**6 / 128))
+    assert _cuda.launch(10**6, 132, resident=128) == (128, 132)
+    assert _cuda.launch(10**6, 132, resident=256) == (128, 264)
+    assert _cuda.launch(10**6, 132, resident=64) == (64, 132)
+    assert _cuda.launch(10**6, 132, resident=40) == (32, 132)  # (whole warps)
+    assert _cuda.launch(1000, 132, resident=128) == (32, 32)  # (fewer members than the cap)
+    assert _cuda.launch(1000, None, resident=128) == (128, 8)  # (multiprocessors unknown: no cap)
+
+
 def test_small_ensembles_spread_over_every_multiprocessor():
     """Blocks of 128 threads put 1 000 members on 8 of an H100's 132 multiprocessors; smaller
     blocks (whole warps) on 32 of them; large ensembles keep blocks of 128."""
@@ -333,6 +412,10 @@ def test_gpu_kernel_agrees_with_the_c_loop(disk_c):  # pragma: no cover - needs 
     np.testing.assert_allclose(gpu["y"][ok], ref["y"][ok], rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(gpu["samples"][ok], ref["samples"][ok], rtol=1e-8, atol=1e-8)
     assert np.abs(gpu["n_rhs"] - ref["n_rhs"]).max() <= 0.05 * ref["n_rhs"].max()
+    # 32 threads per multiprocessor, each taking members in turn: the same members' results
+    capped = _cuda.DeviceKernel(disk_c.module, Y0.shape[1], P.shape[1], resident=32)
+    assert capped.resident == 32
+    _assert_same(capped.run((0.0, 3.0), Y0, P, times=times), gpu)
 
 
 def test_row_maxima_of_the_ensembles_checks_are_numpys():

@@ -68,6 +68,7 @@ __all__ = [
     "block_size",
     "device_problem",
     "kernel_source",
+    "launch",
 ]
 
 #: ``backend="auto"`` takes the GPU from this many members on.  An H100 keeps about 270 000
@@ -182,7 +183,13 @@ CH_DEVICE static void ch_observe_member(long m, long stride, const double *t, co
 extern "C" __global__ void chaplygin_members(long members, CH_MEMBER_ARGS)
 {
     long m = (long)blockIdx.x * blockDim.x + threadIdx.x;
+#ifdef CH_STRIDED
+    /* members m, m + threads, m + 2 threads, ...: a launch of fewer threads than members
+       (DeviceKernel's resident; a loop here costs the disk's kernel 44 bytes of spills) */
+    for (; m < members; m += (long)gridDim.x * blockDim.x) ch_member(m, members, CH_MEMBER_CALL);
+#else
     if (m < members) ch_member(m, members, CH_MEMBER_CALL);
+#endif
 }
 
 extern "C" __global__ void chaplygin_observe(long members, const double *t, const double *Y,
@@ -283,6 +290,17 @@ def block_size(members: int, multiprocessors: int | None) -> int:
         return BLOCK
     per_processor = -(-members // multiprocessors)
     return int(min(BLOCK, max(32, 32 * -(-per_processor // 32))))
+
+
+def launch(members: int, multiprocessors: int | None, resident: int | None = None) -> tuple[int, int]:
+    """Threads per block (:func:`block_size`) and blocks of a launch: a thread per member, or at
+    most ``resident`` threads (whole warps) per multiprocessor, each taking members in turn."""
+    block = block_size(members, multiprocessors)
+    blocks = math.ceil(members / block)
+    if resident and multiprocessors:
+        block = min(block, max(32, resident // 32 * 32))
+        blocks = min(math.ceil(members / block), multiprocessors * max(1, resident // block))
+    return block, blocks
 
 
 def _soa(a: np.ndarray) -> np.ndarray:
@@ -401,6 +419,7 @@ class DeviceKernel:
         inline: bool = True,
         library_pow: bool = False,
         carveout: int | None = None,
+        resident: int | None = None,
     ) -> None:
         problem = device_problem()
         if problem is not None:
@@ -417,7 +436,9 @@ class DeviceKernel:
         # fmad: contraction into fused multiply-adds (off: the host build's arithmetic);
         # registers: NVRTC's --maxrregcount (more threads resident per SM, more spills);
         # inline: the right-hand side inlined at each of its call sites (else one called copy,
-        # the prelude's CH_CALL_EVAL); library_pow: pow(x, 2) by the library's pow (CH_LIBRARY_POW)
+        # the prelude's CH_CALL_EVAL); library_pow: pow(x, 2) by the library's pow (CH_LIBRARY_POW);
+        # resident: at most this many threads per multiprocessor, each taking members in turn
+        # (fewer threads: their stages K, in local memory, may stay in L1)
         options: tuple[str, ...] = ("--fmad=true",) if fmad else ("--fmad=false",)
         if registers:
             options += (f"--maxrregcount={int(registers)}",)
@@ -425,7 +446,10 @@ class DeviceKernel:
             options += ("-DCH_CALL_EVAL",)
         if library_pow:
             options += ("-DCH_LIBRARY_POW",)
+        if resident:
+            options += ("-DCH_STRIDED",)
         self.options = options
+        self.resident = resident
         start = time.perf_counter()
         try:
             module = cupy.RawModule(code=self.source, options=options)
@@ -501,8 +525,8 @@ class DeviceKernel:
                 obs_d, code_d, rhs_d,
             )  # fmt: skip
             mark = self._lap(clock, "upload", mark)
-            block = block_size(m, self.multiprocessors)
-            self._members((math.ceil(m / block),), (block,), args)
+            block, blocks = launch(m, self.multiprocessors, self.resident)
+            self._members((blocks,), (block,), args)
             mark = self._lap(clock, "kernel", mark)
             # straight into the results (rows lo:hi of a C-contiguous array are contiguous): no
             # host copy of each download (10⁶ disks: 150 MB)
