@@ -257,6 +257,10 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     _assert_same(gpu.run((0.0, 1.0), Y0, P), ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, threads=1))
     t = np.linspace(0.0, 1.0, len(Y0))
     np.testing.assert_array_equal(gpu.observe(t, Y0, P), [disk_c.observe(*row) for row in zip(t, Y0, P)])
+    # a launch capped at one warp per multiprocessor: the strided entry, the same results
+    capped = _cuda.DeviceKernel(disk_c.module, n, P.shape[1], resident=32)
+    assert capped.options[-1] == "-DCH_STRIDED"
+    _assert_same(capped.run((0.0, 1.0), Y0, P), ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, threads=1))
 
 
 # a stand-in for what NVRTC declares itself, so that the host's C++ compiler checks the device branch
