@@ -278,12 +278,13 @@ def resident(kernel: Any, block: int = _cuda.BLOCK) -> tuple[int | None, str]:
 
 def cpu_quota() -> str:
     """The CPU time this process's control group may use, in cores ("no quota" where unlimited)."""
-    for path, read in (
-        ("/sys/fs/cgroup/cpu.max", lambda text: text.split()),  # cgroup v2: "quota period"
-        ("/sys/fs/cgroup/cpu/cpu.cfs_quota_us", lambda text: [text.strip(), "100000"]),  # v1
+    v1 = Path("/sys/fs/cgroup/cpu")
+    for read in (
+        lambda: Path("/sys/fs/cgroup/cpu.max").read_text().split(),  # cgroup v2: "quota period"
+        lambda: [(v1 / f"cpu.cfs_{k}_us").read_text().strip() for k in ("quota", "period")],  # v1
     ):
         try:
-            quota, period = read(Path(path).read_text())
+            quota, period = read()
         except (OSError, ValueError):
             continue
         if quota in ("max", "-1"):
@@ -360,11 +361,16 @@ def bench(args: argparse.Namespace) -> None:
                     guess = guess / WARM
                 print(f"  ({label} warm-up, {WARM} members to t = {short:g}: {first:.2f} s with compilation, "
                       f"then {warm:.3f} s)", flush=True)  # fmt: skip
-                if backend == "c":  # what the cores add: the same run on one thread
-                    t = time.perf_counter()
-                    prob.run(backend, prob.states(WARM), t_end=short, threads=1)
-                    one = time.perf_counter() - t
-                    print(f"  (c on 1 thread: {one:.3f} s; on {cores}: {one / warm:.1f}x that)", flush=True)
+                if backend == "c":  # what the cores add: the same members on one thread and on all
+                    probe = prob.states(2 * WARM * cores)
+                    paces = {}
+                    for threads in (1, None, 1, None):
+                        t = time.perf_counter()
+                        prob.run(backend, probe, t_end=short, threads=threads)
+                        paces[threads] = min(paces.get(threads, np.inf), time.perf_counter() - t)
+                    print(f"  (c, {len(probe)} members to t = {short:g}, best of 2: 1 thread {paces[1]:.3f} s, "
+                          f"{cores} threads {paces[None]:.3f} s: a speed-up of {paces[1] / paces[None]:.1f})",
+                          flush=True)  # fmt: skip
             base = None  # (members, wall, loop, rhs) of the C loop's measured subset
             for members in sizes:
                 if backend == "jax" and members < JAX_FROM:

@@ -67,7 +67,7 @@ PLANNED = ("c", "numpy", "numba")
 #: equations for a Chaplygin system, else Voronets'), which the plan then names
 TRUE_MOTION = "true-motion"
 #: bumped whenever the plan's (or the file summary's) shape changes
-FORMAT = 7
+FORMAT = 8
 #: what a plan keeps of the file it was made from (:func:`summary_key`): every field of a
 #: :class:`~chaplygin.io.files.SystemFile` but the SymPy ones
 SUMMARY = ("parameters", "initial", "name", "defaulted", "body")
@@ -194,17 +194,17 @@ def _watch_of(system: Any) -> dict[str, Any] | None:
     if system.g:
         found = _modelcache.load_source(_modelcache.source_key(system, "pole-functions", POLE_FORMAT))
         made = (
-            (found["source"], found["factors"], found["free"]) if found is not None else _pole_source(system)
+            (found["source"], found["factors"], found["watch"]) if found is not None else _pole_source(system)
         )
         if made is None:
             return None
     else:
-        made = ("def poles():\n    return []\n", 0, True)
+        made = ("def poles():\n    return []\n", 0, "none")
     watched = monitor(system)
     return {
         "poles": made[0],
         "factors": int(made[1]),
-        "free": bool(made[2]),
+        "watch": str(made[2]),
         "coordinates": [c.func.__name__ for c in system.coordinates],
         "parameters": [par.name for par in system.parameters],
         "dep": list(system._dep),
@@ -270,7 +270,7 @@ class Watched:
         self.conserves_energy = bool(watch["conserves_energy"])
         self._quadratic_T = bool(watch["quadratic"])  # (System._quadratic_T, as the watch reads it)
         poles = cache.import_source(str(watch["poles"]), "poles").poles
-        self.__dict__["_pole_functions"] = (poles, int(watch["factors"]), bool(watch["free"]))
+        self.__dict__["_pole_functions"] = (poles, int(watch["factors"]), str(watch["watch"]))
         self.mass = cache.import_source(str(watch["mass"]), "mass").mass if watch["mass"] else None
 
 
@@ -400,7 +400,7 @@ def _run(
     warn: bool = True,
 ) -> Trajectory | None:
     from chaplygin.numeric._ckernel import Layout
-    from chaplygin.numeric.simulate import _pole_between_samples, _watch, integrate
+    from chaplygin.numeric.simulate import _pole_between_samples, _watch, integrate, sign_fixed
 
     lay = found["layout"]
     layout = Layout(
@@ -469,7 +469,7 @@ def _run(
     )
     if system is not None:  # a reduced model: judged as the full path judges it
         pole = None
-        if system.g and not system.__dict__["_pole_functions"][2]:
+        if system.g and not sign_fixed(system):
             pole = _pole_between_samples(system, compiled, tr, span, samples, y0, p, dict(values), **options)
         notes = tr.notes
         tr = _watch(system, tr, dict(values), reduced=True, compiled=compiled, p=p, pole=pole)

@@ -61,6 +61,7 @@ from chaplygin.numeric.simulate import (
     holonomic_residual,
     monitor,
     pole_free,
+    sign_fixed,
     solve_holonomic,
     time_span,
 )
@@ -653,14 +654,16 @@ def simulate_ensemble(
         )  # fmt: skip
 
     start = time.perf_counter()
-    # a reduced model's solved constraints may cross a pole (pole_free: not where the test cannot change)
+    # a reduced model's solved constraints may meet a pole (pole_free: not where they cannot)
     watch = entry.reduced and not pole_free(system)
-    if watch:  # checked at POLE_CHECKS times and the kept ones, a block of members at a time
+    # the sign of the test may change (sign_fixed: not where it cannot): looked for in between
+    crossings = watch and not sign_fixed(system)
+    if watch:  # checked at the start, the kept times, the end and (crossings) POLE_CHECKS times
 
         def checked(members: np.ndarray, points: int) -> dict[str, np.ndarray]:
             grid = np.linspace(t0, t1, points)
             checks = grid if times is None else np.union1d(grid, times)
-            block = max(1, _BLOCK_VALUES // (len(checks) * Y0.shape[1]))
+            block = max(1, _BLOCK_VALUES // (max(1, len(checks)) * Y0.shape[1]))
             parts = []
             for i in range(0, len(members), block):
                 rows = members[i : i + block]
@@ -672,12 +675,12 @@ def simulate_ensemble(
                 parts.append(part)
             return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
 
-        res = checked(np.arange(n), POLE_CHECKS)
+        res = checked(np.arange(n), POLE_CHECKS if crossings else 0)
         # a member that took more steps than the times checked (each right-hand side bounds a
         # sixth of a step from above) may have crossed a pole and back between two of them: it is
         # integrated again (the same steps) and checked at least as often as it stepped
         need = np.minimum(POLE_CHECK_POINTS, np.asarray(res["n_rhs"]) // 6 + 1)
-        again = np.flatnonzero(need > POLE_CHECKS + (0 if times is None else len(times)))
+        again = np.flatnonzero(crossings & (need > POLE_CHECKS + (0 if times is None else len(times))))
         if again.size:
             redone = checked(again, int(need[again].max()))
             for key, value in redone.items():

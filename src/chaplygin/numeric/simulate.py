@@ -1281,7 +1281,7 @@ def simulate(
             f"met the singular set of the constraints, {singular_set_text(system)}."
         ) from None
     pole = None
-    if entry.reduced and system.g and not pole_free(system):
+    if entry.reduced and system.g and not sign_fixed(system):
         pole = _pole_between_samples(
             system,
             compiled,
@@ -1671,10 +1671,10 @@ def first_pole(singular: np.ndarray, sign: np.ndarray) -> int:
     return int(past[0]) if past.size else len(sign)
 
 
-def _pole_functions(system: System) -> tuple[Any, int, bool]:
+def _pole_functions(system: System) -> tuple[Any, int, str]:
     """A NumPy function of ``(t, q…, parameters…)`` giving ``A``'s entries (row-major), then
-    the distinct factors of the denominators of ``[A | A_0]``; how many factors; and whether the
-    solved constraints are free of poles (:func:`pole_free`).
+    the distinct factors of the denominators of ``[A | A_0]``; how many factors; and how a run
+    is watched for poles (:func:`_watch_level`: ``"none"``, ``"points"`` or ``"crossings"``).
 
     Generated as a module (:func:`_pole_source`), which the disk cache of compiled models
     (:mod:`chaplygin.numeric._modelcache`) keeps: a process that checks an equal system again
@@ -1687,38 +1687,50 @@ def _pole_functions(system: System) -> tuple[Any, int, bool]:
 
     key = _modelcache.source_key(system, "pole-functions", POLE_FORMAT)
     found = _modelcache.load_source(key)
-    if found is not None and type(found.get("factors")) is int and type(found.get("free")) is bool:
-        source, n_factors, free = found["source"], found["factors"], found["free"]
+    if found is not None and type(found.get("factors")) is int and found.get("watch") in WATCH_LEVELS:
+        source, n_factors, watch = found["source"], found["factors"], found["watch"]
     else:
         made = _pole_source(system)
         if made is None:  # not printable as NumPy source: lambdify, in memory only
             cached = _pole_lambdified(system)
             system.__dict__["_pole_functions"] = cached
             return cached
-        source, n_factors, free = made
-        _modelcache.store_source(key, source, factors=n_factors, free=free)
-    cached = (cache.import_source(source, "poles").poles, n_factors, free)
+        source, n_factors, watch = made
+        _modelcache.store_source(key, source, factors=n_factors, watch=watch)
+    cached = (cache.import_source(source, "poles").poles, n_factors, watch)
     system.__dict__["_pole_functions"] = cached
     return cached
 
 
 def pole_free(system: System) -> bool:
-    """Whether no motion can cross a pole of the solved constraints, so that a run is not
-    checked for one at its samples (:func:`pole_marks`) nor integrated again to look between
-    them: the dependent block of ``A`` is free of t and the coordinates (e.g. the rolling
-    bodies' ``ẋ = …, ẏ = …``), and each factor of the denominators of ``[A | A_0]`` is free of
-    them too or keeps one sign for every real t and q (a sum of squares: the rattleback's).
+    """Whether the solved constraints have no pole that a motion could meet, so that a run is
+    not checked for one at all: the dependent block of ``A`` and the denominators of
+    ``[A | A_0]`` depend on neither t nor the coordinates (e.g. the rolling bodies'
+    ``ẋ = …, ẏ = …``), and what the start satisfies holds all along."""
+    return not system.g or _pole_functions(system)[2] == "none"
 
-    Such a factor can only touch zero, never change sign, and a change of sign is all that the
-    samples' test sees between two of them: a motion that meets its zero shows it as velocities
-    that are not finite (the loop stops at a pole) or as steps that shrink to nothing (a step
-    underflow), with the test or without.
+
+def sign_fixed(system: System) -> bool:
+    """Whether the sign that the test of :func:`pole_marks` follows cannot change along any
+    motion: :func:`pole_free`, or the dependent block of ``A`` is constant and each factor of the
+    denominators keeps one sign for all real t, q and parameters (SymPy shows it nonnegative or
+    nonpositive: the rattleback's ``a² sin²φ cos²θ + b² sin²θ + c² cos²φ cos²θ``).
+
+    A run of such a system is checked at its own points only (the samples; an ensemble's start,
+    kept samples and end), not at more points in between (no second integration, no grid): a
+    change of sign between two points, which those would look for, cannot happen.  The zero of
+    such a factor (it touches zero without changing sign) is seen only at a point that lands on
+    it; a motion may pass it between two points unseen, with these checks as without them.
     """
-    return not system.g or _pole_functions(system)[2]
+    return not system.g or _pole_functions(system)[2] != "crossings"
+
+
+#: how a run is watched for poles (:func:`_watch_level`)
+WATCH_LEVELS = ("none", "points", "crossings")
 
 
 #: bumped whenever :func:`_pole_source` writes other code
-POLE_FORMAT = 3
+POLE_FORMAT = 4
 
 
 def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
@@ -1752,12 +1764,14 @@ def _pole_expressions(system: System) -> tuple[list[Any], list[Any]]:
     return [TIME, *v.x, *system.parameters], [*system._A, *factors]
 
 
-def _fixed(system: System, exprs: list[Any]) -> bool:
-    """Whether the tests of :func:`pole_marks` cannot change along a motion (:func:`pole_free`):
-    the dependent block of ``A`` is free of t and the coordinates, and each factor
-    (:func:`_pole_expressions`'s ``exprs``) either is too or, for constraints linear in the
-    velocities, keeps one sign at every real t and q (SymPy shows it nonnegative or nonpositive:
-    the rattleback's ``a² sin²φ cos²θ + b² sin²θ + c² cos²φ cos²θ``, say)."""
+def _watch_level(system: System, exprs: list[Any]) -> str:
+    """How a run is watched for poles, from :func:`_pole_expressions`'s ``exprs``: ``"none"``
+    where the dependent block of ``A`` and every factor are free of t and the coordinates
+    (:func:`pole_free`); ``"points"`` where the block is and every other factor keeps one sign
+    for all real t, q and parameters (:func:`sign_fixed`; constraints linear in the velocities:
+    the factors of nonlinear ones are branch points); else ``"crossings"``.  The parameters are
+    taken as any real numbers, not as declared (``positive=True``): a run may be given values that
+    a declaration excludes."""
     import sympy as sp
 
     from chaplygin.core._symbols import TIME
@@ -1765,24 +1779,21 @@ def _fixed(system: System, exprs: list[Any]) -> bool:
     moving = {TIME, *system._vars.x, *(system._vars.xd if system.is_nonlinear else ())}
     g, n = system.g, system.n
     block = [exprs[b * n + j] for b in range(g) for j in system._dep]
+    factors = [e for e in exprs[g * n :] if moving & e.free_symbols]
     if any(moving & e.free_symbols for e in block):
-        return False
-    real = {s: sp.Dummy(s.name, real=True) for s in moving}
-
-    def one_sign(e: Any) -> bool:
-        if not moving & e.free_symbols:
-            return True
-        if system.is_nonlinear:  # (their factors are the branch points of the solved form)
-            return False
-        e = e.xreplace(real)
-        return bool(e.is_nonnegative or e.is_nonpositive)
-
-    return all(one_sign(e) for e in exprs[g * n :])
+        return "crossings"
+    if not factors:
+        return "none"
+    if system.is_nonlinear:
+        return "crossings"
+    real = {s: sp.Dummy(s.name, real=True) for e in factors for s in e.free_symbols}
+    one_sign = [e.xreplace(real) for e in factors]
+    return "points" if all(e.is_nonnegative or e.is_nonpositive for e in one_sign) else "crossings"
 
 
-def _pole_source(system: System) -> tuple[str, int, bool] | None:
+def _pole_source(system: System) -> tuple[str, int, str] | None:
     """The module source of :func:`_pole_functions` (``poles(a0, a1, …)``, NumPy calls), the
-    number of factors and :func:`pole_free`; None where an expression cannot be printed so."""
+    number of factors and :func:`_watch_level`; None where an expression cannot be printed so."""
     args, exprs = _pole_expressions(system)
     printed = numpy_lines(args, exprs)
     if printed is None:  # lambdify instead
@@ -1795,7 +1806,7 @@ def _pole_source(system: System) -> tuple[str, int, bool] | None:
         f"def poles({', '.join(names)}):\n"
         "    return [\n" + "".join(f"        {line},\n" for line in body) + "    ]\n"
     )
-    return source, len(exprs) - system.g * system.n, _fixed(system, exprs)
+    return source, len(exprs) - system.g * system.n, _watch_level(system, exprs)
 
 
 def numpy_lines(args: Sequence[Any], exprs: Sequence[Any]) -> tuple[list[str], list[str]] | None:
@@ -1821,12 +1832,12 @@ def numpy_lines(args: Sequence[Any], exprs: Sequence[Any]) -> tuple[list[str], l
     return None if any("\n" in line for line in lines) else ([str(x) for x in names], lines)
 
 
-def _pole_lambdified(system: System) -> tuple[Any, int, bool]:
+def _pole_lambdified(system: System) -> tuple[Any, int, str]:
     import sympy as sp
 
     args, exprs = _pole_expressions(system)
     n_factors = len(exprs) - system.g * system.n
-    return sp.lambdify(args, exprs, modules="numpy"), n_factors, _fixed(system, exprs)
+    return sp.lambdify(args, exprs, modules="numpy"), n_factors, _watch_level(system, exprs)
 
 
 def _lost_definiteness(compiled: CompiledModel, tr: Trajectory, p: np.ndarray, stop: int) -> tuple[int, str]:
