@@ -425,3 +425,29 @@ def test_equal_systems_start_equally_to_the_last_digit() -> None:
         mu = _multipliers_from_constants(chain, np.linspace(0.1, -0.2, chain.g), q, qd, params, 0.0)
         starts.add((*qd, *c, *mu))
     assert len(starts) == 1
+
+
+def test_absolute_values_of_time_and_coordinates_in_the_constraints_derive_and_run(tmp_path) -> None:
+    """ẏ = ẋ / (1 + |t − 1|) and ẏ = ẋ / (1 + |x|) (a file, as a user writes it): d|u|/du is
+    sign(u) in the equations, not re(u)·d re(u)/du + im(u)·d im(u)/du (which no printer writes: on
+    5d469ee `chaplygin simulate` stopped with "unexpected PrintMethodNotImplementedError … im"),
+    and Chaplygin's reduced run is the multiplier model's motion, which differentiates nothing."""
+    import chaplygin
+    from chaplygin.models.derive import derive
+
+    for slip in ("x'/(1 + abs(t - 1))", "x'/(1 + abs(x))"):
+        path = tmp_path / "blade.toml"
+        path.write_text(
+            'name = "blade"\ncoordinates = ["x", "y", "phi"]\n[parameters]\nm = 1.0\n'
+            "[energy]\nT = \"m/2*(x'^2 + y'^2 + phi'^2)\"\n"
+            f'[constraints]\n"y\'" = "{slip}"\n'
+            '[initial]\nx = -0.5\nphi = 0.0\n"x\'" = 1.0\n"phi\'" = 1.0\n',
+            encoding="utf-8",
+        )
+        f = chaplygin.load(path)
+        printed = str(derive(f.system, "chaplygin").equations)
+        assert "sign(" in printed and "re(" not in printed and "im(" not in printed, printed
+        runs = {model: chaplygin.simulate(f, model, 2.0, samples=5) for model in ("chaplygin", "chetaev")}
+        assert runs["chaplygin"].success and runs["chetaev"].success
+        for name in ("x", "y", "x'", "y'"):
+            assert np.max(np.abs(runs["chaplygin"][name] - runs["chetaev"][name])) < 1e-7, (slip, name)

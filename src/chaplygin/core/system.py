@@ -24,6 +24,7 @@ from sympy.core.function import AppliedUndef
 from chaplygin.core._fast import (
     _back,
     _restore_map,
+    derivative,
     evaluator,
     gradient,
     jacobian,
@@ -499,9 +500,9 @@ class System:
         self.g = len(self._dep)
         a, a0 = self._A, self._A0  # (form A read in SymEngine: SymPy's A built now)
         self.__dict__.pop("_native_A", None)
-        rows = sp.Matrix([[sp.factor_terms(e.diff(x)) for x in v.x] for _, e in found])
+        rows = sp.Matrix([[sp.factor_terms(derivative(e, x)) for x in v.x] for _, e in found])
         self._A = a.col_join(rows) if a.rows else rows
-        self._A0 = a0.col_join(sp.Matrix([sp.factor_terms(e.diff(TIME)) for _, e in found]))
+        self._A0 = a0.col_join(sp.Matrix([sp.factor_terms(derivative(e, TIME)) for _, e in found]))
         for name in ("_B", "_B0", "_C", "_velocity_substitution"):  # solved from A when needed
             self.__dict__.pop(name, None)
         self._dep = (*self._dep, *(i for i, _ in found))

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
-from chaplygin.core._fast import gradient, jacobian, native, shown_nonzero
+from chaplygin.core._fast import derivative, gradient, jacobian, native, shown_nonzero
 from chaplygin.core._rational import solve_linear, zero_if_vanishing
 from chaplygin.core._symbols import TIME, total_derivative
 from chaplygin.models.equations import Equations
@@ -99,8 +99,8 @@ def bracket_terms(system: System) -> list[list[sp.Expr]]:
                 ((r.D(B[b, c], k) - r.D(B[b, k], c)) * r.ind_xd[c] for c in range(r.eps)),
                 sp.S.Zero,
             )
-            w += r.D(B0[b], k) - sp.diff(B[b, k], TIME)
-            w -= sum((B0[a] * sp.diff(B[b, k], x) for a, x in enumerate(r.dep_x)), sp.S.Zero)
+            w += r.D(B0[b], k) - derivative(B[b, k], TIME)
+            w -= sum((B0[a] * derivative(B[b, k], x) for a, x in enumerate(r.dep_x)), sp.S.Zero)
             row.append(w)
         out.append(row)
     return out

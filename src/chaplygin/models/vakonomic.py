@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import sympy as sp
 
-from chaplygin.core._fast import gradient
+from chaplygin.core._fast import derivative, gradient
 from chaplygin.core._rational import solve_linear
 from chaplygin.core._symbols import total_derivative
 from chaplygin.errors import ModelError
@@ -142,7 +142,7 @@ def integrated_multipliers(system: System, constants: Any = None) -> dict[sp.Exp
     _require_family(system)
     c = _constants(system, constants)
     v, g = system._vars, system.g
-    p = [sp.diff(system._T, v.xd[i]).xreplace(system._velocity_substitution) for i in system._dep]
+    p = [derivative(system._T, v.xd[i]).xreplace(system._velocity_substitution) for i in system._dep]
     a_dep = system._A.extract(list(range(g)), list(system._dep)).xreplace(system._velocity_substitution)
     mu = solve_linear(a_dep.T, sp.Matrix(c) - sp.Matrix(p), "the integrated multipliers (18b)")
     names = system.equations("vakonomic").multipliers
