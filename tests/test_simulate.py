@@ -451,3 +451,49 @@ def test_absolute_values_of_time_and_coordinates_in_the_constraints_derive_and_r
         assert runs["chaplygin"].success and runs["chetaev"].success
         for name in ("x", "y", "x'", "y'"):
             assert np.max(np.abs(runs["chaplygin"][name] - runs["chetaev"][name])) < 1e-7, (slip, name)
+
+
+def _blade(tmp_path, name: str, body: str):
+    """A system file of coordinates x, y, phi with ``body`` (its [energy]/[constraints]/… tables)."""
+    import chaplygin
+
+    path = tmp_path / f"{name}.toml"
+    path.write_text(f'name = "{name}"\ncoordinates = ["x", "y", "phi", "z"]\n' + body, encoding="utf-8")
+    return chaplygin.load(path)
+
+
+def test_abs_in_the_constraints_linearises_as_its_smooth_branch(tmp_path) -> None:
+    """The stability of ẏ = |x| tan φ ẋ at x = 1 (away from the kink) is that of ẏ = x tan φ ẋ,
+    which has no abs(): the same eigenvalues (on 58663b9 the linearisation differentiated with
+    plain SymPy and stopped with "unexpected PrintMethodNotImplementedError … im")."""
+    import chaplygin
+
+    common = "[parameters]\nm = 1.0\n[energy]\nT = \"m/2*(x'^2 + y'^2 + phi'^2 + z'^2)\"\nV = \"(x - 1)^2 + z^2\"\n"
+    point = {"x": 1.0, "phi": 0.2, "z": 0.0, "x'": 0.0, "phi'": 0.0, "z'": 0.0}
+    for model in ("chetaev", "chaplygin"):
+        values = []
+        for slip in ("abs(x)", "x"):
+            f = _blade(tmp_path, "blade", common + f'[constraints]\n"y\'" = "{slip}*tan(phi)*x\'"\n')
+            result = chaplygin.stability(f.system, point, f.parameters, model=model)
+            values.append(np.sort_complex(np.asarray(result.eigenvalues)))
+        np.testing.assert_allclose(values[0], values[1], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "tables",
+    [
+        '[constraints]\n"y\'" = "sign(x)*phi\'"\n',  # a coefficient that jumps at x = 0
+        '[constraints]\n"y\'" = "tan(phi)*x\'"\n[holonomic]\nz = "z - abs(x)"\n',  # a kink at x = 0
+    ],
+)
+def test_a_jump_that_needs_an_impulse_is_refused_with_a_reason(tmp_path, tables) -> None:
+    """sign() in a constraint's coefficient, abs() in a holonomic relation: the equations hold
+    DiracDelta (an impulse where the argument is zero), which no integrator takes; simulate
+    says so (on 58663b9: "unexpected PrintMethodNotImplementedError … DiracDelta", SymPy's own
+    error from the Python API)."""
+    import chaplygin
+    from chaplygin.errors import ModelError
+
+    f = _blade(tmp_path, "jump", "[energy]\nT = \"(x'^2 + y'^2 + phi'^2 + z'^2)/2\"\n" + tables)
+    with pytest.raises(ModelError, match="contain DiracDelta, the derivative of sign"):
+        chaplygin.simulate(f, "chetaev", 1.0, {"x": -0.5, "x'": 1.0}, samples=3, backend="numpy")

@@ -27,9 +27,10 @@ from typing import Any
 import symengine as se
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
+from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from sympy.printing.pycode import PythonCodePrinter
 
-from chaplygin.errors import ChaplyginError
+from chaplygin.errors import ChaplyginError, ModelError
 
 __all__ = ["NotPrintable", "code", "number"]
 
@@ -127,16 +128,31 @@ def code(expr: Any, language: str) -> str:
     Raises
     ------
     sympy.printing.codeprinter.PrintMethodNotImplementedError
-        For a function C has no translation of (``language="c"``).
+        For a function the language has no translation of.
+    ModelError
+        For ``DiracDelta`` (a derivative of ``sign``), which no language evaluates.
     """
     if not isinstance(expr, sp.Basic):
         try:
             return _print(expr, language == "c")[0]
         except NotPrintable:
             expr = expr._sympy_()
-    if language == "c":
-        return _C({"strict": True}).doprint(expr)
-    return _Python({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
+    try:
+        if language == "c":
+            return _C({"strict": True}).doprint(expr)
+        return _Python({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
+    except PrintMethodNotImplementedError:
+        if expr.has(sp.DiracDelta):  # (no language has it: say why, rather than that C lacks it)
+            raise ModelError(
+                "the equations (or their Jacobian) contain DiracDelta, the derivative of sign() (or "
+                "of abs() differentiated twice): where its argument is zero the motion would jump, an "
+                "impulse that no integrator here takes. sign() and abs() may stand in forces (Coulomb "
+                "friction) and in the coefficients of constraints linear in the velocities; a "
+                "holonomic relation with abs(), a constraint coefficient with sign(), and the "
+                "Jacobian of a force with sign() need that argument to keep its sign: split the run "
+                "where it changes."
+            ) from None
+        raise
 
 
 def _negative(e: Any) -> bool:

@@ -269,6 +269,14 @@ def _main_block(
     return _Block(exprs, _targets(dim, n, g), "c_", skip_zero=dim * dim)
 
 
+def _off_the_kink(e: sp.Expr) -> sp.Expr:
+    """A Jacobian's entry with ``DiracDelta(u)``, the derivative of ``sign(u)``, as what it is off
+    ``u = 0``, zero, and NaN on it (where the Jacobian does not exist)."""
+    if not e.has(sp.DiracDelta):
+        return e
+    return e.replace(sp.DiracDelta, lambda u, *order: sp.Piecewise((sp.nan, sp.Eq(u, 0)), (0, True)))
+
+
 def model_blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block | None, int, int]:
     """The layout; the block filling ``M`` (row-major), ``F`` and the velocities ``V``; with
     ``jacobian``, the block filling ``R[j, r] = ∂(F − M·x)_r/∂y_j`` and ``dV[j, i] = ∂V_i/∂y_j``
@@ -303,7 +311,7 @@ def model_blocks(eqs: Equations, jacobian: bool) -> tuple[Layout, _Block, _Block
         exprs = [residual[r].diff(y_k[j]) for j in range(size) for r in range(dim)]
         exprs += [V[i].diff(y_k[j]) for j in range(size) for i in range(n)]
     else:
-        d = differentiate([*residual, *V], variables)  # rows: residual then V; columns: y_j
+        d = differentiate([*residual, *V], variables).applyfunc(_off_the_kink)  # rows: residual, V
         exprs = [d[r, j] for j in range(size) for r in range(dim)]
         exprs += [d[dim + i, j] for j in range(size) for i in range(n)]
     targets = [("R", j * dim + r, dim) for j in range(size) for r in range(dim)] + [

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import sympy as sp
 
+from chaplygin.core._fast import derivative
 from chaplygin.core._symbols import TIME
 from chaplygin.errors import ChaplyginError, InputError
 from chaplygin.models import registry
@@ -108,6 +109,12 @@ def _generated(eqs: Equations) -> ModuleType:
     return module
 
 
+def _d(e: Any, x: Any) -> Any:
+    """``∂e/∂x``: SymEngine's, or SymPy's with ``Abs`` and ``sign`` differentiated in closed form
+    (plain SymPy writes ``re``/``im`` derivatives for the time and the coordinates, not declared real)."""
+    return derivative(e, x) if isinstance(e, sp.Basic) else e.diff(x)
+
+
 def _linearisation_source(eqs: Equations) -> str:
     """The source of :func:`_generated`'s module."""
     from chaplygin.numeric._layout import state_symbols
@@ -144,19 +151,19 @@ def _linearisation_source(eqs: Equations) -> str:
     items = _common([energy, *own, *flat_rows, *holonomic, *state, *v.x, *v.xd])
     cut = np.cumsum([0, 1, len(own), len(flat_rows), len(holonomic), size, n, n])
     (energy_n,), own_n, rows_n, hol_n, state_n, x_n, xd_n = (items[i:j] for i, j in itertools.pairwise(cut))
-    exprs = [energy_n.diff(y_k) for y_k in state_n]
+    exprs = [_d(energy_n, y_k) for y_k in state_n]
     targets = [("dE", z, 0) for z in range(size)]
     for k, c in enumerate(own_n):
-        exprs += [c.diff(y_k) for y_k in state_n]
+        exprs += [_d(c, y_k) for y_k in state_n]
         targets += [("dI", k * size + z, size) for z in range(size)]
     width = 2 * n + 1
     for b in range(len(rows)):
         a = rows_n[b * (n + 1) : (b + 1) * (n + 1)]
         row = sum((a[j] * xd_n[j] for j in range(n)), a[n])
-        exprs += [*a, *(row.diff(x) for x in x_n)]
+        exprs += [*a, *(_d(row, x) for x in x_n)]
         targets += [("G", b * width + j, width) for j in range(width)]
     for k, f in enumerate(hol_n):
-        exprs += [f, *(f.diff(x) for x in x_n)]
+        exprs += [f, *(_d(f, x) for x in x_n)]
         targets += [("R", k, 0)] + [("H", k * n + j, n) for j in range(n)]
     extra = _Block(_at(exprs, _plain(to_num)), targets, "e_", skip_zero=len(exprs))
 
