@@ -1216,7 +1216,7 @@ def simulate(
         )
         if progress is not None and len(tr.t):
             progress(float(tr.t[-1]))
-        tr.notes = notes
+        tr.notes = notes + _kinks(system, tr, params, method)
         return _watch(system, tr, params, reduced=True)
     if step is not None:
         raise ChaplyginError(
@@ -1298,6 +1298,43 @@ def simulate(
         )
     tr.notes = notes
     return _watch(system, tr, params, reduced=entry.reduced, compiled=compiled, p=p, pole=pole)
+
+
+def _kinks(system: System, tr: Trajectory, params: Mapping[str, float], method: str) -> list[str]:
+    """Notes where the argument of an ``abs`` or ``sign`` of the system (in T, U, the forces or
+    the constraints) changes sign between two samples: the equations have a kink or a jump there,
+    which a fixed-step ``method`` passes at a loss of its order (an adaptive one shortens its steps)."""
+    import sympy as sp
+
+    from chaplygin.core._symbols import TIME, describe
+
+    exprs = [system._T, system._U, *system._Qnp, *system._A, *system._A0]
+    args = sorted({a.args[0] for e in exprs for a in e.atoms(sp.Abs, sp.sign)}, key=sp.default_sort_key)
+    if not args or len(tr.t) < 2:
+        return []
+    v, names = system._vars, [c.func.__name__ for c in system.coordinates]
+    evaluate = _functions(
+        system, "kinks", lambda: sp.lambdify([TIME, *v.x, *v.xd, *system.parameters], args, "numpy")
+    )
+    with np.errstate(all="ignore"):
+        values = evaluate(
+            tr.t,
+            *(tr.coordinates[c] for c in names),
+            *(tr.velocities[c + "'"] for c in names),
+            *(params[par.name] for par in system.parameters),
+        )
+    notes = []
+    for arg, value in zip(args, values):
+        sign = np.sign(np.broadcast_to(np.asarray(value, dtype=float), tr.t.shape))
+        k = np.flatnonzero(sign[1:] * sign[:-1] < 0)
+        if k.size:
+            notes.append(
+                f"{describe(system.to_user(arg))} changes sign between t = {tr.t[k[0]]:.6g} and "
+                f"{tr.t[k[0] + 1]:.6g}{f' ({k.size} times)' if k.size > 1 else ''}: the equations have "
+                f"a kink or a jump there (abs, sign), which the fixed step of {method} passes at a loss of "
+                "its order; compare with a smaller step, or with DOP853"
+            )
+    return notes
 
 
 def _simulate_symmetric(
