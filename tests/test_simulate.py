@@ -495,7 +495,9 @@ def test_a_jump_that_needs_an_impulse_is_refused_with_a_reason(tmp_path, tables)
     from chaplygin.errors import ModelError
 
     f = _blade(tmp_path, "jump", "[energy]\nT = \"(x'^2 + y'^2 + phi'^2 + z'^2)/2\"\n" + tables)
-    with pytest.raises(ModelError, match="contain DiracDelta, the derivative of sign"):
+    with pytest.raises(
+        ModelError, match=r"contain DiracDelta\(x\), the derivative of sign\(x\).*side of x = 0"
+    ):
         chaplygin.simulate(f, "chetaev", 1.0, {"x": -0.5, "x'": 1.0}, samples=3, backend="numpy")
 
 
@@ -516,6 +518,7 @@ def test_a_fixed_step_run_across_a_kink_says_so(tmp_path) -> None:
     fixed = chaplygin.simulate(f, "chaplygin", 2.0, start, samples=21, method="gauss4", step=0.01)
     [note] = [n for n in fixed.notes if "changes sign" in n]
     assert note.startswith("x changes sign between t = 0.4 and 0.5: the equations have a kink"), note
+    assert "not to be trusted (a smaller step does not cure it): run DOP853" in note
     adaptive = chaplygin.simulate(f, "chaplygin", 2.0, start, samples=2001)
     crossing = adaptive.t[np.argmax(adaptive["x"] > 0)]
     assert 0.4 < crossing <= 0.5 and not any("changes sign" in n for n in adaptive.notes)
@@ -523,3 +526,29 @@ def test_a_fixed_step_run_across_a_kink_says_so(tmp_path) -> None:
         f, "chaplygin", 2.0, {**start, "x": 0.5}, samples=21, method="gauss4", step=0.01
     )
     assert right.success and not any("changes sign" in n for n in right.notes)
+
+
+def test_coulomb_friction_linearises_off_its_jump_and_not_on_it(tmp_path) -> None:
+    """A blade driven along x by mu − mu sign(x') − c x'^3 + c (steady at x' = 1, where sign is 1):
+    the Jacobian off the jump drops sign's derivative, and the eigenvalue of x' is the hand value
+    −3c cos²φ (ẍ (1 + tan²φ) = Q_x with y' = tan φ x'); at x' = 0, on the jump, the Jacobian does
+    not exist and stability says so (review of 2baf532: a mutant 5 off the jump still passed; on
+    the jump, a "pole of the mass matrix" was reported)."""
+    import chaplygin
+
+    mu, c, phi = 0.5, 0.3, 0.2
+    f = _blade(
+        tmp_path,
+        "drive",
+        f"[parameters]\nmu = {mu}\nc = {c}\nk = 1.0\n[energy]\nT = \"(x'^2 + y'^2 + phi'^2 + z'^2)/2\"\n"
+        'V = "k*z^2/2"\n[forces]\nx = "mu - mu*sign(x\') - c*x\'^3 + c"\n'
+        '[constraints]\n"y\'" = "tan(phi)*x\'"\n',
+    )
+    point = {"x": 0.0, "phi": phi, "z": 0.0, "x'": 1.0, "phi'": 0.0, "z'": 0.0}
+    result = chaplygin.stability(f.system, point, f.parameters, model="chetaev")
+    real = np.sort(np.real(result.eigenvalues))
+    assert abs(real[0] - (-3 * c * np.cos(phi) ** 2)) < 1e-9, result.eigenvalues
+    with pytest.raises(
+        ChaplyginError, match="the Jacobian of the chetaev equations of drive does not exist there"
+    ):
+        chaplygin.stability(f.system, {**point, "x'": 0.0}, f.parameters, model="chetaev")

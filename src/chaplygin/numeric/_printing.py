@@ -32,7 +32,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from chaplygin.errors import ChaplyginError, ModelError
 
-__all__ = ["NotPrintable", "code", "number"]
+__all__ = ["NotPrintable", "code", "impulse_message", "number"]
 
 
 class NotPrintable(Exception):
@@ -143,16 +143,21 @@ def code(expr: Any, language: str) -> str:
         return _Python({"fully_qualified_modules": True, "standard": "python3"}).doprint(expr)
     except PrintMethodNotImplementedError:
         if expr.has(sp.DiracDelta):  # (no language has it: say why, rather than that C lacks it)
-            raise ModelError(
-                "the equations (or their Jacobian) contain DiracDelta, the derivative of sign() (or "
-                "of abs() differentiated twice): where its argument is zero the motion would jump, an "
-                "impulse that no integrator here takes. sign() and abs() may stand in forces (Coulomb "
-                "friction) and in the coefficients of constraints linear in the velocities; a "
-                "holonomic relation with abs(), a constraint coefficient with sign(), and the "
-                "Jacobian of a force with sign() need that argument to keep its sign: split the run "
-                "where it changes."
-            ) from None
+            raise ModelError(impulse_message([])) from None
         raise
+
+
+def impulse_message(arguments: list[str]) -> str:
+    """Why equations holding ``DiracDelta`` of ``arguments`` (file syntax; none known: []) are not run."""
+    where = ", ".join(arguments) or "its argument"
+    return (
+        f"the equations contain DiracDelta({where}), the derivative of sign({where}) (or of an abs() "
+        f"differentiated twice: sign() in a constraint's coefficient, abs() in a holonomic relation): "
+        f"an impulse where {where} = 0, which no integrator here takes. If the motion stays on one "
+        f"side of {where} = 0, write the expression for that side (sign(u) as 1 or -1, abs(u) as u "
+        "or -u); sign() and abs() may stand in forces and abs() in the coefficients of constraints "
+        "linear in the velocities."
+    )
 
 
 def _negative(e: Any) -> bool:

@@ -41,7 +41,7 @@ import sympy as sp
 from chaplygin.core._fast import cse, native, to_sympy
 from chaplygin.core._native import chetaev_matrices
 from chaplygin.core._symbols import TIME
-from chaplygin.errors import ChaplyginError
+from chaplygin.errors import ChaplyginError, ModelError
 from chaplygin.models import registry
 from chaplygin.numeric import _cfill, _modelcache, targets
 from chaplygin.numeric._ckernel import CompiledModel, Layout
@@ -665,10 +665,25 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
         ``chaplygin[jax]``; see :mod:`chaplygin.numeric.jaxbackend`).
     """
     _check_backend(backend)
+    _no_impulse(eqs)
     cache = eqs.__dict__.setdefault("_compiled", {})  # one compilation per equations and backend
     if backend not in cache:
         cache[backend] = targets.get(backend).compile(eqs)
     return cache[backend]
+
+
+def _no_impulse(eqs: Equations) -> None:
+    """Refuse equations holding ``DiracDelta`` (an impulse: :func:`~chaplygin.numeric._printing.impulse_message`),
+    naming its arguments as the system's file would."""
+    from chaplygin.core._symbols import describe
+    from chaplygin.numeric._printing import impulse_message
+
+    s = eqs.system
+    if not any(e.has(sp.Abs, sp.sign) for e in [s._T, s._U, *s._Qnp, *s._A, *s._A0]):
+        return  # (nothing to differentiate into DiracDelta; nor is SymPy's F computed, if it is not yet)
+    found = {d.args[0] for e in [*eqs._M, *eqs._F] if isinstance(e, sp.Basic) for d in e.atoms(sp.DiracDelta)}
+    if found:
+        raise ModelError(impulse_message(sorted(describe(eqs.system.to_user(u)) for u in found)))
 
 
 def _check_backend(backend: str) -> None:

@@ -1303,7 +1303,8 @@ def simulate(
 def _kinks(system: System, tr: Trajectory, params: Mapping[str, float], method: str) -> list[str]:
     """Notes where the argument of an ``abs`` or ``sign`` of the system (in T, U, the forces or
     the constraints) changes sign between two samples: the equations have a kink or a jump there,
-    which a fixed-step ``method`` passes at a loss of its order (an adaptive one shortens its steps)."""
+    past which a fixed-step ``method`` is not to be trusted: its error there did not fall with its
+    step in the outside review (4.5e-5 at h = 1e-3 and at 2e-4), where DOP853's steps shorten."""
     import sympy as sp
 
     from chaplygin.core._symbols import TIME, describe
@@ -1331,8 +1332,9 @@ def _kinks(system: System, tr: Trajectory, params: Mapping[str, float], method: 
             notes.append(
                 f"{describe(system.to_user(arg))} changes sign between t = {tr.t[k[0]]:.6g} and "
                 f"{tr.t[k[0] + 1]:.6g}{f' ({k.size} times)' if k.size > 1 else ''}: the equations have "
-                f"a kink or a jump there (abs, sign), which the fixed step of {method} passes at a loss of "
-                "its order; compare with a smaller step, or with DOP853"
+                f"a kink or a jump there (abs, sign), and past it this fixed-step {method} run is not to "
+                "be trusted (a smaller step does not cure it): run DOP853, which shortens its steps "
+                "there, or split the run at the crossing"
             )
     return notes
 

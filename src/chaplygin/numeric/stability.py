@@ -361,6 +361,12 @@ def _stability_at(
     lin: Linearization, y: np.ndarray, integrals: Mapping[str, Any] | None, rtol: float
 ) -> Stability:
     f, J = lin.reduced(y)
+    if np.all(np.isfinite(f)) and not np.all(np.isfinite(J)):
+        raise InputError(
+            f"point: the Jacobian of the {lin.model} equations of {lin.system.name} does not exist "
+            "there: the argument of a sign() (or of an abs() differentiated twice) of the system is 0, "
+            "where the equations jump; linearise on either side of it."
+        )
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(J))):
         raise InputError(
             f"point: the {lin.model} equations of {lin.system.name} are singular there (a pole of the "
