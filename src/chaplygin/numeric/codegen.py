@@ -672,14 +672,23 @@ def compile_equations(eqs: Equations, backend: str = "numpy") -> CompiledModel:
     return cache[backend]
 
 
+def kink_arguments(system: System) -> list[sp.Expr]:
+    """The arguments of the ``abs`` and ``sign`` in the system's T, U, forces and constraints
+    (internal symbols, in a fixed order): where one is 0 the equations have a kink or a jump."""
+    if "_kink_arguments" not in system.__dict__:
+        exprs = [system._T, system._U, *system._Qnp, *system._A, *system._A0]
+        found = {a.args[0] for e in exprs for a in e.atoms(sp.Abs, sp.sign)}
+        system.__dict__["_kink_arguments"] = sorted(found, key=sp.default_sort_key)
+    return system.__dict__["_kink_arguments"]
+
+
 def _no_impulse(eqs: Equations) -> None:
     """Refuse equations holding ``DiracDelta`` (an impulse: :func:`~chaplygin.numeric._printing.impulse_message`),
     naming its arguments as the system's file would."""
     from chaplygin.core._symbols import describe
     from chaplygin.numeric._printing import impulse_message
 
-    s = eqs.system
-    if not any(e.has(sp.Abs, sp.sign) for e in [s._T, s._U, *s._Qnp, *s._A, *s._A0]):
+    if not kink_arguments(eqs.system):
         return  # (nothing to differentiate into DiracDelta; nor is SymPy's F computed, if it is not yet)
     found = {d.args[0] for e in [*eqs._M, *eqs._F] if isinstance(e, sp.Basic) for d in e.atoms(sp.DiracDelta)}
     if found:

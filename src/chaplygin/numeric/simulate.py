@@ -1308,9 +1308,9 @@ def _kinks(system: System, tr: Trajectory, params: Mapping[str, float], method: 
     import sympy as sp
 
     from chaplygin.core._symbols import TIME, describe
+    from chaplygin.numeric.codegen import kink_arguments
 
-    exprs = [system._T, system._U, *system._Qnp, *system._A, *system._A0]
-    args = sorted({a.args[0] for e in exprs for a in e.atoms(sp.Abs, sp.sign)}, key=sp.default_sort_key)
+    args = kink_arguments(system)
     if not args or len(tr.t) < 2:
         return []
     v, names = system._vars, [c.func.__name__ for c in system.coordinates]
