@@ -57,7 +57,13 @@ def _disk_members(c, count: int = 12) -> tuple[np.ndarray, np.ndarray]:
     return Y0, P
 
 
-def _assert_same(a: dict, b: dict) -> None:
+def _assert_same(a: dict, b: dict, start: tuple | None = None) -> None:
+    """``a`` and ``b`` bit for bit; ``start`` (compiled, t0, Y0, P): ``a`` is a kernel's run,
+    ``b`` the C loop's, and the kernel's ``observed0`` is the C kernel's observe at the start."""
+    if start is not None:
+        c, t0, Y0, P = start
+        a = dict(a)
+        np.testing.assert_array_equal(a.pop("observed0"), [c.observe(t0, y, p) for y, p in zip(Y0, P)])
     assert a.keys() == b.keys()
     for key in a:
         assert a[key].shape == b[key].shape, key
@@ -72,7 +78,7 @@ def test_host_build_of_the_kernel_takes_the_c_loops_steps(disk_both):
     for budget in (0, 40):  # no limit; then a step budget that stops every member (code 4)
         ours = host.run((0.0, 3.0), Y0, P, times=times, max_steps=budget)
         ref = ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, max_steps=budget, threads=1)
-        _assert_same(ours, ref)
+        _assert_same(ours, ref, (disk_c, 0.0, Y0, P))
         expected = [0 if budget == 0 else 4] * len(Y0)
         expected[3] = 5
         assert list(ours["code"]) == expected
@@ -82,6 +88,7 @@ def test_host_build_of_the_kernel_takes_the_c_loops_steps(disk_both):
     _assert_same(
         host.run((0.0, 1.0), Y0, P, rtol=1e-12, atol=1e-14, max_step=0.05),
         ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, rtol=1e-12, atol=1e-14, max_step=0.05, threads=1),
+        (disk_c, 0.0, Y0, P),
     )
     # observe at many states at once, each with its own parameters: the C kernel's observe
     t = np.linspace(0.0, 1.0, len(Y0))
@@ -110,7 +117,7 @@ def test_host_build_reports_the_c_loops_failures(failing):
     host = _cuda.HostKernel(c.module, Y0.shape[1], P.shape[1])
     times = np.linspace(0.0, 2.0, 21)
     ours = host.run((0.0, 2.0), Y0, P, times=times)
-    _assert_same(ours, ensemble_dop853(c, (0.0, 2.0), Y0, P, times=times, threads=1))
+    _assert_same(ours, ensemble_dop853(c, (0.0, 2.0), Y0, P, times=times, threads=1), (c, 0.0, Y0, P))
     assert ours["code"][0] in (1, 2) and ours["t"][0] == pytest.approx(1.0, abs=1e-3)  # the blow-up
     assert ours["code"][1] == 5 and 0.0 < ours["t"][1] < 0.5  # a step that met the singular mass matrix
     assert ours["code"][2] == 0 and ours["t"][2] == 2.0  # blows up at t = 10 only
@@ -135,6 +142,47 @@ def test_cuda_ensemble_stops_members_at_a_pole_as_the_c_backend(host_as_device):
     for field in ("t", "y", "t_pole", "samples", "energy", "energy_initial", "constraint_residual"):
         np.testing.assert_array_equal(getattr(ens, field), getattr(ref, field), err_msg=field)
     assert ens.messages == ref.messages
+
+
+def test_the_gpu_observes_a_reduced_models_start_in_its_own_run(host_as_device, monkeypatch):
+    """A reduced model's start cannot be off its constraints (the dependent velocities are solved
+    from them), so no check waits for it: the GPU observes the start in the run, from the states
+    and parameters it uploaded for it, not in a pass (an upload, a launch) of its own.  The same
+    start as the C backend's, bit for bit."""
+    from chaplygin.numeric import ensemble as ensemble_module
+
+    disk = examples.rolling_disk()
+    starts = [{**DISK_0, "theta": 0.1 + 0.02 * k, "phi'": 1.0 + 0.1 * k} for k in range(6)]
+    ref = simulate_ensemble(disk, "chaplygin", 0.5, starts, DISK_P, backend="c")
+
+    def refused(*args: Any) -> None:
+        raise AssertionError("observed in a pass of its own")
+
+    monkeypatch.setattr(ensemble_module, "_observe_all", refused)
+    ens = simulate_ensemble(disk, "chaplygin", 0.5, starts, DISK_P, backend="cuda")
+    assert ens.backend == "cuda" and ens.success.all()
+    for field in ("energy_initial", "energy", "y", "constraint_residual"):
+        np.testing.assert_array_equal(getattr(ens, field), getattr(ref, field), err_msg=field)
+    for name, values in ref.velocities_initial.items():
+        np.testing.assert_array_equal(ens.velocities_initial[name], values, err_msg=name)
+
+
+def test_a_multiplier_models_start_off_its_constraints_is_refused_before_the_run(host_as_device, monkeypatch):
+    """The Chetaev model integrates every velocity: a row off the constraints is refused, naming
+    it, on the GPU as on the CPU, before any member is integrated."""
+    disk = examples.rolling_disk()
+    Y0 = simulate_ensemble(disk, "chetaev", 0.01, [DISK_0] * 4, DISK_P, backend="c").y_initial.copy()
+    layout = compile_model(disk, "chetaev", "classic", "c").layout
+    Y0[2, layout.state.index("x'")] += 0.5
+
+    def refused(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("integrated")
+
+    monkeypatch.setattr(_cuda.HostKernel, "run", refused)
+    monkeypatch.setattr("chaplygin.numeric._loop.ensemble_dop853", refused)
+    for backend in ("cuda", "c"):
+        with pytest.raises(ChaplyginError, match=r"rows \[2\] violate the constraints"):
+            simulate_ensemble(disk, "chetaev", 0.5, Y0, DISK_P, backend=backend, time_limit=None)
 
 
 def test_auto_takes_the_gpu_for_large_ensembles_only(host_as_device, monkeypatch):
@@ -235,6 +283,7 @@ def _fake_cupy(free_bytes: int) -> Any:
     return types.SimpleNamespace(
         cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=wrap(np.asarray),
         ascontiguousarray=wrap(np.ascontiguousarray), empty=wrap(np.empty), zeros=wrap(np.zeros),
+        full=wrap(np.full),
     )  # fmt: skip
 
 
@@ -243,18 +292,18 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     the kernel by its host build: the C loop's results, in chunks of 5 members of 12."""
     Y0, P = _disk_members(disk_c)
     n, k = Y0.shape[1], 7
-    per_member = 8 * 2 * (n + P.shape[1] + k * n + n + disk_c.module.N_OBSERVED + 3)
+    per_member = 8 * 2 * (n + P.shape[1] + k * n + n + 2 * disk_c.module.N_OBSERVED + 4)
     monkeypatch.setitem(sys.modules, "cupy", _fake_cupy(int(5.5 * per_member / _cuda.MEMORY_SHARE)))
     gpu = _cuda.DeviceKernel(disk_c.module, n, P.shape[1])
     assert gpu._chunk(len(Y0), per_member // 8) == 5
     # a preference the driver cannot take (the stand-in has none) is noted, not fatal
     assert "carveout not set" in _cuda.DeviceKernel(disk_c.module, n, P.shape[1], carveout=0).options[-1]
     times = np.linspace(0.0, 3.0, k)
-    _assert_same(
-        gpu.run((0.0, 3.0), Y0, P, times=times),
-        ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, threads=1),
-    )
-    _assert_same(gpu.run((0.0, 1.0), Y0, P), ensemble_dop853(disk_c, (0.0, 1.0), Y0, P, threads=1))
+    for t_end, kept in ((3.0, times), (1.0, None)):  # (the start observed from each chunk's upload)
+        ours = gpu.run((0.0, t_end), Y0, P, times=kept)
+        _assert_same(
+            ours, ensemble_dop853(disk_c, (0.0, t_end), Y0, P, times=kept, threads=1), (disk_c, 0.0, Y0, P)
+        )
     t = np.linspace(0.0, 1.0, len(Y0))
     np.testing.assert_array_equal(gpu.observe(t, Y0, P), [disk_c.observe(*row) for row in zip(t, Y0, P)])
     # a launch capped at one warp per multiprocessor asks NVRTC for the strided entry (which the
@@ -348,6 +397,7 @@ def test_the_device_entry_covers_every_member_once_in_any_grid(disk_c, tmp_path)
             check=True, capture_output=True, timeout=300,
         )  # fmt: skip
     reference = _cuda.HostKernel(disk_c.module, n, P.shape[1]).run((0.0, 2.0), Y0, P)
+    del reference["observed0"]  # (the grid driver runs the members' entry only)
     assert list(reference["code"]) == [0, 0, 0, 5] + [0] * 8
     atol, none = np.full(n, 1e-12), np.empty(0)
 

@@ -325,10 +325,17 @@ class _Arrays:
 
 
 def _result(
-    t_last: np.ndarray, last: np.ndarray, obs: np.ndarray, code: np.ndarray, n_rhs: np.ndarray, samples: Any
+    t_last: np.ndarray,
+    last: np.ndarray,
+    obs: np.ndarray,
+    code: np.ndarray,
+    n_rhs: np.ndarray,
+    samples: Any,
+    obs0: np.ndarray,
 ) -> dict[str, np.ndarray]:
-    """The arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`, members first."""
-    result = {"t": t_last, "y": last, "observed": obs, "code": code, "n_rhs": n_rhs}
+    """The arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`, members first, and
+    ``observed0``: ``observe`` at every member's start."""
+    result = {"t": t_last, "y": last, "observed": obs, "code": code, "n_rhs": n_rhs, "observed0": obs0}
     if samples is not None:
         result["samples"] = samples
     return result
@@ -367,7 +374,8 @@ class HostKernel:
         max_step: float = np.inf,
         max_steps: int = 0,
     ) -> dict[str, np.ndarray]:
-        """Every row of ``Y0`` (parameters ``P``): the arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`."""
+        """Every row of ``Y0`` (parameters ``P``): the arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`,
+        and ``observed0``, ``observe`` at the start."""
         a = _Arrays(Y0, P, times, rtol, atol, self.kernel.N_OBSERVED)
         m, n, k = a.members, a.n, a.t_out.size
         y0, p = _soa(a.Y0), _soa(a.P)
@@ -386,7 +394,8 @@ class HostKernel:
             ptr(code), ptr(n_rhs),
         )  # fmt: skip
         samples = np.ascontiguousarray(out.transpose(2, 0, 1)) if times is not None else None
-        return _result(t_last, _soa(last), _soa(obs), code, n_rhs, samples)
+        obs0 = self.observe(np.full(m, float(t_span[0])), a.Y0, a.P)
+        return _result(t_last, _soa(last), _soa(obs), code, n_rhs, samples, obs0)
 
     def observe(self, t: np.ndarray, Y: np.ndarray, P: np.ndarray) -> np.ndarray:
         """``observe`` of every member at ``(t[m], Y[m], P[m])``, one row each."""
@@ -495,17 +504,18 @@ class DeviceKernel:
         chunk: int | None = None,
     ) -> dict[str, np.ndarray]:
         """Every row of ``Y0`` (parameters ``P``) on the GPU, in chunks that fit its memory: the
-        arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`."""
+        arrays of :func:`chaplygin.numeric._loop.ensemble_dop853`, and ``observed0``, ``observe``
+        at the start (from the states and parameters already on the device: no second upload)."""
         cp = self.cp
         clock = {"host": time.perf_counter(), "upload": 0.0, "kernel": 0.0, "download": 0.0}
         a = _Arrays(Y0, P, times, rtol, atol, self.kernel.N_OBSERVED)
         m_all, n, k = a.members, a.n, a.t_out.size
         width_p = a.P.shape[1]
         # per member: inputs and outputs, each once members-first and once members-last
-        per_member = 2 * (n + width_p + k * n + n + a.n_obs + 3)
+        per_member = 2 * (n + width_p + k * n + n + 2 * a.n_obs + 4)
         step = chunk or self._chunk(m_all, per_member)
         t_last, last = np.empty(m_all), np.empty((m_all, n))
-        obs = np.empty((m_all, a.n_obs))
+        obs, obs0 = np.empty((m_all, a.n_obs)), np.empty((m_all, a.n_obs))
         code, n_rhs = np.empty(m_all, dtype=np.int64), np.empty(m_all, dtype=np.int64)
         samples = np.empty((m_all, k, n)) if times is not None else None
         t_out, atol_d = cp.asarray(a.t_out), cp.asarray(a.atol)
@@ -525,6 +535,7 @@ class DeviceKernel:
                 obs_d, code_d, rhs_d,
             )  # fmt: skip
             mark = self._lap(clock, "upload", mark)
+            obs0_d = self._observe_device(cp.full(m, float(t_span[0])), y0, p)
             block, blocks = launch(m, self.multiprocessors, self.resident)
             self._members((blocks,), (block,), args)
             mark = self._lap(clock, "kernel", mark)
@@ -533,14 +544,15 @@ class DeviceKernel:
             t_d.get(out=t_last[lo:hi])
             cp.ascontiguousarray(last_d.T).get(out=last[lo:hi])
             cp.ascontiguousarray(obs_d.T).get(out=obs[lo:hi])
+            cp.ascontiguousarray(obs0_d.T).get(out=obs0[lo:hi])
             code_d.get(out=code[lo:hi])
             rhs_d.get(out=n_rhs[lo:hi])
             if samples is not None:
                 cp.ascontiguousarray(out.transpose(2, 0, 1)).get(out=samples[lo:hi])
-            del out, last_d, t_d, obs_d, code_d, rhs_d, y0, p
+            del out, last_d, t_d, obs_d, obs0_d, code_d, rhs_d, y0, p
             self._lap(clock, "download", mark)
         self.timings = clock
-        return _result(t_last, last, obs, code, n_rhs, samples)
+        return _result(t_last, last, obs, code, n_rhs, samples, obs0)
 
     def _lap(self, clock: dict[str, float], phase: str, mark: float) -> float:
         """Adds the seconds since ``mark`` to ``clock[phase]`` once the device is done; now."""
@@ -554,11 +566,16 @@ class DeviceKernel:
         cp = self.cp
         m = len(t)
         Y, P = np.asarray(Y, dtype=float), np.asarray(P, dtype=float)
-        obs = cp.empty((self.kernel.N_OBSERVED, m))
-        if m:
-            y = cp.ascontiguousarray(cp.asarray(Y).T)
-            p = cp.ascontiguousarray(cp.asarray(P).T) if P.shape[1] else cp.zeros((0, m))
-            args = (np.int64(m), cp.asarray(np.asarray(t, dtype=float)), y, p, obs)
-            block = block_size(m, self.multiprocessors)
-            self._observe((math.ceil(m / block),), (block,), args)
+        y = cp.ascontiguousarray(cp.asarray(Y).T)
+        p = cp.ascontiguousarray(cp.asarray(P).T) if P.shape[1] else cp.zeros((0, m))
+        obs = self._observe_device(cp.asarray(np.asarray(t, dtype=float)), y, p)
         return cp.ascontiguousarray(obs.T).get()
+
+    def _observe_device(self, t: Any, y: Any, p: Any) -> Any:
+        """``observe`` of the members of device arrays ``t`` (m), ``y`` (n × m), ``p``: n_obs × m."""
+        m = len(t)
+        obs = self.cp.empty((self.kernel.N_OBSERVED, m))
+        if m:
+            block = block_size(m, self.multiprocessors)
+            self._observe((math.ceil(m / block),), (block,), (np.int64(m), t, y, p, obs))
+        return obs

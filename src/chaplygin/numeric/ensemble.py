@@ -632,8 +632,14 @@ def simulate_ensemble(
 
     g = system.g
     n_coords = len(layout.coordinates)
-    obs0 = _observe_all(compiled, np.full(n, t0), Y0, P)
-    if g:
+    # a multiplier model integrates every velocity: its start may violate the constraints, and is
+    # checked before the run; a reduced one solves the dependent velocities from them
+    start_checked = bool(g) and not entry.reduced
+    obs0 = None  # (observed in the run, on its device, where the target does so)
+    if start_checked or not target.observes_start:
+        obs0 = _observe_all(compiled, np.full(n, t0), Y0, P)
+    if start_checked:
+        assert obs0 is not None
         resid0 = _row_max_abs(obs0[:, 1 : 1 + g])
         speed = np.maximum(1.0, _row_max_abs(obs0[:, obs0.shape[1] - n_coords :]))
         bad = np.flatnonzero(resid0 > 1e-8 * speed)
@@ -688,6 +694,9 @@ def simulate_ensemble(
     else:
         res = integrate(slice(None), times)
     wall = time.perf_counter() - start
+    observed0 = res.pop("observed0", None)  # (the target's observes_start)
+    obs0 = observed0 if obs0 is None else obs0
+    assert obs0 is not None
 
     obs = res["observed"]
     velocities = obs[:, obs.shape[1] - n_coords :]

@@ -144,6 +144,9 @@ class Target:
     ensemble_methods: tuple[str, ...] = ("DOP853",)
     #: whether an ensemble's duration is estimated beforehand from its first member (the CPU loops)
     paced: bool = False
+    #: whether :meth:`ensemble` also returns ``observed0``, ``observe`` at every member's start
+    #: (the GPU: from the states already on the device, in the same pass)
+    observes_start: bool = False
     #: whether the symmetric fixed-step methods (:mod:`~chaplygin.numeric.symmetric`) run on it
     symmetric: bool = False
     #: how :meth:`build` prints the generated Python module (:func:`~chaplygin.numeric.codegen._module`):

@@ -23,6 +23,7 @@ class Cuda(Target):
     """The C target's model with the GPU kernel built from it."""
 
     name = "cuda"
+    observes_start = True
 
     def unavailable(self) -> str | None:
         from chaplygin.numeric import _cuda
