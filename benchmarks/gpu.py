@@ -29,8 +29,8 @@ Flops per right-hand side are counted, roughly, from the generated C ``fill``: i
 (a double-precision ``sin`` on a GPU is some 20–40 instructions), the mass-matrix solve as
 ``2/3·dim³ + 2·dim²`` and DOP853's own stage arithmetic as ``20·n`` (240·n flops over the 12
 evaluations of a step).  The peak is SMs × FP64 units per SM × 2 (a fused multiply-add) × clock
-(``--peak-tflops`` overrides it); the kernel runs without FMA contraction (``--fmad`` allows it),
-so half that peak is its ceiling.
+(``--peak-tflops`` overrides it); the kernel contracts into fused multiply-adds (``--no-fmad``:
+not, and half that peak is its ceiling).
 
 ``--check`` compares ``--check-members`` members of each case on the GPU with the C loop (the
 same members, ``backend="c"``), among them members with no inertia (a singular mass matrix,
@@ -215,16 +215,16 @@ def check(cases: list[str], members: int) -> bool:
     return good
 
 
-#: the cuda variants a backend label may name after "cuda:", joined by "+" (e.g. cuda:r128+fmad)
+#: the cuda variants a backend label may name after "cuda:", joined by "+" (e.g. cuda:r128+nofmad)
 VARIANTS = {
     "call": {"inline": False},  # one called copy of the right-hand side instead of inlined ones
     "libpow": {"library_pow": True},
-    "fmad": {"fmad": True},
+    "nofmad": {"fmad": False},  # no contraction into fused multiply-adds (the host's arithmetic)
     "l1": {"carveout": 0},  # all of L1 as cache (the stages K live in local memory)
 }
 #: DeviceKernel options of the cell being run (set per backend label; read by the patched __init__)
 TUNED: dict[str, Any] = {}
-#: DeviceKernel options of every cuda label (--fmad, --maxrregcount)
+#: DeviceKernel options of every cuda label (--no-fmad, --maxrregcount)
 BASE: dict[str, Any] = {}
 #: the DeviceKernel built last (its registers, local memory, timings)
 BUILT: list[Any] = []
@@ -498,15 +498,19 @@ def main() -> None:
         help="the C loop's measured subset, where it extrapolates",
     )
     parser.add_argument("--peak-tflops", type=float, default=None, help="the device's FP64 peak")
-    parser.add_argument("--fmad", action="store_true", help="let NVRTC contract into fused multiply-adds")
+    parser.add_argument(
+        "--no-fmad",
+        action="store_true",
+        help="no contraction into fused multiply-adds (the host's arithmetic)",
+    )
     parser.add_argument(
         "--host-build", action="store_true", help="run 'cuda' on the kernel's host build (no GPU)"
     )
     parser.add_argument("--maxrregcount", type=int, default=None, help="NVRTC's register limit per thread")
     args = parser.parse_args()
     patch_device_kernel()
-    if args.fmad or args.maxrregcount:  # (for every cuda label; variants: --backends cuda:r128,...)
-        BASE.update({"fmad": args.fmad, "registers": args.maxrregcount})
+    if args.no_fmad or args.maxrregcount:  # (for every cuda label; variants: --backends cuda:r128,...)
+        BASE.update({"fmad": not args.no_fmad, "registers": args.maxrregcount})
         print(f"kernel options: {BASE}")
     TUNED.update(BASE)
     if args.check:

@@ -238,9 +238,27 @@ class _Array(np.ndarray):
 
 def _fake_cupy(free_bytes: int) -> Any:
     """CuPy as far as DeviceKernel uses it: arrays are NumPy's, a kernel launch calls the host
-    build of the same source, and the device has ``free_bytes`` free (to force chunks)."""
+    build of the same source, and the device has ``free_bytes`` free (to force chunks).  Its
+    ``events`` list the launches (kernel, members, stream) and the waits for a stream."""
     import ctypes
     import types
+
+    events: list[tuple[str, Any, Any]] = []
+    current: list[Any] = [None]  # the stream of a `with stream:` block
+
+    class Stream:
+        def __init__(self, non_blocking: bool = False) -> None:
+            assert non_blocking  # (not synchronised with the legacy default stream)
+
+        def __enter__(self) -> Stream:
+            current.append(self)
+            return self
+
+        def __exit__(self, *exc: Any) -> None:
+            current.pop()
+
+        def synchronize(self) -> None:
+            events.append(("wait", None, self))
 
     def wrap(f):
         return lambda *a, **k: np.asarray(f(*a, **k)).view(_Array)
@@ -252,7 +270,7 @@ def _fake_cupy(free_bytes: int) -> Any:
 
     class RawModule:
         def __init__(self, code: str, options: tuple = ()) -> None:
-            assert "--fmad=false" in options
+            assert "--fmad=true" in options  # (the default: contraction into fused multiply-adds)
             digest, so = _ckernel.library(code, "cuda_host")
             self.lib, self.digest = ctypes.CDLL(str(so)), digest
 
@@ -267,6 +285,7 @@ def _fake_cupy(free_bytes: int) -> Any:
                 c_args = [ctypes.c_long(x) if isinstance(x, int) else x for x in c_args]
                 if name == "chaplygin_members":  # the host build: (start, stop, members, ...)
                     c_args = [ctypes.c_long(0), *c_args[:1], *c_args]
+                events.append((name, int(args[0]), current[-1]))
                 fn(*c_args)
 
             return launch
@@ -279,28 +298,43 @@ def _fake_cupy(free_bytes: int) -> Any:
             pass
 
     runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, deviceGetAttribute=lambda attribute, device: 2)
-    cuda = types.SimpleNamespace(runtime=runtime, Device=Device)
+    cuda = types.SimpleNamespace(runtime=runtime, Device=Device, Stream=Stream)
     return types.SimpleNamespace(
         cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=wrap(np.asarray),
         ascontiguousarray=wrap(np.ascontiguousarray), empty=wrap(np.empty), zeros=wrap(np.zeros),
-        full=wrap(np.full),
+        full=wrap(np.full), events=events,
     )  # fmt: skip
 
 
 def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     """DeviceKernel's layout (members last), chunks and launches, with CuPy replaced by NumPy and
-    the kernel by its host build: the C loop's results, in chunks of 5 members of 12."""
+    the kernel by its host build: the C loop's results, in chunks of 2 members of 12 (the memory
+    of 5, two chunks on the device at a time), each launched before the one before it is
+    downloaded, on alternate streams."""
     Y0, P = _disk_members(disk_c)
     n, k = Y0.shape[1], 7
     per_member = 8 * 2 * (n + P.shape[1] + k * n + n + 2 * disk_c.module.N_OBSERVED + 4)
-    monkeypatch.setitem(sys.modules, "cupy", _fake_cupy(int(5.5 * per_member / _cuda.MEMORY_SHARE)))
+    cupy = _fake_cupy(int(5.5 * per_member / _cuda.MEMORY_SHARE))
+    monkeypatch.setitem(sys.modules, "cupy", cupy)
     gpu = _cuda.DeviceKernel(disk_c.module, n, P.shape[1])
     assert gpu._chunk(len(Y0), per_member // 8) == 5
     # a preference the driver cannot take (the stand-in has none) is noted, not fatal
     assert "carveout not set" in _cuda.DeviceKernel(disk_c.module, n, P.shape[1], carveout=0).options[-1]
     times = np.linspace(0.0, 3.0, k)
-    for t_end, kept in ((3.0, times), (1.0, None)):  # (the start observed from each chunk's upload)
-        ours = gpu.run((0.0, t_end), Y0, P, times=kept)
+    # (without samples a member needs less memory: chunks of 6)
+    for t_end, kept, sizes in ((3.0, times, [2] * 6), (1.0, None, [6, 6])):
+        del cupy.events[:]
+        ours = gpu.run((0.0, t_end), Y0, P, times=kept)  # (the start observed from each chunk's upload)
+        chunks = [(m, stream) for name, m, stream in cupy.events if name == "chaplygin_members"]
+        assert [m for m, _ in chunks] == sizes and None not in {stream for _, stream in chunks}
+        assert chunks[0][1] is not chunks[1][1] and all(a[1] is b[1] for a, b in zip(chunks, chunks[2:]))
+        # each chunk's start observed on its stream before its members run
+        assert [e[1:] for e in cupy.events if e[0] == "chaplygin_observe"] == chunks
+        waits = [e[2] for e in cupy.events if e[0] == "wait"]
+        assert waits == [stream for _, stream in chunks]  # each chunk waited for once, in order
+        at = {e: [j for j, f in enumerate(cupy.events) if f[0] == e] for e in ("chaplygin_members", "wait")}
+        for i in range(1, len(sizes)):  # chunk i launched before chunk i - 1 is waited for
+            assert at["chaplygin_members"][i] < at["wait"][i - 1]
         _assert_same(
             ours, ensemble_dop853(disk_c, (0.0, t_end), Y0, P, times=kept, threads=1), (disk_c, 0.0, Y0, P)
         )
