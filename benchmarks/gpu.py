@@ -86,6 +86,7 @@ import numpy as np
 from chaplygin import examples
 from chaplygin.models import registry
 from chaplygin.numeric import _cuda
+from chaplygin.numeric import ensemble as _ensemble
 from chaplygin.numeric.codegen import compile_model
 from chaplygin.numeric.ensemble import simulate_ensemble
 
@@ -261,6 +262,33 @@ def patch_device_kernel() -> None:
     _cuda.DeviceKernel.__init__ = tuned  # type: ignore[method-assign]
 
 
+#: seconds simulate_ensemble spent in each step around the loop (:func:`patch_phases`)
+PHASES: dict[str, float] = {}
+_PHASE_OF = {
+    "_compile": "compile",
+    "_parameter_matrix": "parameters",
+    "_states": "states",
+    "_observe_all": "observe",
+    "_row_max_abs": "residuals",
+    "holonomic_residual": "holonomic",
+}
+
+
+def patch_phases() -> None:
+    """The steps of simulate_ensemble around its loop, timed into :data:`PHASES`."""
+    for name, phase in _PHASE_OF.items():
+        original = getattr(_ensemble, name)
+
+        def timed(*a: Any, _original: Any = original, _phase: str = phase, **kw: Any) -> Any:
+            t = time.perf_counter()
+            try:
+                return _original(*a, **kw)
+            finally:
+                PHASES[_phase] = PHASES.get(_phase, 0.0) + time.perf_counter() - t
+
+        setattr(_ensemble, name, timed)
+
+
 def resident(kernel: Any, block: int = _cuda.BLOCK) -> tuple[int | None, str]:
     """Members the device runs at once (a wave), from the kernel's registers; and a description."""
     fn = getattr(kernel, "_members", None)
@@ -415,6 +443,7 @@ def bench(args: argparse.Namespace) -> None:
                     print(f"{case:13s} {label:12s} {members:9d}  skipped (estimate {guess * members:.0f} s)")
                     continue
                 Y0 = prob.states(members)
+                PHASES.clear()
                 if backend == "jax":
                     prob.run(backend, Y0)  # jit for this shape
                 t = time.perf_counter()
@@ -422,6 +451,7 @@ def bench(args: argparse.Namespace) -> None:
                 wall = time.perf_counter() - t
                 note = ""
                 if backend == "cuda" and wall < args.max_seconds / 2:  # warm, as JAX's (its pool grown)
+                    PHASES.clear()
                     t = time.perf_counter()
                     ens = prob.run(backend, Y0)
                     wall, note = time.perf_counter() - t, f"  (the first run at this size: {wall:.3f} s)"
@@ -433,10 +463,15 @@ def bench(args: argparse.Namespace) -> None:
                     wave = wall / -(-members // capacity)
                 row(case, label, members, wall, ens.wall_time, float(ens.rhs_evaluations.sum()),
                     int(np.count_nonzero(ens.code)), note)  # fmt: skip
-                if backend == "cuda" and BUILT:
-                    parts = ", ".join(f"{k} {v:.3f}" for k, v in BUILT[0].timings.items())
+                if backend == "cuda":  # (a host build has no phases of its loop)
+                    parts = (
+                        ", ".join(f"{k} {v:.3f}" for k, v in (BUILT[0].timings if BUILT else {}).items())
+                        or "-"
+                    )
+                    steps = ", ".join(f"{k} {v:.3f}" for k, v in PHASES.items())
                     print(
-                        f"{'':13s} {'':12s} {'':9s} (loop: {parts}; outside the loop {wall - ens.wall_time:.3f} s)"
+                        f"{'':13s} {'':12s} {'':9s} (loop: {parts}; outside the loop {wall - ens.wall_time:.3f} s: "
+                        f"{steps or 'no step timed'})"
                     )
             if backend == "cuda" and not args.host_build:  # CuPy's cached blocks back before JAX allocates
                 import cupy
@@ -509,6 +544,7 @@ def main() -> None:
     parser.add_argument("--maxrregcount", type=int, default=None, help="NVRTC's register limit per thread")
     args = parser.parse_args()
     patch_device_kernel()
+    patch_phases()
     if args.no_fmad or args.maxrregcount:  # (for every cuda label; variants: --backends cuda:r128,...)
         BASE.update({"fmad": not args.no_fmad, "registers": args.maxrregcount})
         print(f"kernel options: {BASE}")

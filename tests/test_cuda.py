@@ -239,7 +239,8 @@ class _Array(np.ndarray):
 def _fake_cupy(free_bytes: int) -> Any:
     """CuPy as far as DeviceKernel uses it: arrays are NumPy's, a kernel launch calls the host
     build of the same source, and the device has ``free_bytes`` free (to force chunks).  Its
-    ``events`` list the launches (kernel, members, stream) and the waits for a stream."""
+    ``events`` list the uploads ("upload", shape, stream), the launches (kernel, members, stream)
+    and the waits for a stream."""
     import ctypes
     import types
 
@@ -262,6 +263,11 @@ def _fake_cupy(free_bytes: int) -> Any:
 
     def wrap(f):
         return lambda *a, **k: np.asarray(f(*a, **k)).view(_Array)
+
+    def upload(x, *args, **kwargs):
+        if not isinstance(x, _Array):  # (from the host)
+            events.append(("upload", np.shape(x), current[-1]))
+        return wrap(np.asarray)(x, *args, **kwargs)
 
     def pointer(x):
         if isinstance(x, np.ndarray):
@@ -300,7 +306,7 @@ def _fake_cupy(free_bytes: int) -> Any:
     runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, deviceGetAttribute=lambda attribute, device: 2)
     cuda = types.SimpleNamespace(runtime=runtime, Device=Device, Stream=Stream)
     return types.SimpleNamespace(
-        cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=wrap(np.asarray),
+        cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=upload, broadcast_to=wrap(np.broadcast_to),
         ascontiguousarray=wrap(np.ascontiguousarray), empty=wrap(np.empty), zeros=wrap(np.zeros),
         full=wrap(np.full), events=events,
     )  # fmt: skip
@@ -338,6 +344,12 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
         _assert_same(
             ours, ensemble_dop853(disk_c, (0.0, t_end), Y0, P, times=kept, threads=1), (disk_c, 0.0, Y0, P)
         )
+    # one parameter vector for all (simulate_ensemble's view of one row, for numbers): uploaded
+    # as one row, the same results as the full matrix's
+    del cupy.events[:]
+    one = gpu.run((0.0, 1.0), Y0, np.broadcast_to(P[0], P.shape))
+    assert [e[1] for e in cupy.events if e[0] == "upload"] == [(0,), (n,)] + [(n, 6), (P.shape[1],)] * 2
+    _assert_same(one, gpu.run((0.0, 1.0), Y0, np.tile(P[0], (len(P), 1))))
     t = np.linspace(0.0, 1.0, len(Y0))
     np.testing.assert_array_equal(gpu.observe(t, Y0, P), [disk_c.observe(*row) for row in zip(t, Y0, P)])
     # a launch capped at one warp per multiprocessor asks NVRTC for the strided entry (which the

@@ -323,7 +323,11 @@ class _Arrays:
 
     def __init__(self, Y0: Any, P: Any, times: Any, rtol: float, atol: Any, n_obs: int) -> None:
         self.Y0 = np.ascontiguousarray(Y0, dtype=float)
-        self.P = np.ascontiguousarray(P, dtype=float)
+        P = np.asarray(P, dtype=float)
+        #: one row of parameters for every member (a view of one row, as simulate_ensemble's for
+        #: numbers): uploaded once and repeated on the device
+        self.uniform = P.ndim == 2 and P.shape[0] > 0 and P.strides[0] == 0
+        self.P = P if self.uniform else np.ascontiguousarray(P)
         self.members, self.n = self.Y0.shape
         if self.P.shape[0] != self.members:
             raise ChaplyginError(
@@ -540,9 +544,14 @@ class DeviceKernel:
             """Members lo .. hi-1 uploaded and launched on ``stream`` (returns at once)."""
             mark, hi = time.perf_counter(), min(m_all, lo + step)
             m = hi - lo
-            with stream:
-                y0 = cp.ascontiguousarray(cp.asarray(a.Y0[lo:hi]).T)
-                p = cp.ascontiguousarray(cp.asarray(a.P[lo:hi]).T) if width_p else cp.zeros((0, m))
+            with stream:  # (transposed on the host: a kernel on the device waits for free slots)
+                y0 = cp.asarray(_soa(a.Y0[lo:hi]))
+                if not width_p:
+                    p = cp.zeros((0, m))
+                elif a.uniform:
+                    p = cp.ascontiguousarray(cp.broadcast_to(cp.asarray(a.P[0])[:, None], (width_p, m)))
+                else:
+                    p = cp.asarray(_soa(a.P[lo:hi]))
                 # (the inputs kept with the outputs until the chunk is done: the kernels are queued)
                 d = {"y0": y0, "p": p, "t0": cp.full(m, float(t_span[0])), "t": cp.empty(m)}
                 d.update(out=cp.empty((k, n, m)), last=cp.empty((n, m)), obs=cp.empty((a.n_obs, m)))
@@ -559,20 +568,21 @@ class DeviceKernel:
             return lo, hi, stream, d
 
         def finish(lo: int, hi: int, stream: Any, d: dict[str, Any]) -> None:
-            """Waits for a chunk's kernel and copies its results into rows lo .. hi-1 (contiguous
-            rows of C-contiguous arrays: no host copy of each download)."""
+            """Waits for a chunk's kernel and copies its results into rows lo .. hi-1, transposed
+            on the host: a transposing kernel on the device would wait for the slots of the next
+            chunk's (on an H100, 10⁶ disks in 8 chunks: 0.39 s of downloads, 0.07 s in one chunk)."""
             mark = time.perf_counter()
             stream.synchronize()
             clock["kernel"] += time.perf_counter() - mark
             mark = time.perf_counter()
             with stream:
                 d["t"].get(out=t_last[lo:hi])
-                for key, into in (("last", last), ("obs", obs), ("obs0", obs0)):
-                    cp.ascontiguousarray(d[key].T).get(out=into[lo:hi])
                 d["code"].get(out=code[lo:hi])
                 d["rhs"].get(out=n_rhs[lo:hi])
+                for key, into in (("last", last), ("obs", obs), ("obs0", obs0)):
+                    into[lo:hi] = d[key].get().T
                 if samples is not None:
-                    cp.ascontiguousarray(d["out"].transpose(2, 0, 1)).get(out=samples[lo:hi])
+                    samples[lo:hi] = d["out"].get().transpose(2, 0, 1)
             clock["download"] += time.perf_counter() - mark
 
         # chunk i + 1 is launched before chunk i is downloaded: its kernel runs while the host

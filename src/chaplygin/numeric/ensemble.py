@@ -272,11 +272,15 @@ class Ensemble:
 def _parameter_matrix(
     system: System, layout: Layout, parameters: Mapping[Any, Any] | None, n: int
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """``P`` of shape (n, len(layout.parameters)): numbers broadcast, arrays of length n per member."""
+    """``P`` of shape (n, len(layout.parameters)): numbers broadcast, arrays of length n per member.
+    Where every parameter is one number, ``P`` is one row seen n times (a read-only view: no
+    n × k array to fill, and the GPU uploads the row once)."""
     columns: dict[str, np.ndarray] = {}
+    uniform = True
     for key, value in (parameters or {}).items():
         name = system.parameter(key).name
         arr = np.asarray(value, dtype=float)
+        uniform = uniform and arr.ndim == 0
         if arr.ndim == 0:
             arr = np.full(n, float(arr))
         if arr.shape != (n,):
@@ -290,12 +294,14 @@ def _parameter_matrix(
             f"parameters: no value for {', '.join(missing)}; every parameter of {system.name} "
             f"({', '.join(layout.parameters)}) needs a number or an array."
         )
-    P = (
-        np.column_stack([columns[name] for name in layout.parameters])
-        if layout.parameters
-        else np.zeros((n, 0))
-    )
-    return np.ascontiguousarray(P), {name: columns[name] for name in layout.parameters}
+    kept = {name: columns[name] for name in layout.parameters}
+    if not layout.parameters:
+        return np.zeros((n, 0)), kept
+    if uniform:
+        return np.broadcast_to(
+            np.array([columns[name][0] for name in layout.parameters]), (n, len(kept))
+        ), kept
+    return np.ascontiguousarray(np.column_stack(list(kept.values()))), kept
 
 
 def _states(
