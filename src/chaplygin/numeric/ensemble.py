@@ -270,11 +270,11 @@ class Ensemble:
 
 # ------------------------------------------------------------------ inputs
 def _parameter_matrix(
-    system: System, layout: Layout, parameters: Mapping[Any, Any] | None, n: int
+    system: System, layout: Layout, parameters: Mapping[Any, Any] | None, n: int, one_row: bool = False
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """``P`` of shape (n, len(layout.parameters)): numbers broadcast, arrays of length n per member.
-    Where every parameter is one number, ``P`` is one row seen n times (a read-only view: no
-    n × k array to fill, and the GPU uploads the row once)."""
+    ``one_row`` (:attr:`~chaplygin.numeric.targets.Target.one_parameter_row`): where every
+    parameter is one number, ``P`` is one row seen n times, a read-only view."""
     columns: dict[str, np.ndarray] = {}
     uniform = True
     for key, value in (parameters or {}).items():
@@ -297,7 +297,7 @@ def _parameter_matrix(
     kept = {name: columns[name] for name in layout.parameters}
     if not layout.parameters:
         return np.zeros((n, 0)), kept
-    if uniform:
+    if uniform and one_row:
         return np.broadcast_to(
             np.array([columns[name][0] for name in layout.parameters]), (n, len(kept))
         ), kept
@@ -632,7 +632,7 @@ def simulate_ensemble(
     compiled = target.looped(compiled, method)  # (numba: its observe compiled and cached with the loop)
     layout = compiled.layout
 
-    P, param_columns = _parameter_matrix(system, layout, parameters, n)
+    P, param_columns = _parameter_matrix(system, layout, parameters, n, target.one_parameter_row)
     notes: list[str] = []
     Y0 = _states(system, entry, layout, initial_states, P, vak, t0, notes)
 

@@ -147,6 +147,10 @@ class Target:
     #: whether :meth:`ensemble` also returns ``observed0``, ``observe`` at every member's start
     #: (the GPU: from the states already on the device, in the same pass)
     observes_start: bool = False
+    #: whether parameters given as numbers may reach :meth:`ensemble` as one row seen by every
+    #: member (a read-only view: the GPU uploads the row once; numba would compile the CPU loop
+    #: again for read-only arrays, some 4 s)
+    one_parameter_row: bool = False
     #: whether the symmetric fixed-step methods (:mod:`~chaplygin.numeric.symmetric`) run on it
     symmetric: bool = False
     #: how :meth:`build` prints the generated Python module (:func:`~chaplygin.numeric.codegen._module`):

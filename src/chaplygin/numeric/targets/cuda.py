@@ -24,6 +24,7 @@ class Cuda(Target):
 
     name = "cuda"
     observes_start = True
+    one_parameter_row = True
 
     def unavailable(self) -> str | None:
         from chaplygin.numeric import _cuda
