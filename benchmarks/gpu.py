@@ -30,12 +30,16 @@ Flops per right-hand side are counted, roughly, from the generated C ``fill``: i
 ``2/3·dim³ + 2·dim²`` and DOP853's own stage arithmetic as ``20·n`` (240·n flops over the 12
 evaluations of a step).  The peak is SMs × FP64 units per SM × 2 (a fused multiply-add) × clock
 (``--peak-tflops`` overrides it); the kernel contracts into fused multiply-adds (``--no-fmad``:
-not, and half that peak is its ceiling).
+not, and half that peak is its ceiling).  Under a cuda row, "(loop: …; outside the loop …)":
+the host's seconds in each phase of the driver (``DeviceKernel.timings``: uploads and launches,
+waiting for a chunk's kernel, downloads; overlapped time counted once) and in each step of
+``simulate_ensemble`` around the loop (compile, parameters, states, observe, residuals, …).
 
 ``--check`` compares ``--check-members`` members of each case on the GPU with the C loop (the
 same members, ``backend="c"``), among them members with no inertia (a singular mass matrix,
 status 5) and a run stopped by a step budget (status 4): the largest difference of the final
-states, relative to max(1, |y|), and whether every status agrees.  Without a GPU it runs the
+states, relative to max(1, |y|), and whether every status agrees; then the same members with the
+parameters given as numbers (one row for all).  Without a GPU it runs the
 kernel's host build (the same source compiled for the CPU) instead, and says so.
 """
 
@@ -168,7 +172,7 @@ def device() -> tuple[str, float | None]:
 
 
 def host_as_device() -> None:
-    """Without a GPU: the kernel's host build stands in for it (``--check`` only)."""
+    """Without a GPU: the kernel's host build stands in for it (``--check``, ``--host-build``)."""
     _cuda.device_problem = lambda: None  # type: ignore[assignment]
     _cuda.DeviceKernel = _cuda.HostKernel  # type: ignore[misc,assignment]
 
@@ -183,16 +187,17 @@ def check(cases: list[str], members: int) -> bool:
         for k in ("m", "A", "B", "C", "D"):  # members 0 and 7: no inertia at all, a singular M
             if k in params:
                 params[k][[0, 7]] = 0.0
-        for budget in (1_000_000, 50):
+        # per member (two without inertia), with a step budget, and as numbers (one row for all)
+        for given, budget in ((params, 1_000_000), (params, 50), (prob.parameters, 1_000_000)):
             t = time.perf_counter()
-            gpu = prob.run("cuda", Y0, params, max_steps=budget)
+            gpu = prob.run("cuda", Y0, given, max_steps=budget)
             t_gpu = time.perf_counter() - t
             if BUILT and budget == 1_000_000:
                 print(
                     f"  (cuda kernel of {case}: {resident(BUILT[0])[1]}; NVRTC {BUILT[0].compile_seconds:.1f} s)"
                 )
             t = time.perf_counter()
-            ref = prob.run("c", Y0, params, max_steps=budget)
+            ref = prob.run("c", Y0, given, max_steps=budget)
             t_c = time.perf_counter() - t
             same = np.array_equal(gpu.code, ref.code)
             ok = (gpu.code == 0) & (ref.code == 0)
@@ -201,7 +206,8 @@ def check(cases: list[str], members: int) -> bool:
             rhs = np.abs(gpu.rhs_evaluations - ref.rhs_evaluations)
             codes = dict(zip(*np.unique(ref.code, return_counts=True)))
             print(
-                f"check {case:13s} max_steps={budget:<8d} members={members}: statuses "
+                f"check {case:13s} max_steps={budget:<8d} members={members} parameters "
+                f"{'as numbers' if given is prob.parameters else 'per member'}: statuses "
                 f"{'agree' if same else 'DIFFER'} {dict((int(k), int(v)) for k, v in codes.items())}; "
                 f"max |Δy|/max(1,|y|) = {worst:.2e} on {int(ok.sum())} successful; members with other "
                 f"RHS counts {int(np.count_nonzero(rhs))} (max {int(rhs.max())}); cuda {t_gpu:.2f} s, c {t_c:.2f} s",
@@ -560,6 +566,11 @@ def main() -> None:
     if args.max_seconds is None:
         args.max_seconds = 10.0 if args.quick else 20.0
     if args.host_build:
+        variants = [b for b in args.backends.split(",") if b.startswith("cuda:")]
+        if variants:  # (the host build takes none of NVRTC's options: the same code under each name)
+            sys.exit(
+                f"gpu.py: --host-build runs the kernel's host build, which has no variants: {', '.join(variants)}"
+            )
         print(
             "cuda: the kernel's host build stands in for the GPU (a test of this script, not a measurement)"
         )

@@ -167,6 +167,45 @@ def test_the_gpu_observes_a_reduced_models_start_in_its_own_run(host_as_device, 
         np.testing.assert_array_equal(ens.velocities_initial[name], values, err_msg=name)
 
 
+def _driven_knife() -> Any:
+    """A knife edge whose track moves sideways as w sin t: y' = tan(phi) x' + w sin t."""
+    import sympy as sp
+    from sympy.physics.vector import dynamicsymbols
+
+    from chaplygin import System
+
+    t = sp.Symbol("t")
+    x, y, phi = dynamicsymbols("x y phi")
+    m, J, w = sp.symbols("m J w", positive=True)
+    T = m / 2 * (x.diff(t) ** 2 + y.diff(t) ** 2) + J / 2 * phi.diff(t) ** 2
+    return System([x, y, phi], T, [y.diff(t) - sp.tan(phi) * x.diff(t) - w * sp.sin(t)], dependent=[y])
+
+
+_DRIVEN_P = {"m": 1.0, "J": 0.5, "w": 2.0}
+
+
+def test_the_gpu_observes_a_start_at_its_own_time(host_as_device):
+    """A constraint driven in time, started at t = 1: the start observed in the GPU's run (the
+    reduced models) and before it (the multiplier model) is the C backend's, bit for bit
+    (observed at t = 0 instead, the sideways velocity at the start would be off by w sin 1)."""
+    starts = [{"x": 0.0, "y": 0.0, "phi": 0.2 * k, "x'": 1.0, "phi'": 0.3} for k in range(3)]
+    for model in ("chaplygin", "voronets", "chetaev"):
+        runs = {
+            b: simulate_ensemble(_driven_knife(), model, (1.0, 1.5), starts, _DRIVEN_P, backend=b)
+            for b in ("c", "cuda")
+        }
+        assert runs["cuda"].backend == "cuda" and runs["c"].success.all()
+        for field in ("energy_initial", "energy", "y", "constraint_residual"):
+            np.testing.assert_array_equal(
+                getattr(runs["cuda"], field), getattr(runs["c"], field), err_msg=field
+            )
+        for name, values in runs["c"].velocities_initial.items():
+            np.testing.assert_array_equal(runs["cuda"].velocities_initial[name], values, err_msg=name)
+        np.testing.assert_allclose(
+            runs["c"].velocities_initial["y'"], np.tan([0.0, 0.2, 0.4]) + 2 * np.sin(1.0)
+        )
+
+
 def test_a_multiplier_models_start_off_its_constraints_is_refused_before_the_run(host_as_device, monkeypatch):
     """The Chetaev model integrates every velocity: a row off the constraints is refused, naming
     it, on the GPU as on the CPU, before any member is integrated."""
@@ -183,6 +222,28 @@ def test_a_multiplier_models_start_off_its_constraints_is_refused_before_the_run
     for backend in ("cuda", "c"):
         with pytest.raises(ChaplyginError, match=r"rows \[2\] violate the constraints"):
             simulate_ensemble(disk, "chetaev", 0.5, Y0, DISK_P, backend=backend, time_limit=None)
+
+
+def test_only_the_gpu_gets_parameters_given_as_numbers_as_one_row(host_as_device, monkeypatch):
+    """Parameters given as numbers reach the GPU as one row seen by every member (a read-only
+    view, uploaded as a row), also in blocks checked for poles (the knife edge); the CPU loops get
+    a matrix they may write (numba would compile its loop again for a read-only array)."""
+    from chaplygin.numeric import targets
+
+    seen: dict[str, set[tuple[bool, bool]]] = {"c": set(), "cuda": set()}
+    for backend in seen:
+        kind = type(targets.get(backend))
+
+        def spy(self, compiled, t_span, Y0, P, _original=kind.ensemble, _backend=backend, **kw):
+            seen[_backend].add((P.strides[0] == 0, P.flags.writeable))
+            return _original(self, compiled, t_span, Y0, P, **kw)
+
+        monkeypatch.setattr(kind, "ensemble", spy)
+    disk, knife = examples.rolling_disk(), examples.knife_edge()
+    for backend in seen:
+        simulate_ensemble(disk, "chaplygin", 0.2, [DISK_0] * 3, DISK_P, backend=backend, time_limit=None)
+        simulate_ensemble(knife, "chaplygin", 1.0, KNIFE_0, KNIFE_P, backend=backend, keep=5, time_limit=None)
+    assert seen == {"c": {(False, True)}, "cuda": {(True, False)}}
 
 
 def test_auto_takes_the_gpu_for_large_ensembles_only(host_as_device, monkeypatch):
@@ -314,9 +375,10 @@ def _fake_cupy(free_bytes: int) -> Any:
 
 def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     """DeviceKernel's layout (members last), chunks and launches, with CuPy replaced by NumPy and
-    the kernel by its host build: the C loop's results, in chunks of 2 members of 12 (the memory
+    the kernel by its host build: the C loop's results, in chunks of 5 members of 12 (the memory
     of 5, two chunks on the device at a time), each launched before the one before it is
-    downloaded, on alternate streams."""
+    downloaded, on alternate streams; what every chunk shares (the kept times, atol) on the
+    device before either stream goes on; nothing on the legacy default stream."""
     Y0, P = _disk_members(disk_c)
     n, k = Y0.shape[1], 7
     per_member = 8 * 2 * (n + P.shape[1] + k * n + n + 2 * disk_c.module.N_OBSERVED + 4)
@@ -327,28 +389,44 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     # a preference the driver cannot take (the stand-in has none) is noted, not fatal
     assert "carveout not set" in _cuda.DeviceKernel(disk_c.module, n, P.shape[1], carveout=0).options[-1]
     times = np.linspace(0.0, 3.0, k)
-    # (without samples a member needs less memory: chunks of 6)
-    for t_end, kept, sizes in ((3.0, times, [2] * 6), (1.0, None, [6, 6])):
+    first, second = gpu.streams
+    # (without samples a member needs less memory: one chunk)
+    for t_end, kept, sizes in ((3.0, times, [5, 5, 2]), (1.0, None, [12])):
         del cupy.events[:]
         ours = gpu.run((0.0, t_end), Y0, P, times=kept)  # (the start observed from each chunk's upload)
+        assert None not in {e[2] for e in cupy.events}  # (every copy and launch on a stream of the run)
+        assert cupy.events[:3] == [("upload", (k if kept is not None else 0,), first), ("upload", (n,), first),
+                                   ("wait", None, first)]  # fmt: skip
         chunks = [(m, stream) for name, m, stream in cupy.events if name == "chaplygin_members"]
-        assert [m for m, _ in chunks] == sizes and None not in {stream for _, stream in chunks}
-        assert chunks[0][1] is not chunks[1][1] and all(a[1] is b[1] for a, b in zip(chunks, chunks[2:]))
+        assert chunks == [(m, (first, second)[i % 2]) for i, m in enumerate(sizes)]
         # each chunk's start observed on its stream before its members run
         assert [e[1:] for e in cupy.events if e[0] == "chaplygin_observe"] == chunks
-        waits = [e[2] for e in cupy.events if e[0] == "wait"]
+        waits = [e[2] for e in cupy.events[3:] if e[0] == "wait"]
         assert waits == [stream for _, stream in chunks]  # each chunk waited for once, in order
-        at = {e: [j for j, f in enumerate(cupy.events) if f[0] == e] for e in ("chaplygin_members", "wait")}
+        at = {
+            e: [j for j, f in enumerate(cupy.events[3:]) if f[0] == e] for e in ("chaplygin_members", "wait")
+        }
         for i in range(1, len(sizes)):  # chunk i launched before chunk i - 1 is waited for
             assert at["chaplygin_members"][i] < at["wait"][i - 1]
         _assert_same(
             ours, ensemble_dop853(disk_c, (0.0, t_end), Y0, P, times=kept, threads=1), (disk_c, 0.0, Y0, P)
         )
+    # a start at t = 1 of a constraint driven in time: observed there
+    driven = compile_model(_driven_knife(), "chaplygin", "classic", "c")
+    Y1 = np.array([[0.0, 0.0, 0.2 * k, 1.0, 0.3] for k in range(4)])
+    P1 = np.tile(parameter_vector(driven.layout, _DRIVEN_P), (4, 1))
+    ran = _cuda.DeviceKernel(driven.module, 5, P1.shape[1]).run((1.0, 1.5), Y1, P1)
+    np.testing.assert_array_equal(ran["observed0"], [driven.observe(1.0, y, p) for y, p in zip(Y1, P1)])
+    # no members: empty arrays (one chunk of none); a chunk of no members is refused
+    empty = gpu.run((0.0, 1.0), Y0[:0], P[:0])
+    assert empty["y"].shape == (0, n) and empty["observed0"].shape == (0, disk_c.module.N_OBSERVED)
+    with pytest.raises(ChaplyginError, match="chunk = 0"):
+        gpu.run((0.0, 1.0), Y0, P, chunk=0)
     # one parameter vector for all (simulate_ensemble's view of one row, for numbers): uploaded
     # as one row, the same results as the full matrix's
     del cupy.events[:]
     one = gpu.run((0.0, 1.0), Y0, np.broadcast_to(P[0], P.shape))
-    assert [e[1] for e in cupy.events if e[0] == "upload"] == [(0,), (n,)] + [(n, 6), (P.shape[1],)] * 2
+    assert [e[1] for e in cupy.events if e[0] == "upload"] == [(0,), (n,), (n, len(Y0)), (P.shape[1],)]
     _assert_same(one, gpu.run((0.0, 1.0), Y0, np.tile(P[0], (len(P), 1))))
     t = np.linspace(0.0, 1.0, len(Y0))
     np.testing.assert_array_equal(gpu.observe(t, Y0, P), [disk_c.observe(*row) for row in zip(t, Y0, P)])
@@ -504,7 +582,9 @@ _NO_GPU = _cuda.device_problem()
 def test_gpu_kernel_agrees_with_the_c_loop(disk_c):  # pragma: no cover - needs a GPU
     Y0, P = _disk_members(disk_c, 64)
     times = np.linspace(0.0, 3.0, 7)
-    gpu = _cuda.DeviceKernel(disk_c.module, Y0.shape[1], P.shape[1]).run(
+    # (without contraction into fused multiply-adds: the two builds below, one with -DCH_STRIDED,
+    # need not contract alike, and are compared bit for bit)
+    gpu = _cuda.DeviceKernel(disk_c.module, Y0.shape[1], P.shape[1], fmad=False).run(
         (0.0, 3.0), Y0, P, times=times, chunk=17
     )
     ref = ensemble_dop853(disk_c, (0.0, 3.0), Y0, P, times=times, threads=1)
@@ -514,7 +594,7 @@ def test_gpu_kernel_agrees_with_the_c_loop(disk_c):  # pragma: no cover - needs 
     np.testing.assert_allclose(gpu["samples"][ok], ref["samples"][ok], rtol=1e-8, atol=1e-8)
     assert np.abs(gpu["n_rhs"] - ref["n_rhs"]).max() <= 0.05 * ref["n_rhs"].max()
     # one multiprocessor of 32 threads for the 64 members: each thread takes two in turn
-    capped = _cuda.DeviceKernel(disk_c.module, Y0.shape[1], P.shape[1], resident=32)
+    capped = _cuda.DeviceKernel(disk_c.module, Y0.shape[1], P.shape[1], resident=32, fmad=False)
     capped.multiprocessors = 1
     assert _cuda.launch(len(Y0), capped.multiprocessors, capped.resident) == (32, 1)
     _assert_same(capped.run((0.0, 3.0), Y0, P, times=times), gpu)

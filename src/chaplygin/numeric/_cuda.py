@@ -42,7 +42,7 @@ Layout
 Members are the fastest index of every array the kernel reads or writes (struct of arrays):
 ``Y0[i * members + m]``, ``P[j * members + m]``, ``out[(k * n + i) * members + m]``, … , so
 that the threads of a warp, neighbouring members, read and write neighbouring addresses.  The
-driver transposes on the device.  A large ensemble runs in chunks (:data:`PIECES`, and as many
+driver transposes each chunk's arrays on the host (NumPy).  A large ensemble runs in chunks (:data:`PIECES`, and as many
 as a share of the device's free memory needs, :data:`MEMORY_SHARE`), each launched on one of two
 CUDA streams before the chunk before it is downloaded, so that the transfers overlap the kernels.
 """
@@ -326,7 +326,7 @@ class _Arrays:
         self.Y0 = np.ascontiguousarray(Y0, dtype=float)
         P = np.asarray(P, dtype=float)
         #: one row of parameters for every member (a view of one row, as simulate_ensemble's for
-        #: numbers): uploaded once and repeated on the device
+        #: numbers): each chunk uploads the row and repeats it on the device
         self.uniform = P.ndim == 2 and P.shape[0] > 0 and P.strides[0] == 0
         self.P = P if self.uniform else np.ascontiguousarray(P)
         self.members, self.n = self.Y0.shape
@@ -498,6 +498,9 @@ class DeviceKernel:
             )
         except Exception:  # a CuPy without it: blocks of BLOCK
             self.multiprocessors = None
+        #: the two streams of :meth:`run`'s chunks, made once: CuPy's memory pool keeps the blocks
+        #: freed on a stream for that stream, so a run on new streams would not reuse a run's memory
+        self.streams = [cupy.cuda.Stream(non_blocking=True) for _ in range(2)]
         #: the host's seconds in the last :meth:`run`: host (checks, arrays), upload (uploads and
         #: launches), kernel (waiting for a chunk's kernel), download (time overlapped with a
         #: kernel, as a later chunk's upload and an earlier one's download, is counted once)
@@ -528,17 +531,21 @@ class DeviceKernel:
         a = _Arrays(Y0, P, times, rtol, atol, self.kernel.N_OBSERVED)
         m_all, n, k = a.members, a.n, a.t_out.size
         width_p = a.P.shape[1]
-        # per member: inputs and outputs, each once members-first and once members-last; two
-        # chunks on the device at a time
-        per_member = 2 * (n + width_p + k * n + n + 2 * a.n_obs + 4)
+        # per member on the device: inputs and outputs (members-last; transposed on the host),
+        # two chunks at a time
+        per_member = n + width_p + k * n + n + 2 * a.n_obs + 4
         pieces = min(PIECES, max(1, m_all // PIECE_MEMBERS))
-        step = chunk or min(self._chunk(m_all, 2 * per_member), -(-m_all // pieces))
+        if chunk is not None and chunk < 1:
+            raise ChaplyginError(f"chunk = {chunk}: at least 1 member a chunk.")
+        step = chunk or max(1, min(self._chunk(m_all, 2 * per_member), -(-m_all // pieces)))
         t_last, last = np.empty(m_all), np.empty((m_all, n))
         obs, obs0 = np.empty((m_all, a.n_obs)), np.empty((m_all, a.n_obs))
         code, n_rhs = np.empty(m_all, dtype=np.int64), np.empty(m_all, dtype=np.int64)
         samples = np.empty((m_all, k, n)) if times is not None else None
-        t_out, atol_d = cp.asarray(a.t_out), cp.asarray(a.atol)
-        streams = [cp.cuda.Stream(non_blocking=True) for _ in range(2)]
+        streams = self.streams
+        with streams[0]:  # (shared by every chunk: on the device before either stream goes on)
+            t_out, atol_d = cp.asarray(a.t_out), cp.asarray(a.atol)
+        streams[0].synchronize()
         clock["host"] = time.perf_counter() - clock["host"]
 
         def start(lo: int, stream: Any) -> tuple[int, int, Any, dict[str, Any]]:

@@ -304,6 +304,15 @@ def _parameter_matrix(
     return np.ascontiguousarray(np.column_stack(list(kept.values()))), kept
 
 
+def _rows(P: np.ndarray, rows: slice | np.ndarray) -> np.ndarray:
+    """``P[rows]``; where ``P`` is one row seen by every member (``one_row``), that row seen by
+    each of ``rows`` (indexing would copy it out, once per member)."""
+    if not (P.shape[0] and P.strides[0] == 0):
+        return P[rows]
+    count = len(range(P.shape[0])[rows]) if isinstance(rows, slice) else len(rows)
+    return np.broadcast_to(P[0], (count, P.shape[1]))
+
+
 def _states(
     system: System,
     entry: Model,
@@ -661,7 +670,7 @@ def simulate_ensemble(
 
     def integrate(rows: slice | np.ndarray, sample_times: np.ndarray | None) -> dict[str, np.ndarray]:
         return target.ensemble(
-            compiled, (t0, t1), Y0[rows], P[rows], times=sample_times, rtol=rtol, atol=atol,
+            compiled, (t0, t1), Y0[rows], _rows(P, rows), times=sample_times, rtol=rtol, atol=atol,
             method=method, max_step=max_step, max_steps=max_steps, threads=threads,
         )  # fmt: skip
 
@@ -680,7 +689,7 @@ def simulate_ensemble(
             for i in range(0, len(members), block):
                 rows = members[i : i + block]
                 part = integrate(rows, checks)
-                _stop_at_poles(system, compiled, part, Y0[rows], P[rows], checks, t0)
+                _stop_at_poles(system, compiled, part, Y0[rows], _rows(P, rows), checks, t0)
                 kept = part.pop("samples")
                 if times is not None:  # the kept times among the checked ones
                     part["samples"] = kept[:, np.searchsorted(checks, times)]
