@@ -244,6 +244,12 @@ def test_only_the_gpu_gets_parameters_given_as_numbers_as_one_row(host_as_device
         simulate_ensemble(disk, "chaplygin", 0.2, [DISK_0] * 3, DISK_P, backend=backend, time_limit=None)
         simulate_ensemble(knife, "chaplygin", 1.0, KNIFE_0, KNIFE_P, backend=backend, keep=5, time_limit=None)
     assert seen == {"c": {(False, True)}, "cuda": {(True, False)}}
+    # a system without parameters: a writable (n, 0) matrix for both (its strides are 0 too)
+    seen = {"c": set(), "cuda": set()}
+    bare = examples.knife_edge(m=1.0, J=0.5)
+    for backend in seen:
+        simulate_ensemble(bare, "chaplygin", 1.0, KNIFE_0, None, backend=backend, keep=5, time_limit=None)
+    assert seen == {"c": {(True, True)}, "cuda": {(True, True)}}
 
 
 def test_auto_takes_the_gpu_for_large_ensembles_only(host_as_device, monkeypatch):
@@ -285,9 +291,13 @@ def test_cuda_without_cupy_says_what_to_install(monkeypatch):
 
 
 class _Array(np.ndarray):
-    """A NumPy array with CuPy's ``get``."""
+    """A NumPy array with CuPy's ``get`` (which ``_fake_cupy`` logs, with its stream)."""
+
+    log: Any = None
 
     def get(self, out: np.ndarray | None = None) -> np.ndarray:
+        if _Array.log is not None:
+            _Array.log()
         if out is None:
             return np.array(self)
         assert (
@@ -300,8 +310,9 @@ class _Array(np.ndarray):
 def _fake_cupy(free_bytes: int) -> Any:
     """CuPy as far as DeviceKernel uses it: arrays are NumPy's, a kernel launch calls the host
     build of the same source, and the device has ``free_bytes`` free (to force chunks).  Its
-    ``events`` list the uploads ("upload", shape, stream), the launches (kernel, members, stream)
-    and the waits for a stream."""
+    ``events`` list the uploads ("upload", shape, stream), the launches (kernel, members, stream),
+    the waits for a stream, and the arrays made and copied back on the device (name, None,
+    stream)."""
     import ctypes
     import types
 
@@ -324,6 +335,15 @@ def _fake_cupy(free_bytes: int) -> Any:
 
     def wrap(f):
         return lambda *a, **k: np.asarray(f(*a, **k)).view(_Array)
+
+    def made(f):  # (an array made on the device, on the current stream)
+        def call(*args, **kwargs):
+            events.append((f.__name__, None, current[-1]))
+            return wrap(f)(*args, **kwargs)
+
+        return call
+
+    _Array.log = lambda: events.append(("get", None, current[-1]))
 
     def upload(x, *args, **kwargs):
         if not isinstance(x, _Array):  # (from the host)
@@ -367,9 +387,9 @@ def _fake_cupy(free_bytes: int) -> Any:
     runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, deviceGetAttribute=lambda attribute, device: 2)
     cuda = types.SimpleNamespace(runtime=runtime, Device=Device, Stream=Stream)
     return types.SimpleNamespace(
-        cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=upload, broadcast_to=wrap(np.broadcast_to),
-        ascontiguousarray=wrap(np.ascontiguousarray), empty=wrap(np.empty), zeros=wrap(np.zeros),
-        full=wrap(np.full), events=events,
+        cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=upload,
+        ascontiguousarray=made(np.ascontiguousarray), empty=made(np.empty), zeros=made(np.zeros),
+        full=made(np.full), broadcast_to=made(np.broadcast_to), events=events,
     )  # fmt: skip
 
 
@@ -390,6 +410,8 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     assert "carveout not set" in _cuda.DeviceKernel(disk_c.module, n, P.shape[1], carveout=0).options[-1]
     times = np.linspace(0.0, 3.0, k)
     first, second = gpu.streams
+    # made once for every kernel (CuPy's pool keeps freed blocks per stream)
+    assert _cuda.DeviceKernel(disk_c.module, n, P.shape[1]).streams is gpu.streams
     # (without samples a member needs less memory: one chunk)
     for t_end, kept, sizes in ((3.0, times, [5, 5, 2]), (1.0, None, [12])):
         del cupy.events[:]
@@ -426,6 +448,7 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     # as one row, the same results as the full matrix's
     del cupy.events[:]
     one = gpu.run((0.0, 1.0), Y0, np.broadcast_to(P[0], P.shape))
+    assert ("broadcast_to", None, first) in cupy.events and None not in {e[2] for e in cupy.events}
     assert [e[1] for e in cupy.events if e[0] == "upload"] == [(0,), (n,), (n, len(Y0)), (P.shape[1],)]
     _assert_same(one, gpu.run((0.0, 1.0), Y0, np.tile(P[0], (len(P), 1))))
     t = np.linspace(0.0, 1.0, len(Y0))

@@ -81,3 +81,20 @@ def test_numbers_for_parameters_are_one_row_seen_by_every_member(disk):
     runs = [simulate_ensemble(disk, "chaplygin", 0.5, starts, p, backend="c") for p in (DISK_P, per_member)]
     for field in ("y", "energy", "energy_initial", "constraint_residual", "rhs_evaluations"):
         np.testing.assert_array_equal(getattr(runs[0], field), getattr(runs[1], field), err_msg=field)
+
+
+def test_a_block_of_members_sees_the_one_row_of_parameters():
+    """``_rows``: the rows of a block (a slice, an index array) of a one-row ``P`` are that row
+    seen by each of them; a full matrix is indexed as it is; no parameters stay a plain array."""
+    from chaplygin.numeric.ensemble import _rows
+
+    row = np.array([1.0, 2.0, 3.0])
+    one = np.broadcast_to(row, (10, 3))
+    for rows, count in ((slice(2, 5), 3), (slice(None), 10), (slice(8, 20), 2), (np.array([9, 0, 4, 4]), 4)):
+        block = _rows(one, rows)
+        assert block.shape == (count, 3) and (count == 0 or block.strides[0] == 0)
+        np.testing.assert_array_equal(block, one[rows])
+    full = np.arange(30.0).reshape(10, 3)
+    np.testing.assert_array_equal(_rows(full, np.array([9, 0])), full[[9, 0]])
+    bare = np.zeros((10, 0))
+    assert _rows(bare, slice(2, 5)).shape == (3, 0) and _rows(bare, slice(2, 5)).flags.writeable

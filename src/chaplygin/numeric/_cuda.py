@@ -42,7 +42,8 @@ Layout
 Members are the fastest index of every array the kernel reads or writes (struct of arrays):
 ``Y0[i * members + m]``, ``P[j * members + m]``, ``out[(k * n + i) * members + m]``, … , so
 that the threads of a warp, neighbouring members, read and write neighbouring addresses.  The
-driver transposes each chunk's arrays on the host (NumPy).  A large ensemble runs in chunks (:data:`PIECES`, and as many
+driver of a run transposes each chunk's arrays on the host (NumPy; :meth:`DeviceKernel.observe`
+on the device).  A large ensemble runs in chunks (:data:`PIECES`, and as many
 as a share of the device's free memory needs, :data:`MEMORY_SHARE`), each launched on one of two
 CUDA streams before the chunk before it is downloaded, so that the transfers overlap the kernels.
 """
@@ -293,6 +294,19 @@ def device_problem() -> str | None:
     return None if count > 0 else "CuPy finds no CUDA device"
 
 
+_STREAMS: dict[tuple[int, int], list[Any]] = {}
+
+
+def _run_streams(cupy: Any) -> list[Any]:
+    """The two streams of :meth:`DeviceKernel.run`'s chunks on the current device, made once per
+    process (and CuPy module) for every kernel: CuPy's memory pool keeps the blocks freed on a
+    stream for that stream, so that runs on new streams would not reuse each other's memory."""
+    key = (id(cupy), int(cupy.cuda.Device().id))
+    if key not in _STREAMS:
+        _STREAMS[key] = [cupy.cuda.Stream(non_blocking=True) for _ in range(2)]
+    return _STREAMS[key]
+
+
 def block_size(members: int, multiprocessors: int | None) -> int:
     """Threads per block: :data:`BLOCK`, or fewer (a multiple of 32, a warp) where blocks of
     :data:`BLOCK` would leave multiprocessors idle: 1 000 members in blocks of 128 run on 8 of an
@@ -327,7 +341,7 @@ class _Arrays:
         P = np.asarray(P, dtype=float)
         #: one row of parameters for every member (a view of one row, as simulate_ensemble's for
         #: numbers): each chunk uploads the row and repeats it on the device
-        self.uniform = P.ndim == 2 and P.shape[0] > 0 and P.strides[0] == 0
+        self.uniform = P.ndim == 2 and P.shape[0] > 0 and P.shape[1] > 0 and P.strides[0] == 0
         self.P = P if self.uniform else np.ascontiguousarray(P)
         self.members, self.n = self.Y0.shape
         if self.P.shape[0] != self.members:
@@ -498,9 +512,8 @@ class DeviceKernel:
             )
         except Exception:  # a CuPy without it: blocks of BLOCK
             self.multiprocessors = None
-        #: the two streams of :meth:`run`'s chunks, made once: CuPy's memory pool keeps the blocks
-        #: freed on a stream for that stream, so a run on new streams would not reuse a run's memory
-        self.streams = [cupy.cuda.Stream(non_blocking=True) for _ in range(2)]
+        #: the two streams of :meth:`run`'s chunks (:func:`_run_streams`)
+        self.streams = _run_streams(cupy)
         #: the host's seconds in the last :meth:`run`: host (checks, arrays), upload (uploads and
         #: launches), kernel (waiting for a chunk's kernel), download (time overlapped with a
         #: kernel, as a later chunk's upload and an earlier one's download, is counted once)

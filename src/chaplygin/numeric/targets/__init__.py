@@ -148,8 +148,8 @@ class Target:
     #: (the GPU: from the states already on the device, in the same pass)
     observes_start: bool = False
     #: whether parameters given as numbers may reach :meth:`ensemble` as one row seen by every
-    #: member (a read-only view: the GPU uploads the row once; numba would compile the CPU loop
-    #: again for read-only arrays, some 4 s)
+    #: member (a read-only view: the GPU uploads the row, not the matrix; numba would compile the
+    #: CPU loop again for read-only arrays, some 4 s)
     one_parameter_row: bool = False
     #: whether the symmetric fixed-step methods (:mod:`~chaplygin.numeric.symmetric`) run on it
     symmetric: bool = False
