@@ -330,6 +330,8 @@ def _fake_cupy(free_bytes: int) -> Any:
         def __exit__(self, *exc: Any) -> None:
             current.pop()
 
+        done = True  # (its kernels ran when they were launched)
+
         def synchronize(self) -> None:
             events.append(("wait", None, self))
 
@@ -439,6 +441,16 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
     P1 = np.tile(parameter_vector(driven.layout, _DRIVEN_P), (4, 1))
     ran = _cuda.DeviceKernel(driven.module, 5, P1.shape[1]).run((1.0, 1.5), Y1, P1)
     np.testing.assert_array_equal(ran["observed0"], [driven.observe(1.0, y, p) for y, p in zip(Y1, P1)])
+
+    # Ctrl-C while a chunk's kernel runs is taken at once, not when the kernel ends
+    def interrupted(seconds: float) -> None:
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as busy:
+        busy.setattr(type(first), "done", False)
+        busy.setattr(_cuda.time, "sleep", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            gpu.run((0.0, 1.0), Y0, P)
     # no members: empty arrays (one chunk of none); a chunk of no members is refused
     empty = gpu.run((0.0, 1.0), Y0[:0], P[:0])
     assert empty["y"].shape == (0, n) and empty["observed0"].shape == (0, disk_c.module.N_OBSERVED)
