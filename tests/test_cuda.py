@@ -330,7 +330,11 @@ def _fake_cupy(free_bytes: int) -> Any:
         def __exit__(self, *exc: Any) -> None:
             current.pop()
 
-        done = True  # (its kernels ran when they were launched)
+        status = 0  # what cudaStreamQuery says of it (its kernels ran when they were launched)
+
+        @property
+        def ptr(self) -> Stream:  # (the handle cudaStreamQuery is given: here the stream itself)
+            return self
 
         def synchronize(self) -> None:
             events.append(("wait", None, self))
@@ -386,7 +390,11 @@ def _fake_cupy(free_bytes: int) -> Any:
         def synchronize(self) -> None:
             pass
 
-    runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, deviceGetAttribute=lambda attribute, device: 2)
+    runtime = types.SimpleNamespace(
+        getDeviceCount=lambda: 1,
+        deviceGetAttribute=lambda attribute, device: 2,
+        streamQuery=lambda s: s.status,
+    )
     cuda = types.SimpleNamespace(runtime=runtime, Device=Device, Stream=Stream)
     return types.SimpleNamespace(
         cuda=cuda, RawModule=RawModule, int64=np.int64, asarray=upload,
@@ -447,10 +455,15 @@ def test_the_device_driver_with_a_stand_in_for_cupy(disk_c, monkeypatch):
         raise KeyboardInterrupt
 
     with monkeypatch.context() as busy:
-        busy.setattr(type(first), "done", False)
+        busy.setattr(type(first), "status", 600)  # cudaErrorNotReady
         busy.setattr(_cuda.time, "sleep", interrupted)
         with pytest.raises(KeyboardInterrupt):
             gpu.run((0.0, 1.0), Y0, P)
+        # a stream whose kernel failed is not waited for forever: its synchronisation raises
+        busy.setattr(type(first), "status", 700)  # cudaErrorIllegalAddress
+        busy.setattr(_cuda.time, "sleep", lambda seconds: pytest.fail("waited for a stream that failed"))
+        gpu.run((0.0, 1.0), Y0, P)
+        assert cupy.events[-1][0] == "get" and ("wait", None, first) in cupy.events
     # no members: empty arrays (one chunk of none); a chunk of no members is refused
     empty = gpu.run((0.0, 1.0), Y0[:0], P[:0])
     assert empty["y"].shape == (0, n) and empty["observed0"].shape == (0, disk_c.module.N_OBSERVED)

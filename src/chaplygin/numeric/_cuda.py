@@ -297,13 +297,16 @@ def device_problem() -> str | None:
 _STREAMS: dict[tuple[int, int], list[Any]] = {}
 #: seconds between two looks at a stream whose kernel runs (:func:`_wait`)
 POLL = 0.001
+#: cudaErrorNotReady, what cudaStreamQuery says of a stream whose work runs
+_NOT_READY = 600
 
 
-def _wait(stream: Any) -> None:
-    """Until ``stream``'s work is done, looking every :data:`POLL` seconds: Ctrl-C is taken at
+def _wait(cupy: Any, stream: Any) -> None:
+    """Until ``stream``'s work is over, looking every :data:`POLL` seconds: Ctrl-C is taken at
     once (a blocking synchronisation takes it only when the kernel ends: 10⁵ rattlebacks on an
-    H100 are one chunk of some 4 s); then synchronised (at once), which raises what the work raised."""
-    while not stream.done:
+    H100 are one chunk of some 4 s); then synchronised, which returns at once, or raises what
+    went wrong (a failed kernel's error is not "not ready": ``Stream.done`` would stay False)."""
+    while cupy.cuda.runtime.streamQuery(stream.ptr) == _NOT_READY:
         time.sleep(POLL)
     stream.synchronize()
 
@@ -604,7 +607,7 @@ class DeviceKernel:
             on the host: a transposing kernel on the device would wait for the slots of the next
             chunk's (on an H100, 10⁶ disks in 8 chunks: 0.39 s of downloads, 0.07 s in one chunk)."""
             mark = time.perf_counter()
-            _wait(stream)
+            _wait(cp, stream)
             clock["kernel"] += time.perf_counter() - mark
             mark = time.perf_counter()
             with stream:
