@@ -347,15 +347,22 @@ def _soa(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a.T)
 
 
+def one_row(P: np.ndarray) -> bool:
+    """Whether ``P`` (members × parameters) is one row seen by every member, a stride-0 view (as
+    :func:`~chaplygin.numeric.ensemble.simulate_ensemble` makes for parameters given as numbers
+    on the GPU); no parameters at all (strides 0 too) are not."""
+    return bool(P.shape[0] and P.shape[1] and P.strides[0] == 0)
+
+
 class _Arrays:
     """Checked inputs of one ensemble run."""
 
     def __init__(self, Y0: Any, P: Any, times: Any, rtol: float, atol: Any, n_obs: int) -> None:
         self.Y0 = np.ascontiguousarray(Y0, dtype=float)
         P = np.asarray(P, dtype=float)
-        #: one row of parameters for every member (a view of one row, as simulate_ensemble's for
-        #: numbers): each chunk uploads the row and repeats it on the device
-        self.uniform = P.ndim == 2 and P.shape[0] > 0 and P.shape[1] > 0 and P.strides[0] == 0
+        #: one row of parameters for every member (:func:`one_row`): each chunk uploads the row
+        #: and repeats it on the device
+        self.uniform = P.ndim == 2 and one_row(P)
         self.P = P if self.uniform else np.ascontiguousarray(P)
         self.members, self.n = self.Y0.shape
         if self.P.shape[0] != self.members:

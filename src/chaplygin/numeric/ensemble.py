@@ -307,7 +307,7 @@ def _parameter_matrix(
 def _rows(P: np.ndarray, rows: slice | np.ndarray) -> np.ndarray:
     """``P[rows]``; where ``P`` is one row seen by every member (``one_row``), that row seen by
     each of ``rows`` (indexing would copy it out, once per member)."""
-    if not (P.shape[0] and P.shape[1] and P.strides[0] == 0):  # (no parameters: strides 0 too)
+    if not _cuda.one_row(P):
         return P[rows]
     count = len(range(P.shape[0])[rows]) if isinstance(rows, slice) else len(rows)
     return np.broadcast_to(P[0], (count, P.shape[1]))
